@@ -1,0 +1,671 @@
+#include "assets/scene_file.h"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string_view>
+
+#include "assets/mesh_import.h"
+#include "sim_core/common/input_error.h"
+
+// How the parser works: every table is read through a TableView, which refuses unknown keys
+// first (typo protection) and hands out Fields; a Field knows its qualified name
+// ("garment[0].panel.size") and its position (the key's, or an array element's own), so every
+// check can throw the `file:line:column: name = value unit: problem` message of scene_file.h.
+// Ranges are checked here, where the line is known; ValidateScene repeats the file-independent
+// checks afterwards as a safety net.
+
+namespace costume::assets {
+namespace {
+
+using sim::FormatValue;
+using sim::InputError;
+
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+/// Panel axes count as orthogonal when |u·v| of the normalised axes is at most this.
+constexpr double kAxisOrthogonalityTolerance = 1e-6;
+/// Longest value quoted in a message; longer ones (big arrays) are cut.
+constexpr std::size_t kMaxQuotedValueLength = 80;
+
+constexpr std::string_view kStiffCotton = "stiff_cotton";
+constexpr std::string_view kBlenderCotton = "blender_cotton";
+
+// ---- built-in scenes --------------------------------------------------------------------
+
+struct BuiltInScene {
+  std::string_view name;
+  std::string_view text;
+};
+
+/// Generated at build time from scenes/*.toml by cmake/embed_text.cmake.
+constexpr BuiltInScene kBuiltInScenes[] = {
+#include "generated/builtin_scenes.inc"
+};
+
+// ---- formatting -------------------------------------------------------------------------
+
+std::string Join(const std::vector<std::string>& items) {
+  std::string text;
+  for (const std::string& item : items) text += (text.empty() ? "" : ", ") + item;
+  return text;
+}
+
+std::string Join(std::initializer_list<std::string_view> items) {
+  return Join(std::vector<std::string>(items.begin(), items.end()));
+}
+
+std::string Quote(std::string_view text) { return "\"" + std::string(text) + "\""; }
+
+/// A TOML value as a message quotes it: numbers in shortest form, strings quoted.
+std::string DescribeValue(const toml::node& node) {
+  std::string text;
+  if (const auto* integer = node.as_integer()) {
+    text = std::to_string(integer->get());
+  } else if (const auto* number = node.as_floating_point()) {
+    text = FormatValue(number->get());
+  } else if (const auto* boolean = node.as_boolean()) {
+    text = boolean->get() ? "true" : "false";
+  } else if (const auto* string = node.as_string()) {
+    text = Quote(string->get());
+  } else if (const auto* array = node.as_array()) {
+    std::vector<std::string> elements;
+    for (const toml::node& element : *array) elements.push_back(DescribeValue(element));
+    text = "[" + Join(elements) + "]";
+  } else if (node.is_table()) {
+    text = "{...}";
+  } else {
+    std::ostringstream out;  // dates and times: TOML's own spelling
+    node.visit([&out](const auto& value) { out << value; });
+    text = out.str();
+  }
+  if (text.size() > kMaxQuotedValueLength) text = text.substr(0, kMaxQuotedValueLength - 3) + "...";
+  return text;
+}
+
+/// "a string", "an integer", ... for "expected X, found Y" messages.
+std::string TypeName(const toml::node& node) {
+  switch (node.type()) {
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a float";
+    case toml::node_type::boolean: return "a boolean";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::table: return "a table";
+    default: return "a date or time";
+  }
+}
+
+/// An allowed interval for a number, for the check and for the message stating it.
+struct Range {
+  double lo = -kInfinity;
+  double hi = kInfinity;
+  bool lo_open = true;
+  bool hi_open = true;
+
+  bool Contains(double value) const {
+    return (lo_open ? value > lo : value >= lo) && (hi_open ? value < hi : value <= hi);
+  }
+
+  /// What a value must be, e.g. "must be a finite number > 0" or "... in (0, 1)".
+  std::string Requirement() const {
+    const std::string text = "must be a finite number";
+    const bool has_lo = lo > -kInfinity;
+    const bool has_hi = hi < kInfinity;
+    if (has_lo && has_hi) {
+      return text + " in " + (lo_open ? "(" : "[") + FormatValue(lo) + ", " + FormatValue(hi) +
+             (hi_open ? ")" : "]");
+    }
+    if (has_lo) return text + (lo_open ? " > " : " >= ") + FormatValue(lo);
+    if (has_hi) return text + (hi_open ? " < " : " <= ") + FormatValue(hi);
+    return text;
+  }
+};
+
+constexpr Range kAnyNumber{};
+constexpr Range kPositive{0.0, kInfinity, true, true};
+constexpr Range kNonNegative{0.0, kInfinity, false, true};
+constexpr Range kDurationRange{0.0, 3600.0, true, false};
+constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
+constexpr Range kToleranceRange{0.0, 1.0, true, true};
+
+// ---- fields and tables ------------------------------------------------------------------
+
+/// The text being parsed: its name for messages and the folder mesh paths start from.
+struct Source {
+  std::string name;
+  std::string base_dir;
+};
+
+std::string At(const Source& source, toml::source_position position) {
+  return source.name + ":" + std::to_string(position.line) + ":" + std::to_string(position.column);
+}
+
+/// A value of the file with its qualified name ("garment[0].panel.size") and the position
+/// messages point at: its key's, or for an array element its own.
+struct Field {
+  const toml::node* node;
+  std::string name;
+  toml::source_position position;
+  const Source* source;
+
+  /// Throws `file:line:column: name = value unit: problem` (no value for tables).
+  [[noreturn]] void Refuse(const std::string& problem, const std::string& unit = "") const {
+    std::string text = At(*source, position) + ": " + name;
+    if (!node->is_table()) text += " = " + DescribeValue(*node) + (unit.empty() ? "" : " " + unit);
+    throw InputError(text + ": " + problem);
+  }
+
+  /// Element `index` of an array field.
+  Field Element(std::size_t index) const {
+    const toml::node& element = *node->as_array()->get(index);
+    return Field{&element, name + "[" + std::to_string(index) + "]", element.source().begin,
+                 source};
+  }
+};
+
+/// A table of the file with the name its fields are qualified with ("garment[0].panel",
+/// "" at the top level) and the header that introduces it ("[garment.panel]").
+class TableView {
+ public:
+  TableView(const toml::table& table, std::string name, std::string header,
+            toml::source_position position, const Source& source)
+      : table_(&table),
+        name_(std::move(name)),
+        header_(std::move(header)),
+        position_(position),
+        source_(&source) {}
+
+  const std::string& name() const { return name_; }
+  const Source& source() const { return *source_; }
+  int line() const { return static_cast<int>(position_.line); }
+
+  /// Refuses the first key (in file order) that is not in `allowed`, listing the allowed.
+  void RefuseUnknownKeys(std::initializer_list<std::string_view> allowed) const {
+    const toml::key* first_unknown = nullptr;
+    for (auto&& [key, node] : *table_) {
+      if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
+      if (!first_unknown || key.source().begin < first_unknown->source().begin) {
+        first_unknown = &key;
+      }
+    }
+    if (first_unknown) {
+      Find(first_unknown->str())
+          ->Refuse("unknown key; allowed keys for " + header_ + ": " + Join(allowed));
+    }
+  }
+
+  /// The field `key`, or nullopt when the table has none.
+  std::optional<Field> Find(std::string_view key) const {
+    const auto found = table_->find(key);
+    if (found == table_->end()) return std::nullopt;
+    return Field{&found->second, FieldName(key), found->first.source().begin, source_};
+  }
+
+  /// The field `key`; when it is missing, throws pointing at the table.
+  Field Require(std::string_view key) const {
+    std::optional<Field> field = Find(key);
+    if (!field) Refuse(FieldName(key) + ": missing; every " + header_ + " needs it");
+    return *field;
+  }
+
+  /// Throws `file:line:column: problem` at the table's line.
+  [[noreturn]] void Refuse(const std::string& problem) const {
+    throw InputError(At(*source_, position_) + ": " + problem);
+  }
+
+ private:
+  std::string FieldName(std::string_view key) const {
+    return name_.empty() ? std::string(key) : name_ + "." + std::string(key);
+  }
+
+  const toml::table* table_;
+  std::string name_;
+  std::string header_;
+  toml::source_position position_;
+  const Source* source_;
+};
+
+// ---- values -----------------------------------------------------------------------------
+
+/// A number (integers are accepted where floats are expected), finite and in `range`.
+double ReadNumber(const Field& field, const Range& range, const std::string& unit) {
+  double value = 0.0;
+  if (const auto* integer = field.node->as_integer()) {
+    value = static_cast<double>(integer->get());
+  } else if (const auto* number = field.node->as_floating_point()) {
+    value = number->get();
+  } else {
+    field.Refuse("expected a number, found " + TypeName(*field.node), unit);
+  }
+  if (!std::isfinite(value) || !range.Contains(value)) field.Refuse(range.Requirement(), unit);
+  return value;
+}
+
+/// An integer in [lo, hi]; floats are refused, as 33.5 particles has no meaning.
+int ReadInteger(const Field& field, int lo, int hi) {
+  const auto* integer = field.node->as_integer();
+  if (!integer) field.Refuse("expected an integer, found " + TypeName(*field.node));
+  const std::int64_t value = integer->get();
+  if (value < lo || value > hi) {
+    field.Refuse("must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  }
+  return static_cast<int>(value);
+}
+
+bool ReadBool(const Field& field) {
+  const auto* boolean = field.node->as_boolean();
+  if (!boolean) field.Refuse("expected true or false, found " + TypeName(*field.node));
+  return boolean->get();
+}
+
+/// A non-empty string.
+std::string ReadName(const Field& field) {
+  const auto* string = field.node->as_string();
+  if (!string) field.Refuse("expected a string, found " + TypeName(*field.node));
+  if (string->get().empty()) field.Refuse("must not be empty");
+  return string->get();
+}
+
+/// One of `choices`.
+std::string ReadChoice(const Field& field, std::initializer_list<std::string_view> choices) {
+  const auto* string = field.node->as_string();
+  if (!string || std::find(choices.begin(), choices.end(), string->get()) == choices.end()) {
+    std::vector<std::string> quoted;
+    for (std::string_view choice : choices) quoted.push_back(Quote(choice));
+    field.Refuse("must be one of " + Join(quoted));
+  }
+  return string->get();
+}
+
+/// An array of exactly `length` elements (any length when nullopt); `what` names the
+/// expected shape for the message, e.g. "an array of 3 numbers [x, y, z]".
+const toml::array& ReadArray(const Field& field, std::optional<std::size_t> length,
+                             const std::string& what, const std::string& unit) {
+  const auto* array = field.node->as_array();
+  if (!array) field.Refuse("expected " + what + ", found " + TypeName(*field.node), unit);
+  if (length && array->size() != *length) {
+    field.Refuse("expected " + what + ", found " + std::to_string(array->size()) + " element" +
+                     (array->size() == 1 ? "" : "s"),
+                 unit);
+  }
+  return *array;
+}
+
+Eigen::Vector3d ReadVector3(const Field& field, const std::string& unit) {
+  ReadArray(field, 3, "an array of 3 numbers [x, y, z]", unit);
+  Eigen::Vector3d vector;
+  for (int i = 0; i < 3; ++i) vector[i] = ReadNumber(field.Element(i), kAnyNumber, unit);
+  return vector;
+}
+
+/// A non-zero direction, normalised.
+Eigen::Vector3d ReadDirection(const Field& field) {
+  const Eigen::Vector3d direction = ReadVector3(field, "");
+  const double length = direction.norm();
+  if (!(length > 0.0) || !std::isfinite(length)) {
+    field.Refuse("must be a non-zero direction (it is normalised)");
+  }
+  return direction / length;
+}
+
+/// A list of points [[x, y, z], ...] of any length.
+std::vector<Eigen::Vector3d> ReadPoints(const Field& field, const std::string& unit) {
+  const toml::array& array =
+      ReadArray(field, std::nullopt, "an array of points [[x, y, z], ...]", unit);
+  std::vector<Eigen::Vector3d> points;
+  for (std::size_t i = 0; i < array.size(); ++i)
+    points.push_back(ReadVector3(field.Element(i), unit));
+  return points;
+}
+
+double NumberOr(const TableView& table, std::string_view key, double fallback, const Range& range,
+                const std::string& unit) {
+  const std::optional<Field> field = table.Find(key);
+  return field ? ReadNumber(*field, range, unit) : fallback;
+}
+
+int IntegerOr(const TableView& table, std::string_view key, int fallback, int lo, int hi) {
+  const std::optional<Field> field = table.Find(key);
+  return field ? ReadInteger(*field, lo, hi) : fallback;
+}
+
+bool BoolOr(const TableView& table, std::string_view key, bool fallback) {
+  const std::optional<Field> field = table.Find(key);
+  return field ? ReadBool(*field) : fallback;
+}
+
+Eigen::Vector3d Vector3Or(const TableView& table, std::string_view key,
+                          const Eigen::Vector3d& fallback, const std::string& unit) {
+  const std::optional<Field> field = table.Find(key);
+  return field ? ReadVector3(*field, unit) : fallback;
+}
+
+/// The sub-table `key` (a [header] or an inline table), or nullopt when absent.
+std::optional<TableView> FindTable(const TableView& parent, std::string_view key,
+                                   const std::string& header) {
+  const std::optional<Field> field = parent.Find(key);
+  if (!field) return std::nullopt;
+  const auto* table = field->node->as_table();
+  if (!table) {
+    field->Refuse("expected a table, written " + header + ", found " + TypeName(*field->node));
+  }
+  return TableView(*table, field->name, header, table->source().begin, parent.source());
+}
+
+/// The tables of array `key` ([[header]] tables), empty when absent.
+std::vector<TableView> FindTableArray(const TableView& parent, std::string_view key,
+                                      const std::string& header) {
+  std::vector<TableView> tables;
+  const std::optional<Field> field = parent.Find(key);
+  if (!field) return tables;
+  if (!field->node->is_array()) {
+    field->Refuse("expected an array of tables, written " + header + " (double brackets), found " +
+                  TypeName(*field->node));
+  }
+  for (std::size_t i = 0; i < field->node->as_array()->size(); ++i) {
+    const Field element = field->Element(i);
+    const auto* table = element.node->as_table();
+    if (!table)
+      element.Refuse("expected a table, written " + header + ", found " + TypeName(*element.node));
+    tables.emplace_back(*table, element.name, header, element.position, parent.source());
+  }
+  return tables;
+}
+
+/// Refuses a name used before by another table of the same kind, pointing at both.
+void RefuseDuplicateName(std::map<std::string, toml::source_position>& seen, const Field& field,
+                         const std::string& name, const std::string& kind) {
+  const auto [previous, inserted] = seen.emplace(name, field.position);
+  if (!inserted) {
+    field.Refuse("duplicate " + kind + " name; the first is at line " +
+                 std::to_string(previous->second.line));
+  }
+}
+
+// ---- tables -----------------------------------------------------------------------------
+
+sim::SolverSettings ParseSolver(const TableView& table) {
+  table.RefuseUnknownKeys({"method", "tolerance", "max_iterations", "substeps"});
+  sim::SolverSettings solver;
+  if (const std::optional<Field> method = table.Find("method")) {
+    solver.method = ReadChoice(*method, {"pcg", "direct"}) == "pcg" ? sim::SolverMethod::kPcg
+                                                                    : sim::SolverMethod::kDirect;
+  }
+  solver.tolerance = NumberOr(table, "tolerance", solver.tolerance, kToleranceRange, "");
+  solver.max_iterations = IntegerOr(table, "max_iterations", solver.max_iterations, 1, 100000);
+  solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, 1000);
+  return solver;
+}
+
+sim::Effects ParseEffects(const TableView& table) {
+  table.RefuseUnknownKeys({"air_drag", "friction", "self_collision"});
+  sim::Effects effects;
+  effects.air_drag = BoolOr(table, "air_drag", effects.air_drag);
+  effects.friction = BoolOr(table, "friction", effects.friction);
+  effects.self_collision = BoolOr(table, "self_collision", effects.self_collision);
+  return effects;
+}
+
+/// The built-in material a [[material]] starts from: `base`, stiff_cotton by default.
+sim::Material BaseMaterial(const TableView& table) {
+  const std::optional<Field> base = table.Find("base");
+  return sim::NamedMaterial(base ? ReadChoice(*base, {kStiffCotton, kBlenderCotton})
+                                 : std::string(kStiffCotton));
+}
+
+sim::Material ParseMaterial(const TableView& table) {
+  table.RefuseUnknownKeys({"name", "base", "density", "stretch_stiffness", "shear_stiffness",
+                           "bending_rigidity", "damping", "air_drag", "friction",
+                           "structural_spring_k", "shear_spring_k", "bending_spring_k"});
+  sim::Material m = BaseMaterial(table);
+  m.name = ReadName(table.Require("name"));
+  m.density = NumberOr(table, "density", m.density, kPositive, "kg/m²");
+  m.stretch_stiffness =
+      NumberOr(table, "stretch_stiffness", m.stretch_stiffness, kNonNegative, "N/m");
+  m.shear_stiffness = NumberOr(table, "shear_stiffness", m.shear_stiffness, kNonNegative, "N/m");
+  m.bending_rigidity = NumberOr(table, "bending_rigidity", m.bending_rigidity, kNonNegative, "N·m");
+  m.damping = NumberOr(table, "damping", m.damping, kNonNegative, "s");
+  m.air_drag = NumberOr(table, "air_drag", m.air_drag, kNonNegative, "N·s/m per m²");
+  m.friction = NumberOr(table, "friction", m.friction, kNonNegative, "");
+  m.structural_spring_k =
+      NumberOr(table, "structural_spring_k", m.structural_spring_k, kNonNegative, "N/m");
+  m.shear_spring_k = NumberOr(table, "shear_spring_k", m.shear_spring_k, kNonNegative, "N/m");
+  m.bending_spring_k = NumberOr(table, "bending_spring_k", m.bending_spring_k, kNonNegative, "N/m");
+  return m;
+}
+
+std::vector<sim::Material> ParseMaterials(const TableView& root) {
+  std::vector<sim::Material> materials;
+  std::map<std::string, toml::source_position> seen;
+  for (const TableView& table : FindTableArray(root, "material", "[[material]]")) {
+    materials.push_back(ParseMaterial(table));
+    RefuseDuplicateName(seen, table.Require("name"), materials.back().name, "material");
+  }
+  return materials;
+}
+
+/// Names a garment may use: the scene's materials, then the built-in ones.
+std::vector<std::string> KnownMaterialNames(const std::vector<sim::Material>& materials) {
+  std::vector<std::string> names;
+  for (const sim::Material& material : materials) names.push_back(material.name);
+  for (std::string_view built_in : {kStiffCotton, kBlenderCotton}) {
+    if (std::find(names.begin(), names.end(), built_in) == names.end()) {
+      names.emplace_back(built_in);
+    }
+  }
+  return names;
+}
+
+/// Refuses panel axes that are not orthogonal, pointing at v_axis (or u_axis if only it
+/// is given: the default axes are orthogonal, so one of them was written).
+void RefuseSkewAxes(const TableView& table, const sim::LatticePanel& panel) {
+  const double dot = std::abs(panel.u_axis.dot(panel.v_axis));
+  if (dot <= kAxisOrthogonalityTolerance) return;
+  std::optional<Field> culprit = table.Find("v_axis");
+  if (!culprit) culprit = table.Find("u_axis");
+  culprit->Refuse("u_axis and v_axis must be orthogonal: |u·v| = " + FormatValue(dot) +
+                  " after normalising, allowed <= " + FormatValue(kAxisOrthogonalityTolerance));
+}
+
+sim::LatticePanel ParsePanel(const TableView& table) {
+  table.RefuseUnknownKeys({"origin", "u_axis", "v_axis", "size", "resolution"});
+  sim::LatticePanel panel;
+  panel.origin = Vector3Or(table, "origin", panel.origin, "m");
+  if (const std::optional<Field> u_axis = table.Find("u_axis"))
+    panel.u_axis = ReadDirection(*u_axis);
+  if (const std::optional<Field> v_axis = table.Find("v_axis"))
+    panel.v_axis = ReadDirection(*v_axis);
+  RefuseSkewAxes(table, panel);
+  if (const std::optional<Field> size = table.Find("size")) {
+    ReadArray(*size, 2, "an array of 2 numbers [width, height]", "m");
+    panel.width = ReadNumber(size->Element(0), kPositive, "m");
+    panel.height = ReadNumber(size->Element(1), kPositive, "m");
+  }
+  if (const std::optional<Field> resolution = table.Find("resolution")) {
+    ReadArray(*resolution, 2, "an array of 2 integers [cols, rows]", "");
+    panel.cols = ReadInteger(resolution->Element(0), 2, 1025);
+    panel.rows = ReadInteger(resolution->Element(1), 2, 1025);
+  }
+  return panel;
+}
+
+/// `file` as given when absolute, else relative to the scene file's folder.
+std::string ResolvePath(const std::string& base_dir, const std::string& file) {
+  std::filesystem::path path(file);
+  if (path.is_relative() && !base_dir.empty()) path = std::filesystem::path(base_dir) / path;
+  return path.lexically_normal().string();
+}
+
+sim::SurfaceMesh ParseMesh(const TableView& table) {
+  table.RefuseUnknownKeys({"file", "scale", "offset"});
+  const Field file = table.Require("file");
+  MeshImportOptions options;
+  options.scale = NumberOr(table, "scale", options.scale, kPositive, "m per file unit");
+  options.offset = Vector3Or(table, "offset", options.offset, "m");
+  const std::string path = ResolvePath(table.source().base_dir, ReadName(file));
+  try {
+    return ImportSurfaceMesh(path, options);
+  } catch (const InputError& error) {
+    // The importer's message names the mesh file (else add it); this adds where the scene
+    // asked for it.
+    const std::string problem = error.what();
+    file.Refuse(problem.find(path) != std::string::npos ? problem : path + ": " + problem);
+  }
+}
+
+sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::string>& materials) {
+  table.RefuseUnknownKeys({"name", "material", "pin_points", "pin_tolerance", "panel", "mesh"});
+  sim::GarmentSpec garment;
+  garment.source_line = table.line();
+  garment.name = ReadName(table.Require("name"));
+  if (const std::optional<Field> material = table.Find("material")) {
+    garment.material = ReadName(*material);
+    if (std::find(materials.begin(), materials.end(), garment.material) == materials.end()) {
+      material->Refuse("unknown material; the known materials are " + Join(materials));
+    }
+  }
+  if (const std::optional<Field> pins = table.Find("pin_points")) {
+    garment.pin_points = ReadPoints(*pins, "m");
+  }
+  garment.pin_tolerance = NumberOr(table, "pin_tolerance", garment.pin_tolerance, kPositive, "m");
+  const std::optional<TableView> panel = FindTable(table, "panel", "[garment.panel]");
+  const std::optional<TableView> mesh = FindTable(table, "mesh", "[garment.mesh]");
+  if (panel.has_value() == mesh.has_value()) {
+    table.Refuse(table.name() + " " + Quote(garment.name) + ": has " +
+                 (panel ? "both [garment.panel] and" : "neither [garment.panel] nor") +
+                 " [garment.mesh]; a garment needs exactly one of them");
+  }
+  if (panel) garment.panel = ParsePanel(*panel);
+  if (mesh) garment.mesh = ParseMesh(*mesh);
+  return garment;
+}
+
+std::vector<sim::GarmentSpec> ParseGarments(const TableView& root,
+                                            const std::vector<std::string>& materials) {
+  std::vector<sim::GarmentSpec> garments;
+  std::map<std::string, toml::source_position> seen;
+  for (const TableView& table : FindTableArray(root, "garment", "[[garment]]")) {
+    garments.push_back(ParseGarment(table, materials));
+    RefuseDuplicateName(seen, table.Require("name"), garments.back().name, "garment");
+  }
+  if (garments.empty()) root.Refuse("garment: missing; a scene needs at least one [[garment]]");
+  return garments;
+}
+
+sim::SphereObstacleSpec ParseSphere(const TableView& table) {
+  table.RefuseUnknownKeys({"center", "radius", "thickness", "friction"});
+  sim::SphereObstacleSpec sphere;
+  sphere.source_line = table.line();
+  sphere.center = Vector3Or(table, "center", sphere.center, "m");
+  sphere.radius = NumberOr(table, "radius", sphere.radius, kPositive, "m");
+  sphere.thickness = NumberOr(table, "thickness", sphere.thickness, kNonNegative, "m");
+  sphere.friction = NumberOr(table, "friction", sphere.friction, kNonNegative, "");
+  return sphere;
+}
+
+/// The scene's name when the file gives none: the file name without folder and extension.
+std::string DefaultSceneName(const std::string& source_name) {
+  const std::string stem = std::filesystem::path(source_name).stem().string();
+  return stem.empty() ? std::string("scene") : stem;
+}
+
+sim::SceneDescription ParseScene(const TableView& root) {
+  root.RefuseUnknownKeys({"name", "duration", "frame_rate", "gravity", "solver", "effects",
+                          "material", "garment", "sphere"});
+  sim::SceneDescription scene;
+  scene.source = root.source().name;
+  scene.name = DefaultSceneName(scene.source);
+  if (const std::optional<Field> name = root.Find("name")) scene.name = ReadName(*name);
+  scene.duration = NumberOr(root, "duration", scene.duration, kDurationRange, "s");
+  scene.frame_rate = NumberOr(root, "frame_rate", scene.frame_rate, kFrameRateRange, "Hz");
+  scene.gravity = Vector3Or(root, "gravity", scene.gravity, "m/s²");
+  if (const std::optional<TableView> solver = FindTable(root, "solver", "[solver]")) {
+    scene.solver = ParseSolver(*solver);
+  }
+  if (const std::optional<TableView> effects = FindTable(root, "effects", "[effects]")) {
+    scene.effects = ParseEffects(*effects);
+  }
+  scene.materials = ParseMaterials(root);
+  scene.garments = ParseGarments(root, KnownMaterialNames(scene.materials));
+  for (const TableView& table : FindTableArray(root, "sphere", "[[sphere]]")) {
+    scene.spheres.push_back(ParseSphere(table));
+  }
+  return scene;
+}
+
+/// Parses TOML, turning syntax errors into InputError with file:line:column.
+toml::table ParseToml(const std::string& text, const Source& source) {
+  try {
+    return toml::parse(std::string_view(text), std::string_view(source.name));
+  } catch (const toml::parse_error& error) {
+    throw InputError(At(source, error.source().begin) +
+                     ": TOML syntax error: " + std::string(error.description()));
+  }
+}
+
+std::string ReadTextFile(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) {
+    throw InputError(
+        path + ": cannot read the scene file: " +
+        (std::filesystem::exists(path, error) ? "not a regular file" : "no such file"));
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::vector<std::string> QuotedBuiltInNames() {
+  std::vector<std::string> names;
+  for (const BuiltInScene& scene : kBuiltInScenes) names.push_back(Quote(scene.name));
+  return names;
+}
+
+}  // namespace
+
+sim::SceneDescription LoadSceneFile(const std::string& path) {
+  const std::string text = ReadTextFile(path);
+  return ParseSceneText(text, path, std::filesystem::path(path).parent_path().string());
+}
+
+sim::SceneDescription ParseSceneText(const std::string& text, const std::string& source_name,
+                                     const std::string& base_dir) {
+  const Source source{source_name, base_dir};
+  const toml::table root = ParseToml(text, source);
+  sim::SceneDescription scene = ParseScene(TableView(root, "", "the top level", {1, 1}, source));
+  // Everything ValidateScene checks was checked above with a line number; this keeps the
+  // promise that a parsed scene is valid even if the two ever drift apart.
+  sim::ValidateScene(scene);
+  return scene;
+}
+
+std::vector<std::string> BuiltInSceneNames() {
+  std::vector<std::string> names;
+  for (const BuiltInScene& scene : kBuiltInScenes) names.emplace_back(scene.name);
+  return names;
+}
+
+std::string BuiltInSceneText(const std::string& name) {
+  for (const BuiltInScene& scene : kBuiltInScenes) {
+    if (scene.name == name) return std::string(scene.text);
+  }
+  throw InputError("unknown built-in scene " + Quote(name) + "; the built-in scenes are " +
+                   Join(QuotedBuiltInNames()));
+}
+
+sim::SceneDescription LoadBuiltInScene(const std::string& name) {
+  return ParseSceneText(BuiltInSceneText(name), "built-in:" + name, "");
+}
+
+}  // namespace costume::assets

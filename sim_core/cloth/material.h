@@ -1,0 +1,49 @@
+#pragma once
+/// @file
+/// Fabric material in physical units, independent of how finely the cloth is sampled.
+/// How these map onto spring constants is documented where the springs are built
+/// (lattice_panel.h for panels, mesh_cloth.h for general meshes) and in docs/cloth_model.md.
+
+#include <string>
+
+namespace costume::sim {
+
+/// A fabric, in SI units. Defaults are "stiff cotton" of docs/BENCHMARKS.md's scenes.
+struct Material {
+  std::string name = "stiff_cotton";
+  /// Mass per area [kg/m²].
+  double density = 0.1;
+  /// Sheet stretch stiffness [N/m]: on a square lattice this is the structural spring
+  /// constant whatever the spacing (a sheet of width w stretched by strain e pulls with
+  /// stretch_stiffness·e·w newtons).
+  double stretch_stiffness = 1000.0;
+  /// Sheet shear stiffness [N/m]: the shear (diagonal) spring constant on a square lattice.
+  double shear_stiffness = 1000.0;
+  /// Bending rigidity [N·m]; a bending spring spanning 2h gets k = bending_rigidity / h².
+  double bending_rigidity = 1e-5;
+  /// Spring damping time [s]: each spring's damping coefficient is c = damping · k [N·s/m].
+  double damping = 1e-3;
+  /// Linear air drag [N·s/m per m² of cloth]: a particle of area a feels −air_drag·a·v.
+  double air_drag = 0.02;
+  /// Coulomb friction coefficient against obstacles [-].
+  double friction = 0.3;
+  /// When > 0, the spring constants below override the sheet stiffnesses [N/m] for every
+  /// spring of that kind (used for like-for-like runs against Blender's per-spring presets).
+  double structural_spring_k = 0.0;
+  double shear_spring_k = 0.0;
+  double bending_spring_k = 0.0;
+};
+
+/// Checks every field; throws InputError naming `context`.field, its value and range.
+void ValidateMaterial(const Material& material, const std::string& context);
+
+/// Built-in named materials: "stiff_cotton" and "blender_cotton" (the benchmark materials;
+/// blender_cotton needs the lattice size, see BlenderCotton). Throws InputError for an
+/// unknown name, listing the known ones.
+Material NamedMaterial(const std::string& name);
+
+/// Blender 3.4's Cotton preset converted to per-spring constants for an n×n lattice over
+/// 1 m (docs/BENCHMARKS.md): about 147, 76, 38.5 N/m at n = 33, 65, 129.
+Material BlenderCotton(int n);
+
+}  // namespace costume::sim

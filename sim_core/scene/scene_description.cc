@@ -1,0 +1,215 @@
+#include "sim_core/scene/scene_description.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "sim_core/common/input_error.h"
+
+// The checks here need no file, so messages start with scene.source (and the garment's or
+// sphere's line when it came from a file). The scene file parser (assets/scene_file.cc)
+// makes the same checks with line and column; keep the ranges of both and of
+// docs/scene_format.md in step.
+
+namespace costume::sim {
+namespace {
+
+/// Panel axes must be unit length and orthogonal to within this.
+constexpr double kAxisTolerance = 1e-6;
+constexpr int kMinLatticeSize = 2;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+constexpr int kMaxLatticeSize = 1025;
+
+/// Describes an interval as messages state it: "> 0", ">= 0", "(0, 1)", "[1, 1000]".
+std::string DescribeRange(double lo, double hi, bool lo_open, bool hi_open) {
+  if (std::isinf(hi)) return std::string(lo_open ? "> " : ">= ") + FormatValue(lo);
+  return std::string(lo_open ? "(" : "[") + FormatValue(lo) + ", " + FormatValue(hi) +
+         (hi_open ? ")" : "]");
+}
+
+std::string FormatVector(const Eigen::Vector3d& value) {
+  // Appended piecewise: `"[" + std::string` trips GCC 12's false -Wrestrict (bug 105329).
+  std::string text = "[";
+  text += FormatValue(value.x()) + ", " + FormatValue(value.y()) + ", " + FormatValue(value.z());
+  return text + "]";
+}
+
+std::string Quote(const std::string& text) { return "\"" + text + "\""; }
+
+/// Throws the messages of ValidateScene, prefixed with where the scene came from:
+/// "scenes/hang.toml: " or, for a part whose line is known, "scenes/hang.toml:14: ".
+class Refuser {
+ public:
+  explicit Refuser(std::string source, int line = 0) : source_(std::move(source)), line_(line) {}
+
+  /// The same source, pointing at `line` (0: unknown).
+  Refuser AtLine(int line) const { return Refuser(source_, line); }
+
+  std::string where() const { return line_ > 0 ? source_ + ":" + std::to_string(line_) : source_; }
+
+  /// Throws "<where>: <field> = <value>: <problem>".
+  [[noreturn]] void Refuse(const std::string& field, const std::string& value,
+                           const std::string& problem) const {
+    throw InputError(where() + ": " + field + " = " + value + ": " + problem);
+  }
+
+  /// Refuses `value` unless it is finite and inside the interval (nan and inf never are).
+  void RequireNumber(const std::string& field, double value, double lo, double hi, bool lo_open,
+                     bool hi_open, const std::string& unit) const {
+    const bool inside =
+        (lo_open ? value > lo : value >= lo) && (hi_open ? value < hi : value <= hi);
+    if (std::isfinite(value) && inside) return;
+    Refuse(field, FormatValue(value) + (unit.empty() ? "" : " " + unit),
+           "allowed range " + DescribeRange(lo, hi, lo_open, hi_open));
+  }
+
+  void RequirePositive(const std::string& field, double value, const std::string& unit) const {
+    RequireNumber(field, value, 0.0, kInfinity, true, true, unit);
+  }
+
+  void RequireNonNegative(const std::string& field, double value, const std::string& unit) const {
+    RequireNumber(field, value, 0.0, kInfinity, false, true, unit);
+  }
+
+  void RequireInteger(const std::string& field, int value, int lo, int hi) const {
+    if (value >= lo && value <= hi) return;
+    Refuse(field, std::to_string(value),
+           "allowed range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  }
+
+  void RequireFinite(const std::string& field, const Eigen::Vector3d& value,
+                     const std::string& unit) const {
+    if (value.allFinite()) return;
+    Refuse(field, FormatVector(value) + " " + unit, "must be finite");
+  }
+
+ private:
+  std::string source_;
+  int line_;
+};
+
+void ValidateSolver(const SolverSettings& solver, const Refuser& refuser) {
+  refuser.RequireNumber("solver.tolerance", solver.tolerance, 0.0, 1.0, true, true, "");
+  refuser.RequireInteger("solver.max_iterations", solver.max_iterations, 1, 100000);
+  refuser.RequireInteger("solver.substeps", solver.substeps, 1, 1000);
+}
+
+void ValidateMaterials(const std::vector<Material>& materials, const Refuser& refuser) {
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < materials.size(); ++i) {
+    const std::string field = "material[" + std::to_string(i) + "]";
+    if (materials[i].name.empty()) refuser.Refuse(field + ".name", "\"\"", "must not be empty");
+    if (!names.insert(materials[i].name).second) {
+      refuser.Refuse(field + ".name", Quote(materials[i].name), "duplicate material name");
+    }
+    ValidateMaterial(materials[i], refuser.where() + ": " + field);
+  }
+}
+
+void ValidateAxis(const std::string& field, const Eigen::Vector3d& axis, const Refuser& refuser) {
+  if (axis.allFinite() && std::abs(axis.norm() - 1.0) <= kAxisTolerance) return;
+  refuser.Refuse(field, FormatVector(axis),
+                 "must be a unit vector (length 1 within " + FormatValue(kAxisTolerance) + ")");
+}
+
+void ValidatePanel(const LatticePanel& panel, const std::string& field, const Refuser& refuser) {
+  refuser.RequireFinite(field + ".origin", panel.origin, "m");
+  ValidateAxis(field + ".u_axis", panel.u_axis, refuser);
+  ValidateAxis(field + ".v_axis", panel.v_axis, refuser);
+  const double dot = std::abs(panel.u_axis.dot(panel.v_axis));
+  if (dot > kAxisTolerance) {
+    refuser.Refuse(field + ".v_axis", FormatVector(panel.v_axis),
+                   "must be orthogonal to u_axis = " + FormatVector(panel.u_axis) + " (|u·v| = " +
+                       FormatValue(dot) + ", allowed <= " + FormatValue(kAxisTolerance) + ")");
+  }
+  refuser.RequirePositive(field + ".width", panel.width, "m");
+  refuser.RequirePositive(field + ".height", panel.height, "m");
+  refuser.RequireInteger(field + ".cols", panel.cols, kMinLatticeSize, kMaxLatticeSize);
+  refuser.RequireInteger(field + ".rows", panel.rows, kMinLatticeSize, kMaxLatticeSize);
+}
+
+/// Scene materials first, then the built-in ones, as GarmentSpec::material is looked up.
+bool IsKnownMaterial(const std::string& name, const std::vector<Material>& materials) {
+  if (name == "stiff_cotton" || name == "blender_cotton") return true;
+  return std::any_of(materials.begin(), materials.end(),
+                     [&](const Material& material) { return material.name == name; });
+}
+
+std::string KnownMaterialList(const std::vector<Material>& materials) {
+  std::string list;
+  for (const Material& material : materials) list += material.name + ", ";
+  return list + "stiff_cotton, blender_cotton";
+}
+
+void ValidateGarment(const GarmentSpec& garment, std::size_t index,
+                     const std::vector<Material>& materials, const Refuser& scene_refuser) {
+  const Refuser refuser = scene_refuser.AtLine(garment.source_line);
+  const std::string field = "garment[" + std::to_string(index) + "]";
+  if (garment.name.empty()) refuser.Refuse(field + ".name", "\"\"", "must not be empty");
+  if (garment.panel.has_value() == garment.mesh.has_value()) {
+    refuser.Refuse(field, Quote(garment.name),
+                   std::string("has ") + (garment.panel ? "both" : "neither") +
+                       " a panel and a mesh: a garment needs exactly one of them");
+  }
+  if (!IsKnownMaterial(garment.material, materials)) {
+    refuser.Refuse(field + ".material", Quote(garment.material),
+                   "unknown material; the known materials are " + KnownMaterialList(materials));
+  }
+  for (std::size_t i = 0; i < garment.pin_points.size(); ++i) {
+    refuser.RequireFinite(field + ".pin_points[" + std::to_string(i) + "]", garment.pin_points[i],
+                          "m");
+  }
+  refuser.RequirePositive(field + ".pin_tolerance", garment.pin_tolerance, "m");
+  if (garment.panel) ValidatePanel(*garment.panel, field + ".panel", refuser);
+}
+
+void ValidateGarments(const SceneDescription& scene, const Refuser& refuser) {
+  if (scene.garments.empty()) {
+    refuser.Refuse("garment", "[]", "a scene needs at least one garment");
+  }
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < scene.garments.size(); ++i) {
+    ValidateGarment(scene.garments[i], i, scene.materials, refuser);
+    if (!names.insert(scene.garments[i].name).second) {
+      refuser.AtLine(scene.garments[i].source_line)
+          .Refuse("garment[" + std::to_string(i) + "].name", Quote(scene.garments[i].name),
+                  "duplicate garment name");
+    }
+  }
+}
+
+void ValidateSphere(const SphereObstacleSpec& sphere, std::size_t index,
+                    const Refuser& scene_refuser) {
+  const Refuser refuser = scene_refuser.AtLine(sphere.source_line);
+  const std::string field = "sphere[" + std::to_string(index) + "]";
+  refuser.RequireFinite(field + ".center", sphere.center, "m");
+  refuser.RequirePositive(field + ".radius", sphere.radius, "m");
+  refuser.RequireNonNegative(field + ".thickness", sphere.thickness, "m");
+  refuser.RequireNonNegative(field + ".friction", sphere.friction, "");
+}
+
+}  // namespace
+
+const char* SolverMethodName(SolverMethod method) {
+  switch (method) {
+    case SolverMethod::kPcg: return "pcg";
+    case SolverMethod::kDirect: return "direct";
+  }
+  return "unknown";
+}
+
+void ValidateScene(const SceneDescription& scene) {
+  const Refuser refuser(scene.source);
+  refuser.RequireNumber("duration", scene.duration, 0.0, 3600.0, true, false, "s");
+  refuser.RequireNumber("frame_rate", scene.frame_rate, 1.0, 1000.0, false, false, "Hz");
+  refuser.RequireFinite("gravity", scene.gravity, "m/s²");
+  ValidateSolver(scene.solver, refuser);
+  ValidateMaterials(scene.materials, refuser);
+  ValidateGarments(scene, refuser);
+  for (std::size_t i = 0; i < scene.spheres.size(); ++i) {
+    ValidateSphere(scene.spheres[i], i, refuser);
+  }
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,103 @@
+#pragma once
+/// @file
+/// What a scene file describes, as plain data (docs/scene_format.md). The assets layer
+/// parses files into this; BuildSimulation (simulation.h) turns it into a running engine,
+/// building only what the scene enables.
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sim_core/cloth/lattice_panel.h"
+#include "sim_core/cloth/material.h"
+#include "sim_core/cloth/mesh_cloth.h"
+
+namespace costume::sim {
+
+/// How the linear system of each implicit step is solved.
+enum class SolverMethod {
+  /// Filtered preconditioned conjugate gradient (Baraff & Witkin 1998 §5.3).
+  kPcg,
+  /// Sparse Cholesky through CHOLMOD: the accuracy reference.
+  kDirect,
+};
+
+/// "pcg" or "direct".
+const char* SolverMethodName(SolverMethod method);
+
+struct SolverSettings {
+  SolverMethod method = SolverMethod::kPcg;
+  /// PCG stops when the preconditioned residual falls below tolerance² times that of the
+  /// right-hand side (B&W's criterion) [-], in (0, 1).
+  double tolerance = 1e-3;
+  /// PCG iteration cap per step, >= 1.
+  int max_iterations = 1000;
+  /// Implicit steps per frame, >= 1; the step is 1/(frame_rate·substeps).
+  int substeps = 1;
+};
+
+/// Which optional effects the scene switches on. Off costs nothing: the engine does not
+/// build what is off.
+struct Effects {
+  bool air_drag = true;
+  bool friction = true;
+  bool self_collision = false;
+};
+
+/// A garment: one lattice panel or one mesh, a material, pins.
+struct GarmentSpec {
+  std::string name = "cloth";
+  /// Name of a material of the scene or a built-in one ("stiff_cotton", "blender_cotton").
+  std::string material = "stiff_cotton";
+  /// Exactly one of panel or mesh is set.
+  std::optional<LatticePanel> panel;
+  std::optional<SurfaceMesh> mesh;
+  /// Pinned particles: the particle nearest to each point is pinned [m].
+  std::vector<Eigen::Vector3d> pin_points;
+  /// A pin point must have a particle within this distance [m].
+  double pin_tolerance = 1e-3;
+  /// Line of the garment's table in the scene file (0 when not from a file), for messages.
+  int source_line = 0;
+};
+
+/// A fixed analytic sphere obstacle.
+struct SphereObstacleSpec {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  /// Radius [m] > 0.
+  double radius = 0.25;
+  /// Cloth thickness kept between cloth and surface [m] >= 0.
+  double thickness = 0.005;
+  /// Coulomb friction coefficient [-] >= 0 (used when effects.friction is on).
+  double friction = 0.3;
+  int source_line = 0;
+};
+
+/// A whole run.
+struct SceneDescription {
+  std::string name = "scene";
+  /// Where the scene came from (file path or "built-in"), for messages.
+  std::string source = "built-in";
+  /// Simulated duration [s] > 0.
+  double duration = 2.0;
+  /// Frames per second written and timed [Hz] > 0.
+  double frame_rate = 60.0;
+  /// Gravity [m/s²].
+  Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);
+  SolverSettings solver;
+  Effects effects;
+  /// Materials defined in the scene (looked up by name before the built-in ones).
+  std::vector<Material> materials;
+  std::vector<GarmentSpec> garments;
+  std::vector<SphereObstacleSpec> spheres;
+};
+
+/// Checks ranges that do not need a file (solver, rates, obstacles, garments have a shape);
+/// throws InputError naming scene.source and the field. BuildSimulation calls it.
+/// Messages read `<source>[:<line>]: <field> = <value>: <allowed range>`, e.g.
+/// `built-in: solver.tolerance = 2: allowed range (0, 1)`; the line is that of a garment or
+/// sphere from a file (source_line > 0). The ranges are those of docs/scene_format.md, which
+/// the scene file parser (assets/scene_file.h) checks first with line and column.
+void ValidateScene(const SceneDescription& scene);
+
+}  // namespace costume::sim

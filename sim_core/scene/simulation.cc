@@ -1,0 +1,168 @@
+#include "sim_core/scene/simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "sim_core/cloth/lattice_panel.h"
+#include "sim_core/cloth/mesh_cloth.h"
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+
+namespace {
+
+std::string GarmentContext(const SceneDescription& scene, const GarmentSpec& garment) {
+  std::string where = scene.source;
+  if (garment.source_line > 0) where += ":" + std::to_string(garment.source_line);
+  return where + ": garment '" + garment.name + "'";
+}
+
+/// The material a garment names: the scene's own first, then the built-in ones. Blender's
+/// per-spring preset depends on the lattice size, so it is resolved against the panel.
+Material ResolveMaterial(const SceneDescription& scene, const GarmentSpec& garment) {
+  for (const Material& m : scene.materials) {
+    if (m.name == garment.material) return m;
+  }
+  std::string known;
+  for (const Material& m : scene.materials) known += m.name + ", ";
+  if (garment.material == "blender_cotton") {
+    return BlenderCotton(garment.panel ? garment.panel->cols : 65);
+  }
+  if (garment.material == "stiff_cotton") return NamedMaterial("stiff_cotton");
+  throw InputError(GarmentContext(scene, garment) + ": material = '" + garment.material +
+                   "' is unknown: known materials are " + known +
+                   "stiff_cotton, blender_cotton");
+}
+
+ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& garment) {
+  const Material material = ResolveMaterial(scene, garment);
+  ClothModelData data = garment.panel
+                            ? BuildLatticePanel(*garment.panel, material, garment.name)
+                            : BuildMeshCloth(*garment.mesh, material, garment.name);
+  data.pinned = FindNearestParticles(data.rest_positions, garment.pin_points,
+                                     garment.pin_tolerance, GarmentContext(scene, garment));
+  return data;
+}
+
+/// Appends `part` to `whole`, shifting its indices.
+void Append(ClothModelData& whole, const ClothModelData& part) {
+  const int offset = static_cast<int>(whole.masses.size());
+  const auto n = part.masses.size();
+  auto grow = [n](Eigen::VectorXd& v, const Eigen::VectorXd& tail) {
+    v.conservativeResize(v.size() + n);
+    v.tail(n) = tail;
+  };
+  whole.rest_positions.conservativeResize(offset + n, 3);
+  whole.rest_positions.bottomRows(n) = part.rest_positions;
+  grow(whole.masses, part.masses);
+  grow(whole.areas, part.areas);
+  grow(whole.drag, part.drag.size() ? part.drag : Eigen::VectorXd::Zero(n).eval());
+  for (Spring s : part.springs) {
+    s.a += offset;
+    s.b += offset;
+    whole.springs.push_back(s);
+  }
+  for (int p : part.pinned) whole.pinned.push_back(p + offset);
+  for (const Eigen::Vector3i& t : part.triangles) {
+    whole.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+  }
+}
+
+}  // namespace
+
+std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
+                                                  std::vector<GarmentRange>* garments) {
+  ClothModelData whole;
+  whole.name = scene.name;
+  for (const GarmentSpec& spec : scene.garments) {
+    const ClothModelData part = BuildGarment(scene, spec);
+    garments->push_back({spec.name, static_cast<int>(whole.masses.size()),
+                         static_cast<int>(part.masses.size()),
+                         static_cast<int>(whole.triangles.size()),
+                         static_cast<int>(part.triangles.size())});
+    if (scene.garments.size() == 1) {
+      whole = part;  // keeps the lattice shape, which the pyramid uses
+    } else {
+      Append(whole, part);
+    }
+  }
+  return ClothModel::Create(std::move(whole));
+}
+
+StepperSettings StepperSettingsOf(const SceneDescription& scene) {
+  StepperSettings settings;
+  settings.method = scene.solver.method;
+  settings.pcg.tolerance = scene.solver.tolerance;
+  settings.pcg.max_iterations = scene.solver.max_iterations;
+  settings.external.gravity = scene.gravity;
+  settings.external.air_drag = scene.effects.air_drag;
+  return settings;
+}
+
+std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene) {
+  ValidateScene(scene);
+  if (scene.effects.self_collision) {
+    throw InputError(scene.source + ": effects.self_collision = true is not available in " +
+                     "this version (it arrives with avatar collision); set it to false");
+  }
+  std::vector<GarmentRange> garments;
+  auto model = BuildSceneModel(scene, &garments);
+  RequireStableStep(*model, 1.0 / (scene.frame_rate * scene.solver.substeps), scene.source);
+  return std::unique_ptr<Simulation>(
+      new Simulation(scene, std::move(model), std::move(garments), StepperSettingsOf(scene)));
+}
+
+Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
+                       std::vector<GarmentRange> garments, const StepperSettings& settings)
+    : scene_(std::move(scene)),
+      model_(std::move(model)),
+      garments_(std::move(garments)),
+      stepper_(model_, settings),
+      state_(ClothState::AtRest(*model_)) {
+  for (const SphereObstacleSpec& s : scene_.spheres) {
+    spheres_.push_back({s.center, s.radius, s.thickness,
+                        scene_.effects.friction ? s.friction : 0.0});
+  }
+  contacts_.reserve(model_->num_particles());
+  normal_impulse_.assign(model_->num_particles(), 0.0);
+}
+
+int Simulation::num_frames() const {
+  return static_cast<int>(std::lround(scene_.duration * scene_.frame_rate));
+}
+
+void Simulation::StepOnce(FrameReport& report) {
+  const double h = step();
+  contacts_.clear();
+  for (const SphereObstacle& sphere : spheres_) {
+    // Contacts are caught half a thickness early so resting cloth stays constrained.
+    FindSphereContacts(sphere, state_.positions, state_.velocities, h, 0.5 * sphere.thickness,
+                       contacts_);
+  }
+  for (Contact& c : contacts_) c.previous_normal_impulse = normal_impulse_[c.particle];
+  const StepReport step_report = stepper_.Step(state_, h, contacts_);
+  std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
+  for (const Contact& c : contacts_) normal_impulse_[c.particle] = std::max(c.normal_impulse, 0.0);
+  report.steps += 1;
+  report.iterations += step_report.iterations;
+  report.converged = report.converged && step_report.converged;
+  report.rolled_back_steps += step_report.rolled_back ? 1 : 0;
+  report.num_contacts += step_report.num_contacts;
+  if (step_report.rolled_back) return;
+  for (const SphereObstacle& sphere : spheres_) {
+    report.max_penetration = std::max(
+        report.max_penetration, ProjectOutOfSphere(sphere, state_.positions, state_.velocities));
+  }
+}
+
+FrameReport Simulation::AdvanceFrame() {
+  const auto start = std::chrono::steady_clock::now();
+  FrameReport report;
+  for (int s = 0; s < scene_.solver.substeps; ++s) StepOnce(report);
+  report.wall_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,90 @@
+#pragma once
+/// @file
+/// A running scene: the garments merged into one cloth model, its state, the implicit
+/// stepper and the obstacles the scene enables (and nothing it does not).
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/cloth/cloth_state.h"
+#include "sim_core/collision/contact.h"
+#include "sim_core/collision/sphere_contacts.h"
+#include "sim_core/scene/scene_description.h"
+#include "sim_core/solver/implicit_stepper.h"
+
+namespace costume::sim {
+
+/// Where one garment lives inside the merged model.
+struct GarmentRange {
+  std::string name;
+  int first_particle = 0;
+  int num_particles = 0;
+  int first_triangle = 0;
+  int num_triangles = 0;
+};
+
+/// What happened during one frame (all substeps).
+struct FrameReport {
+  int steps = 0;
+  /// PCG iterations summed over the frame's steps.
+  int iterations = 0;
+  /// Every step reached its solver tolerance.
+  bool converged = true;
+  /// Steps that produced non-finite values and were undone (see StepReport).
+  int rolled_back_steps = 0;
+  /// Contacts summed over the frame's steps.
+  int num_contacts = 0;
+  /// Deepest penetration into an obstacle's shell found after a solve, before the position
+  /// correction removed it [m].
+  double max_penetration = 0.0;
+  /// Wall-clock time of the frame [ms].
+  double wall_ms = 0.0;
+};
+
+class Simulation {
+ public:
+  /// Builds the engine for `scene` (validated first). Throws InputError naming the scene
+  /// source, the field, the value and the allowed range.
+  static std::unique_ptr<Simulation> Build(const SceneDescription& scene);
+
+  /// Advances one frame (1/frame_rate s, in solver.substeps steps). Never throws.
+  FrameReport AdvanceFrame();
+
+  const SceneDescription& scene() const { return scene_; }
+  const ClothModel& model() const { return stepper_.model(); }
+  std::shared_ptr<const ClothModel> shared_model() const { return model_; }
+  const ClothState& state() const { return state_; }
+  ClothState& mutable_state() { return state_; }
+  const std::vector<GarmentRange>& garments() const { return garments_; }
+  /// Step length [s].
+  double step() const { return 1.0 / (scene_.frame_rate * scene_.solver.substeps); }
+  /// Number of frames the scene's duration asks for.
+  int num_frames() const;
+
+ private:
+  Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
+             std::vector<GarmentRange> garments, const StepperSettings& settings);
+  void StepOnce(FrameReport& report);
+
+  SceneDescription scene_;
+  std::shared_ptr<const ClothModel> model_;
+  std::vector<GarmentRange> garments_;
+  ImplicitStepper stepper_;
+  ClothState state_;
+  std::vector<SphereObstacle> spheres_;
+  std::vector<Contact> contacts_;
+  /// Each particle's contact normal impulse in the last step [N·s] (friction's bound).
+  std::vector<double> normal_impulse_;
+};
+
+/// The stepper settings a scene asks for.
+StepperSettings StepperSettingsOf(const SceneDescription& scene);
+
+/// Merges the scene's garments into one model (panels and meshes, materials resolved,
+/// pins found). Throws InputError. Exposed for tools and tests.
+std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
+                                                  std::vector<GarmentRange>* garments);
+
+}  // namespace costume::sim

@@ -1,0 +1,32 @@
+#pragma once
+/// @file
+/// The same filtered implicit step solved exactly by sparse Cholesky (CHOLMOD, supernodal):
+/// the accuracy reference for the iterative solvers.
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <memory>
+
+#include "sim_core/solver/constraints.h"
+#include "sim_core/solver/system_matrix.h"
+
+namespace costume::sim {
+
+class DirectSolver {
+ public:
+  /// Analyses the sparsity pattern of `a` once (ordering and symbolic factorisation).
+  explicit DirectSolver(const SystemMatrix& a);
+  ~DirectSolver();
+
+  /// Solves S A S y + (I − S) y = S (b − A z), dv = z + y, with z = constraints.prescribed():
+  /// the exact solution of the system PCG iterates on. Returns false (dv untouched) when the
+  /// factorisation fails (matrix not positive definite). Never throws.
+  bool Solve(const SystemMatrix& a, const Eigen::VectorXd& b, const Constraints& constraints,
+             Eigen::VectorXd& dv);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace costume::sim

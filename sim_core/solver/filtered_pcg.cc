@@ -1,0 +1,68 @@
+#include "sim_core/solver/filtered_pcg.h"
+
+#include <Eigen/LU>
+#include <cmath>
+
+namespace costume::sim {
+
+FilteredPcg::FilteredPcg(int num_particles)
+    : inverse_diagonal_(num_particles),
+      r_(3 * num_particles),
+      c_(3 * num_particles),
+      q_(3 * num_particles),
+      s_(3 * num_particles) {}
+
+void FilteredPcg::UpdatePreconditioner(const SystemMatrix& a) {
+  for (int i = 0; i < a.num_particles(); ++i) {
+    inverse_diagonal_[i] = a.DiagonalBlock(i).inverse();
+  }
+}
+
+void FilteredPcg::Precondition(const Eigen::VectorXd& in, Eigen::VectorXd& out) const {
+  for (std::size_t i = 0; i < inverse_diagonal_.size(); ++i) {
+    out.segment<3>(3 * i).noalias() = inverse_diagonal_[i] * in.segment<3>(3 * i);
+  }
+}
+
+PcgReport FilteredPcg::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
+                             const Constraints& constraints, const PcgSettings& settings,
+                             Eigen::VectorXd& dv) {
+  UpdatePreconditioner(a);
+  PcgReport report;
+  // Start from the guess with its constrained components replaced by the prescribed ones.
+  constraints.Filter(dv);
+  dv += constraints.prescribed();
+
+  r_ = b;
+  constraints.Filter(r_);
+  Precondition(r_, s_);
+  const double delta0 = r_.dot(s_);
+
+  a.Multiply(dv, q_);
+  r_ = b - q_;
+  constraints.Filter(r_);
+  Precondition(r_, c_);
+  constraints.Filter(c_);
+  double delta = r_.dot(c_);
+  const double threshold = settings.tolerance * settings.tolerance * delta0;
+  while (delta > threshold && report.iterations < settings.max_iterations) {
+    a.Multiply(c_, q_);
+    constraints.Filter(q_);
+    const double curvature = c_.dot(q_);
+    if (!(curvature > 0.0)) break;  // not positive definite on this subspace: stop safely
+    const double alpha = delta / curvature;
+    dv.noalias() += alpha * c_;
+    r_.noalias() -= alpha * q_;
+    Precondition(r_, s_);
+    const double delta_old = delta;
+    delta = r_.dot(s_);
+    c_ = s_ + (delta / delta_old) * c_;
+    constraints.Filter(c_);
+    ++report.iterations;
+  }
+  report.converged = delta <= threshold;
+  report.relative_residual = delta0 > 0.0 ? std::sqrt(std::max(delta, 0.0) / delta0) : 0.0;
+  return report;
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,156 @@
+#include "sim_core/solver/implicit_stepper.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "sim_core/common/input_error.h"
+#include "sim_core/solver/direct_solver.h"
+
+namespace costume::sim {
+
+void RequireStableStep(const ClothModel& model, double h, const std::string& context) {
+  double k_max = 0.0;
+  for (const Spring& s : model.springs()) k_max = std::max(k_max, s.stiffness);
+  const double m_min = model.masses().minCoeff();
+  const double ratio = h * h * k_max / m_min;
+  if (ratio <= kMaxStiffnessRatio) return;
+  const double longest = std::sqrt(kMaxStiffnessRatio * m_min / k_max);
+  const int substeps = static_cast<int>(std::ceil(h / longest));
+  throw InputError(context + ": step h = " + FormatValue(h) + " s is too long for springs of k = " +
+                   FormatValue(k_max) + " N/m on particles of m = " + FormatValue(m_min) +
+                   " kg: h²k/m = " + FormatValue(ratio) + " exceeds " +
+                   FormatValue(kMaxStiffnessRatio) +
+                   ", beyond which one linearisation per step can inject energy. Allowed: "
+                   "h <= " + FormatValue(longest) + " s, e.g. " + std::to_string(substeps) +
+                   " times more solver.substeps, a softer material or heavier particles");
+}
+
+ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
+                                 const StepperSettings& settings)
+    : model_(std::move(model)),
+      settings_(settings),
+      a_(*model_),
+      constraints_(model_->num_particles()),
+      pcg_(model_->num_particles()) {
+  RequireInRange("solver.tolerance", settings.pcg.tolerance, 1e-300, 1.0, "");
+  RequireInRange("solver.max_iterations", settings.pcg.max_iterations, 1, 1e6, "");
+  for (int c = 0; c < 3; ++c) RequireFinite("gravity", settings.external.gravity[c], "m/s²");
+  const int n3 = 3 * model_->num_particles();
+  b_ = Eigen::VectorXd::Zero(n3);
+  dv_ = Eigen::VectorXd::Zero(n3);
+  a_dv_ = Eigen::VectorXd::Zero(n3);
+  if (settings.method == SolverMethod::kDirect) direct_ = std::make_unique<DirectSolver>(a_);
+}
+
+ImplicitStepper::~ImplicitStepper() = default;
+
+void ImplicitStepper::Assemble(const ClothState& state, double h) {
+  const ClothModel& m = *model_;
+  const ExternalForces& ext = settings_.external;
+  a_.SetZero();
+  for (int i = 0; i < m.num_particles(); ++i) {
+    const double drag = ext.air_drag ? m.drag()[i] : 0.0;
+    a_.AddToDiagonal(i, (m.masses()[i] + h * drag) * Eigen::Matrix3d::Identity());
+    const Eigen::Vector3d v = state.velocities.row(i).transpose();
+    b_.segment<3>(3 * i) = h * (m.masses()[i] * ext.gravity - drag * v);
+  }
+  const auto& springs = m.springs();
+  for (int k = 0; k < m.num_springs(); ++k) {
+    const Spring& s = springs[k];
+    const Eigen::Vector3d va = state.velocities.row(s.a).transpose();
+    const Eigen::Vector3d vb = state.velocities.row(s.b).transpose();
+    const SpringTerms t = EvaluateSpring(s, state.positions.row(s.a).transpose(),
+                                         state.positions.row(s.b).transpose(), va, vb,
+                                         settings_.jacobian);
+    a_.AddSpringCoupling(k, h * t.df_dv + (h * h) * t.df_dx);
+    const Eigen::Vector3d rhs = h * (t.force_on_a + h * (t.df_dx * (vb - va)));
+    b_.segment<3>(3 * s.a) += rhs;
+    b_.segment<3>(3 * s.b) -= rhs;
+  }
+}
+
+// Coulomb friction, regularised and implicit. Applied after the solve, friction would undo
+// velocity changes the stiff solve counted on for the neighbours and freeze stretch into the
+// cloth; inside the solve it is a tangential damper c = μ F_n / max(|v_t|, v_slip) with F_n
+// the previous step's normal force: below v_slip it holds the particle (static friction up to
+// μ F_n), above it it resists with μ F_n (kinetic). Implicit, so stable for any c.
+void ImplicitStepper::AddFriction(const ClothState& state, double h,
+                                  std::span<const Contact> contacts) {
+  constexpr double kSlipSpeed = 1e-3;  // m/s: slower counts as sticking
+  for (const Contact& c : contacts) {
+    if (c.friction <= 0.0 || c.previous_normal_impulse <= 0.0) continue;
+    const Eigen::Vector3d v = state.velocities.row(c.particle).transpose();
+    const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - c.normal * c.normal.transpose();
+    const Eigen::Vector3d v_t = tangent * v;
+    const double normal_force = c.previous_normal_impulse / h;
+    const double damping = c.friction * normal_force / std::max(v_t.norm(), kSlipSpeed);
+    a_.AddToDiagonal(c.particle, (h * damping) * tangent);
+    b_.segment<3>(3 * c.particle) -= (h * damping) * v_t;
+  }
+}
+
+void ImplicitStepper::SetConstraints(const ClothState& state, std::span<const Contact> contacts) {
+  constraints_.Clear();
+  for (const Contact& c : contacts) {
+    const double current = state.velocities.row(c.particle).dot(c.normal);
+    constraints_.ConstrainNormal(c.particle, c.normal, c.target_normal_velocity - current);
+  }
+  // Pins last: they override contacts. A pin holds its particle still (Δv = −v).
+  for (int i : model_->pinned()) {
+    constraints_.Fix(i, -state.velocities.row(i).transpose());
+  }
+}
+
+bool ImplicitStepper::Solve(StepReport& report) {
+  if (direct_) {
+    report.converged = direct_->Solve(a_, b_, constraints_, dv_);
+    return report.converged;
+  }
+  if (!settings_.warm_start) dv_.setZero();
+  const PcgReport pcg = pcg_.Solve(a_, b_, constraints_, settings_.pcg, dv_);
+  report.iterations = pcg.iterations;
+  report.relative_residual = pcg.relative_residual;
+  report.converged = pcg.converged;
+  return true;
+}
+
+void ImplicitStepper::StoreContactImpulses(std::span<Contact> contacts) const {
+  // The constraint impulse is what the solve added beyond the unconstrained equation:
+  // λ = A Δv − b (momentum units, N·s).
+  for (Contact& c : contacts) {
+    const int i = c.particle;
+    c.normal_impulse = (a_dv_.segment<3>(3 * i) - b_.segment<3>(3 * i)).dot(c.normal);
+  }
+}
+
+StepReport ImplicitStepper::Step(ClothState& state, double h, std::span<Contact> contacts) {
+  StepReport report;
+  if (!(h > 0.0 && std::isfinite(h))) {  // a caller bug; refuse without touching the state
+    report.rolled_back = true;
+    return report;
+  }
+  report.num_contacts = static_cast<int>(contacts.size());
+  backup_ = state;
+  SetConstraints(state, contacts);
+  Assemble(state, h);
+  AddFriction(state, h, contacts);
+  const bool solved = Solve(report);
+  if (solved && !contacts.empty()) {
+    a_.Multiply(dv_, a_dv_);
+    StoreContactImpulses(contacts);
+  }
+  const int n3 = 3 * model_->num_particles();
+  Eigen::Map<Eigen::VectorXd> v(state.velocities.data(), n3);
+  Eigen::Map<Eigen::VectorXd> x(state.positions.data(), n3);
+  v += dv_;
+  x += h * v;
+  state.time += h;
+  if (!solved || !x.allFinite() || !v.allFinite()) {
+    state = backup_;
+    dv_.setZero();
+    report.rolled_back = true;
+  }
+  return report;
+}
+
+}  // namespace costume::sim

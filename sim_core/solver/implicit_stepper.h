@@ -1,0 +1,89 @@
+#pragma once
+/// @file
+/// One backward-Euler step linearised once (Baraff & Witkin 1998, eq. 16–18):
+///   (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f₀ + h ∂f/∂x v₀),  v ← v + Δv,  x ← x + h v,
+/// with pins and contacts as filtered velocity constraints (§5), solved by filtered PCG or
+/// CHOLMOD. Forces: springs with axial damping, gravity, linear air drag, and Coulomb
+/// friction at contacts, linearised inside the solve (see AddFriction in the .cc).
+
+#include <Eigen/Core>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/cloth/cloth_state.h"
+#include "sim_core/collision/contact.h"
+#include "sim_core/scene/scene_description.h"
+#include "sim_core/solver/constraints.h"
+#include "sim_core/solver/filtered_pcg.h"
+#include "sim_core/solver/spring_forces.h"
+#include "sim_core/solver/system_matrix.h"
+
+namespace costume::sim {
+
+class DirectSolver;
+
+struct StepperSettings {
+  SolverMethod method = SolverMethod::kPcg;
+  PcgSettings pcg;
+  JacobianMode jacobian = JacobianMode::kDefinite;
+  ExternalForces external;
+  /// Start PCG from the previous step's Δv (cheap and usually close).
+  bool warm_start = true;
+};
+
+/// What happened in one step. Flags instead of exceptions: the step never throws.
+struct StepReport {
+  int iterations = 0;
+  double relative_residual = 0.0;
+  /// PCG reached its tolerance (always true for the direct solver when it succeeds).
+  bool converged = true;
+  /// The step produced a non-finite value, the factorisation failed or h was not a finite
+  /// positive number; the state was restored to its value before the step. Remedy: a
+  /// smaller step or softer material.
+  bool rolled_back = false;
+  int num_contacts = 0;
+};
+
+/// Largest stiffness ratio h²k/m (step h, stiffest spring k, lightest particle m) the
+/// once-linearised step is trusted with. Beyond it a single linearisation can inject energy
+/// (a stiff spring swung through a large angle in one step comes out stretched);
+/// tests/sim_core/scene/stability_matrix_test.cc measured growth from about 1e7 on.
+constexpr double kMaxStiffnessRatio = 1e6;
+
+/// Refuses (InputError naming `context`, the values and the substeps that would do) a step
+/// h [s] whose stiffness ratio for `model` exceeds kMaxStiffnessRatio.
+void RequireStableStep(const ClothModel& model, double h, const std::string& context);
+
+class ImplicitStepper {
+ public:
+  /// Allocates everything a step needs for `model`. Throws InputError for bad settings.
+  ImplicitStepper(std::shared_ptr<const ClothModel> model, const StepperSettings& settings);
+  ~ImplicitStepper();
+
+  /// Advances `state` by h [s] (> 0) with pins held and `contacts` constrained; fills each
+  /// contact's normal_impulse. Never throws; allocation-free after the first call.
+  StepReport Step(ClothState& state, double h, std::span<Contact> contacts);
+
+  const ClothModel& model() const { return *model_; }
+  const StepperSettings& settings() const { return settings_; }
+
+ private:
+  void Assemble(const ClothState& state, double h);
+  void AddFriction(const ClothState& state, double h, std::span<const Contact> contacts);
+  void SetConstraints(const ClothState& state, std::span<const Contact> contacts);
+  bool Solve(StepReport& report);
+  void StoreContactImpulses(std::span<Contact> contacts) const;
+
+  std::shared_ptr<const ClothModel> model_;
+  StepperSettings settings_;
+  SystemMatrix a_;
+  Constraints constraints_;
+  FilteredPcg pcg_;
+  std::unique_ptr<DirectSolver> direct_;
+  Eigen::VectorXd b_, dv_, a_dv_;
+  ClothState backup_;
+};
+
+}  // namespace costume::sim

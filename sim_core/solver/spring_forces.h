@@ -1,0 +1,69 @@
+#pragma once
+/// @file
+/// Spring, damping, drag and gravity forces and their Jacobians (DESIGN.md's corrected
+/// equation (4); Baraff & Witkin 1998 §4–5). Layout: 3n vectors, particle i at [3i, 3i+3).
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/cloth/cloth_state.h"
+
+namespace costume::sim {
+
+/// How the stiffness Jacobian of a compressed spring (length < rest) is treated.
+/// The exact Jacobian k[d̂d̂ᵀ + (1 − L/ℓ)(I − d̂d̂ᵀ)] has a negative transverse term under
+/// compression, which makes the system matrix indefinite and CG unreliable. kDefinite drops
+/// that term for compressed springs (keeping k d̂d̂ᵀ), as Choi & Ko 2002 and most B&W
+/// implementations do: the force stays exact, only the linearisation of a buckling spring is
+/// softened, so equilibria are unchanged while the matrix stays positive definite.
+enum class JacobianMode { kDefinite, kExact };
+
+/// One spring's force and derivative blocks, seen from its end a (end b gets the negatives).
+struct SpringTerms {
+  /// Force on particle a [N] (spring plus axial damping).
+  Eigen::Vector3d force_on_a;
+  /// ∂f_a/∂x_b [N/m] (= −∂f_a/∂x_a); excludes the damping force's position derivative,
+  /// which B&W also drop (it is non-symmetric and small).
+  Eigen::Matrix3d df_dx;
+  /// ∂f_a/∂v_b [N·s/m] (= −∂f_a/∂v_a) = c d̂d̂ᵀ.
+  Eigen::Matrix3d df_dv;
+};
+
+/// Evaluates one spring. Never throws; never allocates. A spring of zero current length
+/// gets zero force and a zero transverse term (its direction is undefined).
+SpringTerms EvaluateSpring(const Spring& spring, const Eigen::Vector3d& xa,
+                           const Eigen::Vector3d& xb, const Eigen::Vector3d& va,
+                           const Eigen::Vector3d& vb, JacobianMode mode);
+
+/// External force settings shared by every particle.
+struct ExternalForces {
+  /// Gravity [m/s²].
+  Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);
+  /// Whether each particle feels its linear air drag −model.drag()[i]·v_i.
+  bool air_drag = true;
+};
+
+/// Total force (3n) [N] on every particle: springs, damping, gravity, drag. Test and tool
+/// path (allocates).
+Eigen::VectorXd ComputeForces(const ClothModel& model, const ClothState& state,
+                              const ExternalForces& external);
+
+/// ∂f/∂x and ∂f/∂v (3n×3n) as sparse matrices. Test and tool path (allocates).
+void ComputeForceJacobians(const ClothModel& model, const ClothState& state,
+                           const ExternalForces& external, JacobianMode mode,
+                           Eigen::SparseMatrix<double>* df_dx, Eigen::SparseMatrix<double>* df_dv);
+
+/// Kinetic + spring + gravitational potential energy [J] (gravity potential −m g·x).
+double MechanicalEnergy(const ClothModel& model, const ClothState& state,
+                        const Eigen::Vector3d& gravity);
+
+/// Structural strain statistics over structural springs, strain = length / rest − 1:
+/// the largest stretch, and the mean of |strain| (stretch and compression alike).
+struct StrainStats {
+  double max = 0.0;
+  double mean = 0.0;
+};
+StrainStats StructuralStrain(const ClothModel& model, const Points& positions);
+
+}  // namespace costume::sim

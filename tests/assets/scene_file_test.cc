@@ -1,0 +1,470 @@
+#include "assets/scene_file.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::assets {
+namespace {
+
+using sim::InputError;
+using sim::SceneDescription;
+
+/// A valid scene with one garment; the tests append or replace parts of it.
+constexpr const char* kMinimalScene = R"toml(
+[[garment]]
+name = "sheet"
+[garment.panel]
+)toml";
+
+/// Passes when `text` contains `part`; on failure shows both.
+::testing::AssertionResult Contains(const std::string& text, const std::string& part) {
+  if (text.find(part) != std::string::npos) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure()
+         << "\"" << text << "\"\n  does not contain\n\"" << part << "\"";
+}
+
+/// 1-based line of the first occurrence of `needle` in `text` (0 when absent).
+int LineOf(const std::string& text, const std::string& needle) {
+  const std::size_t at = text.find(needle);
+  if (at == std::string::npos) return 0;
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+}
+
+/// "test.toml:<line>:" for the line holding `needle`.
+std::string LocationOf(const std::string& text, const std::string& needle) {
+  return "test.toml:" + std::to_string(LineOf(text, needle)) + ":";
+}
+
+/// The message ParseSceneText throws for `text` ("" and a test failure when it accepts it).
+std::string ErrorOf(const std::string& text, const std::string& base_dir = "") {
+  try {
+    ParseSceneText(text, "test.toml", base_dir);
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  ADD_FAILURE() << "accepted:\n" << text;
+  return "";
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void ExpectSameScene(const SceneDescription& a, const SceneDescription& b) {
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.duration, b.duration);
+  EXPECT_EQ(a.frame_rate, b.frame_rate);
+  EXPECT_EQ(a.gravity, b.gravity);
+  EXPECT_EQ(a.solver.method, b.solver.method);
+  EXPECT_EQ(a.solver.tolerance, b.solver.tolerance);
+  EXPECT_EQ(a.solver.max_iterations, b.solver.max_iterations);
+  EXPECT_EQ(a.solver.substeps, b.solver.substeps);
+  EXPECT_EQ(a.effects.air_drag, b.effects.air_drag);
+  EXPECT_EQ(a.effects.friction, b.effects.friction);
+  EXPECT_EQ(a.effects.self_collision, b.effects.self_collision);
+  ASSERT_EQ(a.materials.size(), b.materials.size());
+  ASSERT_EQ(a.garments.size(), b.garments.size());
+  for (std::size_t i = 0; i < a.garments.size(); ++i) {
+    const sim::GarmentSpec& ga = a.garments[i];
+    const sim::GarmentSpec& gb = b.garments[i];
+    EXPECT_EQ(ga.name, gb.name);
+    EXPECT_EQ(ga.material, gb.material);
+    EXPECT_EQ(ga.pin_points, gb.pin_points);
+    EXPECT_EQ(ga.pin_tolerance, gb.pin_tolerance);
+    EXPECT_EQ(ga.source_line, gb.source_line);
+    ASSERT_EQ(ga.panel.has_value(), gb.panel.has_value());
+    if (ga.panel) {
+      EXPECT_EQ(ga.panel->origin, gb.panel->origin);
+      EXPECT_EQ(ga.panel->u_axis, gb.panel->u_axis);
+      EXPECT_EQ(ga.panel->v_axis, gb.panel->v_axis);
+      EXPECT_EQ(ga.panel->width, gb.panel->width);
+      EXPECT_EQ(ga.panel->height, gb.panel->height);
+      EXPECT_EQ(ga.panel->cols, gb.panel->cols);
+      EXPECT_EQ(ga.panel->rows, gb.panel->rows);
+    }
+  }
+  ASSERT_EQ(a.spheres.size(), b.spheres.size());
+  for (std::size_t i = 0; i < a.spheres.size(); ++i) {
+    EXPECT_EQ(a.spheres[i].center, b.spheres[i].center);
+    EXPECT_EQ(a.spheres[i].radius, b.spheres[i].radius);
+    EXPECT_EQ(a.spheres[i].thickness, b.spheres[i].thickness);
+    EXPECT_EQ(a.spheres[i].friction, b.spheres[i].friction);
+  }
+}
+
+// ---- built-in scenes --------------------------------------------------------------------
+
+TEST(BuiltInScenes, HangIsOne33By33SheetPinnedAtTwoCorners) {
+  const SceneDescription scene = LoadBuiltInScene("hang");
+  EXPECT_EQ(scene.name, "hang");
+  EXPECT_EQ(scene.duration, 2.0);
+  EXPECT_EQ(scene.frame_rate, 60.0);
+  EXPECT_EQ(scene.gravity, Eigen::Vector3d(0.0, -9.81, 0.0));
+  EXPECT_EQ(scene.solver.method, sim::SolverMethod::kPcg);
+  EXPECT_TRUE(scene.spheres.empty());
+  ASSERT_EQ(scene.garments.size(), 1u);
+  const sim::GarmentSpec& sheet = scene.garments[0];
+  EXPECT_EQ(sheet.material, "stiff_cotton");
+  ASSERT_TRUE(sheet.panel.has_value());
+  EXPECT_FALSE(sheet.mesh.has_value());
+  EXPECT_EQ(sheet.panel->cols, 33);
+  EXPECT_EQ(sheet.panel->rows, 33);
+  EXPECT_EQ(sheet.panel->width, 1.0);
+  EXPECT_EQ(sheet.panel->height, 1.0);
+  EXPECT_EQ(sheet.panel->origin, Eigen::Vector3d(-0.5, 0.0, -0.5));
+  ASSERT_EQ(sheet.pin_points.size(), 2u);
+  EXPECT_EQ(sheet.pin_points[0], Eigen::Vector3d(-0.5, 0.0, -0.5));
+  EXPECT_EQ(sheet.pin_points[1], Eigen::Vector3d(0.5, 0.0, -0.5));
+  EXPECT_GT(sheet.source_line, 0);
+}
+
+TEST(BuiltInScenes, DrapeIsAnUnpinnedSheetHalfAMetreAboveASphere) {
+  const SceneDescription scene = LoadBuiltInScene("drape");
+  ASSERT_EQ(scene.garments.size(), 1u);
+  const sim::GarmentSpec& sheet = scene.garments[0];
+  EXPECT_TRUE(sheet.pin_points.empty());
+  ASSERT_TRUE(sheet.panel.has_value());
+  EXPECT_EQ(sheet.panel->origin, Eigen::Vector3d(-0.5, 0.5, -0.5));
+  EXPECT_EQ(sheet.panel->cols, 33);
+  ASSERT_EQ(scene.spheres.size(), 1u);
+  EXPECT_EQ(scene.spheres[0].center, Eigen::Vector3d::Zero());
+  EXPECT_EQ(scene.spheres[0].radius, 0.25);
+  EXPECT_EQ(scene.spheres[0].thickness, 0.005);
+  EXPECT_GT(scene.spheres[0].source_line, 0);
+}
+
+TEST(BuiltInScenes, DemoIsTheHangingSheetSwingingOntoASphereForFourSeconds) {
+  const SceneDescription scene = LoadBuiltInScene("demo");
+  EXPECT_EQ(scene.duration, 4.0);
+  ASSERT_EQ(scene.garments.size(), 1u);
+  EXPECT_EQ(scene.garments[0].pin_points.size(), 2u);
+  ASSERT_EQ(scene.spheres.size(), 1u);
+  // The sphere must reach through the plane z = -0.5 the sheet hangs in, or the sheet
+  // would slide off it instead of settling on it.
+  EXPECT_LT(scene.spheres[0].center.z() - scene.spheres[0].radius, -0.5);
+  EXPECT_LT(scene.spheres[0].center.y(), 0.0);
+}
+
+TEST(BuiltInSceneNames, ListsDemoHangAndDrape) {
+  EXPECT_EQ(BuiltInSceneNames(), (std::vector<std::string>{"demo", "hang", "drape"}));
+}
+
+TEST(BuiltInSceneText, RefusesUnknownNameListingKnownOnes) {
+  try {
+    BuiltInSceneText("hnag");
+    FAIL() << "accepted an unknown scene";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "hnag"));
+    EXPECT_TRUE(Contains(error.what(), "\"demo\", \"hang\", \"drape\""));
+  }
+}
+
+TEST(BuiltInSceneText, EqualsTheSceneFilesInTheRepository) {
+  for (const std::string& name : BuiltInSceneNames()) {
+    EXPECT_EQ(BuiltInSceneText(name), ReadFile("scenes/" + name + ".toml")) << name;
+  }
+}
+
+TEST(LoadSceneFile, ReadsTheSameSceneAsTheEmbeddedText) {
+  const SceneDescription from_file = LoadSceneFile("scenes/hang.toml");
+  EXPECT_EQ(from_file.source, "scenes/hang.toml");
+  ExpectSameScene(from_file, ParseSceneText(BuiltInSceneText("hang"), "hang", ""));
+}
+
+TEST(LoadSceneFile, RefusesAMissingFileNamingIt) {
+  try {
+    LoadSceneFile("scenes/no_such_scene.toml");
+    FAIL() << "accepted a missing file";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "scenes/no_such_scene.toml"));
+  }
+}
+
+// ---- values and defaults ----------------------------------------------------------------
+
+TEST(ParseSceneText, FillsOmittedKeysWithTheDocumentedDefaults) {
+  const SceneDescription scene = ParseSceneText(kMinimalScene, "dir/my_scene.toml", "dir");
+  EXPECT_EQ(scene.name, "my_scene");  // the file name when the scene has none
+  EXPECT_EQ(scene.source, "dir/my_scene.toml");
+  EXPECT_EQ(scene.duration, 2.0);
+  EXPECT_EQ(scene.frame_rate, 60.0);
+  EXPECT_EQ(scene.solver.tolerance, 1e-3);
+  EXPECT_EQ(scene.solver.max_iterations, 1000);
+  EXPECT_TRUE(scene.effects.air_drag);
+  EXPECT_FALSE(scene.effects.self_collision);
+  ASSERT_EQ(scene.garments.size(), 1u);
+  EXPECT_EQ(scene.garments[0].material, "stiff_cotton");
+  EXPECT_EQ(scene.garments[0].pin_tolerance, 1e-3);
+  EXPECT_EQ(scene.garments[0].source_line, 2);
+  ASSERT_TRUE(scene.garments[0].panel.has_value());
+  EXPECT_EQ(scene.garments[0].panel->cols, 33);
+  EXPECT_EQ(scene.garments[0].panel->u_axis, Eigen::Vector3d::UnitX());
+}
+
+TEST(ParseSceneText, AcceptsIntegersWhereNumbersAreExpected) {
+  const SceneDescription scene = ParseSceneText(
+      "duration = 3\ngravity = [0, -10, 0]\n" + std::string(kMinimalScene) + "size = [2, 1]\n",
+      "test.toml", "");
+  EXPECT_EQ(scene.duration, 3.0);
+  EXPECT_EQ(scene.gravity, Eigen::Vector3d(0.0, -10.0, 0.0));
+  EXPECT_EQ(scene.garments[0].panel->width, 2.0);
+}
+
+TEST(ParseSceneText, ReadsSceneMaterialsStartingFromTheirBase) {
+  const std::string text = R"toml(
+[[material]]
+name = "silk"
+density = 0.05
+[[material]]
+name = "blender_like"
+base = "blender_cotton"
+[[garment]]
+name = "scarf"
+material = "silk"
+[garment.panel]
+)toml";
+  const SceneDescription scene = ParseSceneText(text, "test.toml", "");
+  ASSERT_EQ(scene.materials.size(), 2u);
+  EXPECT_EQ(scene.materials[0].name, "silk");
+  EXPECT_EQ(scene.materials[0].density, 0.05);
+  EXPECT_EQ(scene.materials[0].stretch_stiffness, sim::Material{}.stretch_stiffness);
+  EXPECT_EQ(scene.materials[1].name, "blender_like");
+  EXPECT_GT(scene.materials[1].structural_spring_k, 0.0);
+  EXPECT_EQ(scene.garments[0].material, "silk");
+}
+
+TEST(ParseSceneText, NormalisesPanelAxes) {
+  const SceneDescription scene = ParseSceneText(
+      std::string(kMinimalScene) + "u_axis = [2, 0, 0]\nv_axis = [0, 3, 0]\n", "test.toml", "");
+  EXPECT_EQ(scene.garments[0].panel->u_axis, Eigen::Vector3d::UnitX());
+  EXPECT_EQ(scene.garments[0].panel->v_axis, Eigen::Vector3d::UnitY());
+}
+
+// ---- errors point at the line and field -------------------------------------------------
+
+TEST(ParseSceneText, PointsAtLineFieldAndValueOfAnOutOfRangeNumber) {
+  const std::string text = R"toml(name = "bad"
+[[material]]
+name = "silk"
+density = -1
+[[garment]]
+name = "sheet"
+material = "silk"
+[garment.panel]
+)toml";
+  const std::string message = ErrorOf(text);
+  EXPECT_TRUE(Contains(message, "test.toml:4:1: material[0].density = -1 kg/m²"));
+  EXPECT_TRUE(Contains(message, "> 0"));
+}
+
+TEST(ParseSceneText, StatesTheAllowedRangeOfEachField) {
+  struct Case {
+    std::string lines;  // put before the garment: TOML keys belong to the table above them
+    std::string field;
+    std::string range;
+  };
+  const Case cases[] = {
+      {"duration = 4000", "duration = 4000 s", "(0, 3600]"},
+      {"frame_rate = 0.5", "frame_rate = 0.5 Hz", "[1, 1000]"},
+      {"[solver]\ntolerance = 2", "solver.tolerance = 2", "(0, 1)"},
+      {"[solver]\nmax_iterations = 0", "solver.max_iterations = 0", "[1, 100000]"},
+      {"[solver]\nsubsteps = 5000", "solver.substeps = 5000", "[1, 1000]"},
+      {"[[sphere]]\nradius = 0", "sphere[0].radius = 0 m", "> 0"},
+      {"[[sphere]]\nthickness = -0.1", "sphere[0].thickness = -0.1 m", ">= 0"},
+      {"[[material]]\nname = \"m\"\ndamping = -1", "material[0].damping = -1 s", ">= 0"},
+  };
+  for (const Case& c : cases) {
+    const std::string text = c.lines + "\n" + kMinimalScene;
+    const std::string message = ErrorOf(text);
+    const std::string bad_line = c.lines.substr(c.lines.rfind('\n') + 1);
+    EXPECT_TRUE(Contains(message, LocationOf(text, bad_line))) << c.lines;
+    EXPECT_TRUE(Contains(message, c.field)) << c.lines;
+    EXPECT_TRUE(Contains(message, c.range)) << c.lines;
+  }
+}
+
+TEST(ParseSceneText, RefusesOutOfRangePanelValuesNamingTheElement) {
+  const std::string text = std::string(kMinimalScene) + "size = [1.0, -2]\n";
+  EXPECT_TRUE(Contains(ErrorOf(text), "garment[0].panel.size[1] = -2 m"));
+  const std::string resolution = std::string(kMinimalScene) + "resolution = [33, 2000]\n";
+  const std::string message = ErrorOf(resolution);
+  EXPECT_TRUE(Contains(message, LocationOf(resolution, "resolution")));
+  EXPECT_TRUE(Contains(message, "garment[0].panel.resolution[1] = 2000"));
+  EXPECT_TRUE(Contains(message, "[2, 1025]"));
+}
+
+TEST(ParseSceneText, RefusesUnknownKeyListingAllowedOnes) {
+  const std::string text =
+      "[solver]\nmethod = \"pcg\"\ntolerence = 0.5\n" + std::string(kMinimalScene);
+  const std::string message = ErrorOf(text);
+  EXPECT_TRUE(Contains(message, "test.toml:3:1: solver.tolerence = 0.5"));
+  EXPECT_TRUE(Contains(message, "unknown key"));
+  EXPECT_TRUE(Contains(message, "method, tolerance, max_iterations, substeps"));
+}
+
+TEST(ParseSceneText, RefusesAMisspelledTableListingAllowedKeys) {
+  const std::string text = "[[garment]]\nname = \"a\"\n[garment.pannel]\n";
+  const std::string message = ErrorOf(text);
+  EXPECT_TRUE(Contains(message, "test.toml:3:"));
+  EXPECT_TRUE(Contains(message, "garment[0].pannel"));
+  EXPECT_TRUE(Contains(message, "panel, mesh"));
+}
+
+TEST(ParseSceneText, ReportsTomlSyntaxErrorsWithTheirLine) {
+  const std::string text = "name = \"x\"\nduration = [1,\n\n[[garment]]\n";
+  const std::string message = ErrorOf(text);
+  EXPECT_TRUE(Contains(message, "test.toml:"));
+  EXPECT_TRUE(Contains(message, "TOML syntax error"));
+  const std::string redefined = "duration = 1\nduration = 2\n";
+  EXPECT_TRUE(Contains(ErrorOf(redefined), "test.toml:2:"));
+}
+
+TEST(ParseSceneText, RefusesWrongTypesNamingTheExpectedOne) {
+  EXPECT_TRUE(Contains(ErrorOf("duration = \"2\"\n" + std::string(kMinimalScene)),
+                       "test.toml:1:1: duration = \"2\" s: expected a number, found a string"));
+  EXPECT_TRUE(Contains(ErrorOf(std::string(kMinimalScene) + "resolution = [33.0, 33]\n"),
+                       "resolution[0] = 33: expected an integer, found a float"));
+  EXPECT_TRUE(Contains(ErrorOf(std::string(kMinimalScene) + "origin = [0, 0]\n"),
+                       "expected an array of 3 numbers [x, y, z], found 2 elements"));
+  EXPECT_TRUE(Contains(ErrorOf("[effects]\nfriction = 1\n" + std::string(kMinimalScene)),
+                       "effects.friction = 1: expected true or false, found an integer"));
+  EXPECT_TRUE(Contains(ErrorOf("[solver]\nmethod = \"cg\"\n" + std::string(kMinimalScene)),
+                       "must be one of \"pcg\", \"direct\""));
+  EXPECT_TRUE(Contains(ErrorOf("[material]\nname = \"silk\"\n" + std::string(kMinimalScene)),
+                       "expected an array of tables, written [[material]]"));
+}
+
+TEST(ParseSceneText, RefusesNanAndInfinity) {
+  EXPECT_TRUE(Contains(ErrorOf("duration = nan\n" + std::string(kMinimalScene)),
+                       "test.toml:1:1: duration = nan s: must be a finite number"));
+  EXPECT_TRUE(Contains(ErrorOf("gravity = [0, -inf, 0]\n" + std::string(kMinimalScene)),
+                       "gravity[1] = -inf m/s²: must be a finite number"));
+  const std::string pins =
+      "[[garment]]\nname = \"sheet\"\npin_points = [[0, 0, 0],\n  [0, nan, 0]]\n[garment.panel]\n";
+  EXPECT_TRUE(Contains(ErrorOf(pins), LocationOf(pins, "  [0, nan")));
+  EXPECT_TRUE(Contains(ErrorOf(pins), "garment[0].pin_points[1][1] = nan m"));
+}
+
+TEST(ParseSceneText, RefusesASceneWithoutGarments) {
+  EXPECT_TRUE(Contains(ErrorOf("duration = 1\n"), "test.toml:1:1: garment: missing"));
+}
+
+TEST(ParseSceneText, RefusesAMissingRequiredKeyPointingAtItsTable) {
+  const std::string text =
+      "duration = 1\n\n[[garment]]\nmaterial = \"stiff_cotton\"\n[garment.panel]\n";
+  EXPECT_TRUE(Contains(ErrorOf(text), "test.toml:3:1: garment[0].name: missing"));
+}
+
+TEST(ParseSceneText, RefusesAnUnknownMaterialListingKnownOnes) {
+  const std::string text = R"toml(
+[[material]]
+name = "silk"
+[[garment]]
+name = "sheet"
+material = "slik"
+[garment.panel]
+)toml";
+  const std::string message = ErrorOf(text);
+  EXPECT_TRUE(Contains(message, LocationOf(text, "material = \"slik\"")));
+  EXPECT_TRUE(Contains(message, "garment[0].material = \"slik\""));
+  EXPECT_TRUE(Contains(message, "silk, stiff_cotton, blender_cotton"));
+}
+
+TEST(ParseSceneText, RefusesDuplicateMaterialAndGarmentNames) {
+  const std::string materials =
+      "[[material]]\nname = \"silk\"\n[[material]]\nname = \"silk\"\n" + std::string(kMinimalScene);
+  EXPECT_TRUE(
+      Contains(ErrorOf(materials), "test.toml:4:1: material[1].name = \"silk\": duplicate"));
+  const std::string garments = std::string(kMinimalScene) + kMinimalScene;
+  EXPECT_TRUE(Contains(ErrorOf(garments), "garment[1].name = \"sheet\": duplicate"));
+}
+
+TEST(ParseSceneText, RefusesAGarmentWithBothOrNeitherPanelAndMesh) {
+  const std::string neither = "[[garment]]\nname = \"sheet\"\n";
+  EXPECT_TRUE(Contains(ErrorOf(neither), "test.toml:1:1: garment[0] \"sheet\": has neither"));
+  const std::string both = std::string(kMinimalScene) + "[garment.mesh]\nfile = \"skirt.obj\"\n";
+  EXPECT_TRUE(Contains(ErrorOf(both), "has both"));
+}
+
+TEST(ParseSceneText, RefusesZeroAndSkewPanelAxes) {
+  const std::string zero = std::string(kMinimalScene) + "u_axis = [0, 0, 0]\n";
+  EXPECT_TRUE(Contains(ErrorOf(zero), "garment[0].panel.u_axis = [0, 0, 0]: must be a non-zero"));
+  const std::string skew = std::string(kMinimalScene) + "u_axis = [1, 0, 0]\nv_axis = [1, 0, 1]\n";
+  const std::string message = ErrorOf(skew);
+  EXPECT_TRUE(Contains(message, LocationOf(skew, "v_axis")));
+  EXPECT_TRUE(Contains(message, "orthogonal"));
+}
+
+// ---- mesh garments ----------------------------------------------------------------------
+
+TEST(ParseSceneText, MeshGarmentWithAMissingFileNamesTheSceneLineAndTheMeshPath) {
+  const std::string text = R"toml(
+[[garment]]
+name = "skirt"
+[garment.mesh]
+scale = 0.1
+file = "no_such_skirt.obj"
+)toml";
+  const std::string message = ErrorOf(text, "costumes");
+  EXPECT_TRUE(Contains(message, LocationOf(text, "file =")));
+  EXPECT_TRUE(Contains(message, "garment[0].mesh.file = \"no_such_skirt.obj\""));
+  EXPECT_TRUE(Contains(message, "costumes/no_such_skirt.obj"));
+}
+
+TEST(LoadSceneFile, ReadsMeshGarmentsRelativeToTheSceneFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_test";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "square.obj") << "v 0 0 0\nv 10 0 0\nv 10 0 10\nv 0 0 10\nf 1 2 3 4\n";
+  std::ofstream(dir / "scene.toml") << "[[garment]]\nname = \"square\"\n"
+                                       "[garment.mesh]\nfile = \"square.obj\"\nscale = 0.1\n"
+                                       "offset = [0, 1, 0]\n";
+  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
+  ASSERT_EQ(scene.garments.size(), 1u);
+  ASSERT_TRUE(scene.garments[0].mesh.has_value());
+  const sim::SurfaceMesh& mesh = *scene.garments[0].mesh;
+  ASSERT_EQ(mesh.vertices.rows(), 4);
+  EXPECT_NEAR(mesh.vertices.col(0).maxCoeff(), 1.0, 1e-12);
+  EXPECT_NEAR(mesh.vertices.col(1).minCoeff(), 1.0, 1e-12);
+  std::filesystem::remove_all(dir);
+}
+
+// ---- the file-independent checks --------------------------------------------------------
+
+TEST(ValidateScene, NamesTheSourceFieldAndRange) {
+  SceneDescription scene = LoadBuiltInScene("hang");
+  scene.source = "built-in";
+  scene.solver.tolerance = 2.0;
+  try {
+    sim::ValidateScene(scene);
+    FAIL() << "accepted tolerance 2";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "built-in: solver.tolerance = 2: allowed range (0, 1)"));
+  }
+}
+
+TEST(ValidateScene, RefusesAGarmentWithoutPanelOrMesh) {
+  SceneDescription scene = LoadBuiltInScene("hang");
+  scene.garments[0].panel.reset();
+  EXPECT_THROW(sim::ValidateScene(scene), InputError);
+  scene.garments.clear();
+  EXPECT_THROW(sim::ValidateScene(scene), InputError);
+}
+
+TEST(SolverMethodName, SpellsTheMethodsAsTheSceneFileDoes) {
+  EXPECT_STREQ(sim::SolverMethodName(sim::SolverMethod::kPcg), "pcg");
+  EXPECT_STREQ(sim::SolverMethodName(sim::SolverMethod::kDirect), "direct");
+}
+
+}  // namespace
+}  // namespace costume::assets

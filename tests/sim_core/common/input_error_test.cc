@@ -1,0 +1,48 @@
+// Refusal messages name the field, the value and the allowed range.
+#include "sim_core/common/input_error.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+namespace costume::sim {
+namespace {
+
+std::string MessageOf(auto&& call) {
+  try {
+    call();
+  } catch (const InputError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TEST(RequirePositive, NamesFieldValueAndRange) {
+  const std::string message = MessageOf([] { RequirePositive("material.density", -2.5, "kg/m²"); });
+  EXPECT_NE(message.find("material.density"), std::string::npos);
+  EXPECT_NE(message.find("-2.5 kg/m²"), std::string::npos);
+  EXPECT_NE(message.find("> 0"), std::string::npos);
+}
+
+TEST(RequirePositive, RefusesZeroNanAndInfinity) {
+  for (double bad : {0.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(RequirePositive("x", bad, ""), InputError);
+  }
+  EXPECT_NO_THROW(RequirePositive("x", 1e-300, ""));
+}
+
+TEST(RequireInRange, QuotesBothBounds) {
+  const std::string message = MessageOf([] { RequireInRange("solver.tolerance", 2, 0, 1, ""); });
+  EXPECT_NE(message.find("solver.tolerance = 2"), std::string::npos);
+  EXPECT_NE(message.find("allowed 0 to 1"), std::string::npos);
+}
+
+TEST(FormatValue, SpellsOutNonFiniteValues) {
+  EXPECT_EQ(FormatValue(std::nan("")), "nan");
+  EXPECT_EQ(FormatValue(-std::numeric_limits<double>::infinity()), "-inf");
+  EXPECT_EQ(FormatValue(0.1), "0.1");
+}
+
+}  // namespace
+}  // namespace costume::sim

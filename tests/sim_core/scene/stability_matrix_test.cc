@@ -1,0 +1,112 @@
+// Numerical stability at the extremes: stiffness 1 to 1e7 N/m, step 1/30 to 1/2000 s,
+// particle mass 1e-5 to 1 kg, N up to 129. Every combination either runs with a finite state
+// and no undone step, or is refused up front with an explanation. Prints the matrix.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "sim_core/common/input_error.h"
+#include "sim_core/scene/simulation.h"
+#include "sim_core/solver/spring_forces.h"
+#include "tests/support/test_scenes.h"
+
+namespace costume::sim {
+namespace {
+
+struct Cell {
+  std::string mark;    // what the matrix prints
+  bool acceptable;     // finite and never undone, or refused with a reason
+  std::string detail;  // for failures and refusals
+};
+
+SceneDescription ExtremeScene(int n, double k, double mass, double h, SolverMethod method) {
+  Material material;
+  material.name = "extreme";
+  material.density = mass * n * n;  // 1 m² sheet: n² particles of `mass` each
+  material.structural_spring_k = material.shear_spring_k = material.bending_spring_k = k;
+  SceneDescription scene = test::HangScene(n, material);
+  scene.solver.method = method;
+  // Frames of at most 1000 Hz (the scene format's limit), split into substeps of h.
+  scene.solver.substeps = h < 1e-3 ? 2 : 1;
+  scene.frame_rate = 1.0 / (h * scene.solver.substeps);
+  scene.solver.max_iterations = n > 65 ? 200 : 1000;
+  return scene;
+}
+
+Cell RunCell(int n, double k, double mass, double h, SolverMethod method, int steps) {
+  std::unique_ptr<Simulation> sim;
+  try {
+    sim = Simulation::Build(ExtremeScene(n, k, mass, h, method));
+  } catch (const InputError& error) {
+    const std::string why = error.what();
+    return {"refused", why.size() > 20, why};
+  }
+  const Eigen::Vector3d g = sim->scene().gravity;
+  const double initial_energy = MechanicalEnergy(sim->model(), sim->state(), g);
+  int undone = 0;
+  bool converged = true;
+  for (int s = 0; s < steps; s += sim->scene().solver.substeps) {
+    const FrameReport report = sim->AdvanceFrame();
+    undone += report.rolled_back_steps;
+    converged = converged && report.converged;
+  }
+  const bool finite = sim->state().positions.allFinite() && sim->state().velocities.allFinite();
+  const double sag = -sim->state().positions.col(1).minCoeff();
+  if (!finite) return {"NaN", false, "non-finite state"};
+  if (undone > 0) return {"undone", false, std::to_string(undone) + " steps undone"};
+  // No energy enters the system (pins still, gravity conservative): it may only decay.
+  const double energy = MechanicalEnergy(sim->model(), sim->state(), g);
+  const double scale = std::abs(initial_energy) + 1e-12;
+  if (energy > initial_energy + 1e-9 * scale) {
+    return {"GREW", false, "energy grew from " + std::to_string(initial_energy) + " to " +
+                               std::to_string(energy) + " J"};
+  }
+  return {converged ? "ok" : "ok(cap)", true, "sag " + std::to_string(sag) + " m"};
+}
+
+TEST(StabilityMatrix, EveryExtremeCombinationRunsFiniteOrIsRefusedWithAReason) {
+  const double stiffnesses[] = {1.0, 1e3, 1e5, 1e7};
+  const double steps[] = {1.0 / 30, 1.0 / 60, 1.0 / 240, 1.0 / 2000};
+  const double masses[] = {1e-5, 1e-3, 1.0};
+  struct Size {
+    int n;
+    SolverMethod method;
+    int steps;
+  };
+  const Size sizes[] = {{5, SolverMethod::kPcg, 20},
+                        {5, SolverMethod::kDirect, 20},
+                        {33, SolverMethod::kPcg, 10},
+                        {33, SolverMethod::kDirect, 10},
+                        {129, SolverMethod::kPcg, 10}};
+  int failures = 0;
+  for (const Size& size : sizes) {
+    std::printf("\nN = %d, solver %s, %d steps (ok(cap): PCG hit its iteration cap, state "
+                "finite)\n%-10s %-8s", size.n, SolverMethodName(size.method), size.steps,
+                "k [N/m]", "m [kg]");
+    for (double h : steps) std::printf(" | h=1/%-6.0f", 1.0 / h);
+    std::printf("\n");
+    for (double k : stiffnesses) {
+      for (double m : masses) {
+        std::printf("%-10g %-8g", k, m);
+        for (double h : steps) {
+          const Cell cell = RunCell(size.n, k, m, h, size.method, size.steps);
+          std::printf(" | %-8s", cell.mark.c_str());
+          if (!cell.acceptable) {
+            ++failures;
+            ADD_FAILURE() << "N=" << size.n << " k=" << k << " m=" << m << " h=" << h << ": "
+                          << cell.detail;
+          }
+          if (cell.mark == "refused") std::printf("\n    refused: %s\n", cell.detail.c_str());
+        }
+        std::printf("\n");
+      }
+    }
+  }
+  std::fflush(stdout);
+  EXPECT_EQ(failures, 0);
+}
+
+}  // namespace
+}  // namespace costume::sim

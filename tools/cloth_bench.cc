@@ -1,0 +1,182 @@
+/// @file
+/// cloth_bench: the hang and drape scenes of docs/BENCHMARKS.md, one JSON object per run,
+/// with the peers' figures (measured on the same kind of machine) beside ours.
+/// Single-threaded; medians over the run's frames.
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "assets/scene_file.h"
+#include "sim_core/common/input_error.h"
+#include "sim_core/scene/simulation.h"
+#include "sim_core/solver/spring_forces.h"
+
+namespace {
+
+using costume::sim::SceneDescription;
+using costume::sim::Simulation;
+using costume::sim::SolverMethod;
+using nlohmann::json;
+
+struct Run {
+  std::string scene, material, solver;
+  int n = 33;
+  double dt = 1.0 / 60.0;
+  double tolerance = 1e-3;
+  int max_iterations = 1000;
+  int frames = 120;
+};
+
+/// A peer's figure from docs/BENCHMARKS.md: ms per frame and max strain.
+struct Peer {
+  const char* name;
+  const char* scene;
+  const char* material;
+  int n;
+  double ms;
+  double max_strain;
+};
+
+// Blender ran its Cotton preset, Bullet a k = 1000 N/m-like stiff sheet; docs/BENCHMARKS.md.
+constexpr Peer kPeers[] = {
+    {"bullet", "hang", "stiff_cotton", 65, 16.5, 0.079},
+    {"bullet", "hang", "stiff_cotton", 129, 71.0, 1.08},
+    {"bullet", "drape", "stiff_cotton", 65, 10.8, 0.146},
+    {"bullet", "drape", "stiff_cotton", 129, 52.0, 0.28},
+    {"blender", "hang", "blender_cotton", 33, 10.4, 0.051},
+    {"blender", "hang", "blender_cotton", 65, 87.0, 0.18},
+    {"blender", "hang", "blender_cotton", 129, 415.0, 0.59},
+    {"blender", "drape", "blender_cotton", 65, 613.0, 0.055},
+    {"blender", "drape", "blender_cotton", 129, 2232.0, 0.10},
+};
+
+SceneDescription MakeScene(const Run& run) {
+  SceneDescription scene = costume::assets::LoadBuiltInScene(run.scene);
+  auto& garment = scene.garments.at(0);
+  garment.panel->cols = garment.panel->rows = run.n;
+  garment.material = run.material;
+  scene.solver.method = run.solver == "direct" ? SolverMethod::kDirect : SolverMethod::kPcg;
+  scene.solver.tolerance = run.tolerance;
+  scene.solver.max_iterations = run.max_iterations;
+  scene.solver.substeps = std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * run.dt))));
+  scene.frame_rate = 60.0;
+  scene.duration = run.frames / 60.0;
+  return scene;
+}
+
+double MinSphereDistance(const Simulation& sim) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& sphere : sim.scene().spheres) {
+    for (Eigen::Index i = 0; i < sim.state().positions.rows(); ++i) {
+      best = std::min(best, (sim.state().positions.row(i).transpose() - sphere.center).norm());
+    }
+  }
+  return best;
+}
+
+double Median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+json Measure(const Run& run) {
+  const SceneDescription scene = MakeScene(run);
+  auto sim = Simulation::Build(scene);
+  std::vector<double> ms;
+  long iterations = 0, unconverged = 0, rolled_back = 0;
+  double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
+  for (int f = 0; f < run.frames; ++f) {
+    const auto report = sim->AdvanceFrame();
+    ms.push_back(report.wall_ms);
+    iterations += report.iterations;
+    unconverged += report.converged ? 0 : 1;
+    rolled_back += report.rolled_back_steps;
+    penetration = std::max(penetration, report.max_penetration);
+    min_distance = std::min(min_distance, MinSphereDistance(*sim));
+  }
+  const auto& x = sim->state().positions;
+  const auto strain = costume::sim::StructuralStrain(sim->model(), x);
+  json out = {{"scene", run.scene},
+              {"material", run.material},
+              {"n", run.n},
+              {"solver", run.solver},
+              {"dt", sim->step()},
+              {"substeps", scene.solver.substeps},
+              {"tolerance", run.tolerance},
+              {"frames", run.frames},
+              {"ms_per_frame_median", Median(ms)},
+              {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
+              {"iterations_per_frame", static_cast<double>(iterations) / run.frames},
+              {"frames_unconverged", unconverged},
+              {"steps_rolled_back", rolled_back},
+              {"max_strain", strain.max},
+              {"mean_strain", strain.mean},
+              {"nan", !x.allFinite()}};
+  if (!scene.spheres.empty()) {
+    out["min_sphere_distance"] = min_distance;
+    out["sphere_radius"] = scene.spheres[0].radius;
+    out["max_shell_penetration_before_projection"] = penetration;
+  }
+  for (const Peer& peer : kPeers) {
+    if (run.scene == peer.scene && run.material == peer.material && run.n == peer.n) {
+      out[std::string(peer.name) + "_ms"] = peer.ms;
+      out[std::string(peer.name) + "_max_strain"] = peer.max_strain;
+      out[std::string("speedup_vs_") + peer.name] = peer.ms / Median(ms);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"cloth_bench: hang and drape scenes of docs/BENCHMARKS.md; one JSON line per run"};
+  std::vector<std::string> scenes{"hang", "drape"};
+  std::vector<std::string> materials{"stiff_cotton", "blender_cotton"};
+  std::vector<int> sizes{33, 65, 129};
+  std::vector<std::string> solvers{"pcg"};
+  Run base;
+  app.add_option("--scene", scenes, "Scenes")->check(CLI::IsMember({"hang", "drape"}))
+      ->capture_default_str();
+  app.add_option("--material", materials, "Materials")
+      ->check(CLI::IsMember({"stiff_cotton", "blender_cotton"}))->capture_default_str();
+  app.add_option("--n", sizes, "Lattice sizes N (N×N particles)")->check(CLI::Range(3, 1025))
+      ->capture_default_str();
+  app.add_option("--solver", solvers, "Solvers")->check(CLI::IsMember({"pcg", "direct"}))
+      ->capture_default_str();
+  app.add_option("--dt", base.dt, "Time step [s]; rounded to 1/60 s divided by an integer")
+      ->check(CLI::Range(1e-5, 1.0 / 60.0))->capture_default_str();
+  app.add_option("--tolerance", base.tolerance, "PCG relative tolerance")
+      ->check(CLI::Range(1e-14, 0.999))->capture_default_str();
+  app.add_option("--max-iterations", base.max_iterations, "PCG iteration cap per step")
+      ->check(CLI::Range(1, 1000000))->capture_default_str();
+  app.add_option("--frames", base.frames, "Frames per run (60 per second)")
+      ->check(CLI::Range(1, 100000))->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    for (const auto& scene : scenes) {
+      for (const auto& material : materials) {
+        for (int n : sizes) {
+          for (const auto& solver : solvers) {
+            Run run = base;
+            run.scene = scene;
+            run.material = material;
+            run.n = n;
+            run.solver = solver;
+            std::cout << Measure(run).dump() << std::endl;
+          }
+        }
+      }
+    }
+  } catch (const costume::sim::InputError& error) {
+    std::fprintf(stderr, "error: %s\n", error.what());
+    return 2;
+  }
+  return 0;
+}
