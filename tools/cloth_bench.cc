@@ -28,7 +28,7 @@ struct Run {
   std::string scene, material, solver;
   int n = 33;
   double dt = 1.0 / 60.0;
-  double tolerance = 1e-3;
+  double tolerance = 1e-2;
   int max_iterations = 1000;
   int frames = 120;
 };

@@ -30,7 +30,7 @@ struct SolverSettings {
   SolverMethod method = SolverMethod::kPcg;
   /// PCG stops when the preconditioned residual falls below tolerance² times that of the
   /// right-hand side (B&W's criterion) [-], in (0, 1).
-  double tolerance = 1e-3;
+  double tolerance = 1e-2;
   /// PCG iteration cap per step, >= 1.
   int max_iterations = 1000;
   /// Implicit steps per frame, >= 1; the step is 1/(frame_rate·substeps).

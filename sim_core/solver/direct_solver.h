@@ -24,8 +24,10 @@ class DirectSolver {
   bool Solve(const SystemMatrix& a, const Eigen::VectorXd& b, const Constraints& constraints,
              Eigen::VectorXd& dv);
 
- private:
+  /// CHOLMOD's state, opaque outside direct_solver.cc.
   struct Impl;
+
+ private:
   std::unique_ptr<Impl> impl_;
 };
 

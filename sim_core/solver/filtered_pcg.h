@@ -15,7 +15,7 @@ namespace costume::sim {
 
 struct PcgSettings {
   /// Stop when rᵀP⁻¹r < tolerance² · (Sb)ᵀP⁻¹(Sb) (B&W's criterion) [-].
-  double tolerance = 1e-3;
+  double tolerance = 1e-2;
   int max_iterations = 1000;
 };
 

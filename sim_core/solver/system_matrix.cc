@@ -12,82 +12,59 @@ SystemMatrix::SystemMatrix(const ClothModel& model) : num_particles_(model.num_p
     neighbours[s.a].push_back(s.b);
     neighbours[s.b].push_back(s.a);
   }
-  for (auto& list : neighbours) std::sort(list.begin(), list.end());
-
-  // Column 3j + c holds, for each neighbour i of j in order, rows 3i..3i+2.
-  std::vector<int> column_start(n + 1, 0);
-  for (int j = 0; j < n; ++j) column_start[j + 1] = column_start[j] + 9 * neighbours[j].size();
-  const int nnz = column_start[n];
-  matrix_.resize(3 * n, 3 * n);
-  matrix_.resizeNonZeros(nnz);
-  int* outer = matrix_.outerIndexPtr();
-  int* inner = matrix_.innerIndexPtr();
-  stride_.resize(n);
-  diagonal_offset_.resize(n);
-  for (int j = 0; j < n; ++j) {
-    const int degree = static_cast<int>(neighbours[j].size());
-    stride_[j] = 3 * degree;
-    for (int c = 0; c < 3; ++c) {
-      outer[3 * j + c] = column_start[j] + c * stride_[j];
-      for (int p = 0; p < degree; ++p) {
-        for (int r = 0; r < 3; ++r) inner[outer[3 * j + c] + 3 * p + r] = 3 * neighbours[j][p] + r;
-      }
-    }
-    for (int p = 0; p < degree; ++p) {
-      const int offset = column_start[j] + 3 * p;
-      blocks_.push_back({neighbours[j][p], j, offset, stride_[j]});
-      if (neighbours[j][p] == j) diagonal_offset_[j] = offset;
-    }
+  row_start_.assign(n + 1, 0);
+  for (int i = 0; i < n; ++i) {
+    std::sort(neighbours[i].begin(), neighbours[i].end());
+    row_start_[i + 1] = row_start_[i] + static_cast<int>(neighbours[i].size());
+    block_col_.insert(block_col_.end(), neighbours[i].begin(), neighbours[i].end());
   }
-  outer[3 * n] = nnz;
-  auto offset_of = [&](int row, int col) {
-    const auto& list = neighbours[col];
-    const int p = static_cast<int>(std::lower_bound(list.begin(), list.end(), row) - list.begin());
-    return column_start[col] + 3 * p;
+  values_.assign(9 * block_col_.size(), 0.0);
+  auto block_of = [&](int row, int col) {
+    const auto first = block_col_.begin() + row_start_[row];
+    const auto last = block_col_.begin() + row_start_[row + 1];
+    return static_cast<int>(std::lower_bound(first, last, col) - block_col_.begin());
   };
+  diagonal_block_.resize(n);
+  for (int i = 0; i < n; ++i) diagonal_block_[i] = block_of(i, i);
   for (const Spring& s : model.springs()) {
-    spring_offset_ab_.push_back(offset_of(s.a, s.b));
-    spring_offset_ba_.push_back(offset_of(s.b, s.a));
     spring_ends_.emplace_back(s.a, s.b);
-  }
-  SetZero();
-}
-
-void SystemMatrix::SetZero() {
-  std::fill_n(matrix_.valuePtr(), matrix_.nonZeros(), 0.0);
-}
-
-void SystemMatrix::AddAt(int offset, int stride, const Eigen::Matrix3d& block, double sign) {
-  double* v = matrix_.valuePtr() + offset;
-  for (int c = 0; c < 3; ++c) {
-    for (int r = 0; r < 3; ++r) v[c * stride + r] += sign * block(r, c);
+    spring_blocks_.emplace_back(block_of(s.a, s.b), block_of(s.b, s.a));
   }
 }
+
+void SystemMatrix::SetZero() { std::fill(values_.begin(), values_.end(), 0.0); }
 
 void SystemMatrix::AddToDiagonal(int i, const Eigen::Matrix3d& block) {
-  AddAt(diagonal_offset_[i], stride_[i], block, 1.0);
+  mutable_block(diagonal_block_[i]) += block;
 }
 
 void SystemMatrix::AddSpringCoupling(int spring, const Eigen::Matrix3d& block) {
   const auto [a, b] = spring_ends_[spring];
-  AddAt(diagonal_offset_[a], stride_[a], block, 1.0);
-  AddAt(diagonal_offset_[b], stride_[b], block, 1.0);
-  AddAt(spring_offset_ab_[spring], stride_[b], block, -1.0);
-  AddAt(spring_offset_ba_[spring], stride_[a], block, -1.0);
+  const auto [ab, ba] = spring_blocks_[spring];
+  mutable_block(diagonal_block_[a]) += block;
+  mutable_block(diagonal_block_[b]) += block;
+  mutable_block(ab) -= block;
+  mutable_block(ba) -= block;
 }
 
 void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  // A is symmetric: reading the column-major arrays as rows gives a gather product.
-  y.noalias() = matrix_.transpose() * x;
+  const double* v = values_.data();
+  const double* xs = x.data();
+  for (int i = 0; i < num_particles_; ++i) {
+    double y0 = 0.0, y1 = 0.0, y2 = 0.0;
+    for (int b = row_start_[i]; b < row_start_[i + 1]; ++b) {
+      const double* m = v + 9 * b;
+      const double* xj = xs + 3 * block_col_[b];
+      y0 += m[0] * xj[0] + m[1] * xj[1] + m[2] * xj[2];
+      y1 += m[3] * xj[0] + m[4] * xj[1] + m[5] * xj[2];
+      y2 += m[6] * xj[0] + m[7] * xj[1] + m[8] * xj[2];
+    }
+    y[3 * i] = y0;
+    y[3 * i + 1] = y1;
+    y[3 * i + 2] = y2;
+  }
 }
 
-Eigen::Matrix3d SystemMatrix::DiagonalBlock(int i) const {
-  const double* v = matrix_.valuePtr() + diagonal_offset_[i];
-  Eigen::Matrix3d block;
-  for (int c = 0; c < 3; ++c) {
-    for (int r = 0; r < 3; ++r) block(r, c) = v[c * stride_[i] + r];
-  }
-  return block;
-}
+Eigen::Matrix3d SystemMatrix::DiagonalBlock(int i) const { return block(diagonal_block_[i]); }
 
 }  // namespace costume::sim

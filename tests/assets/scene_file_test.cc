@@ -198,7 +198,7 @@ TEST(ParseSceneText, FillsOmittedKeysWithTheDocumentedDefaults) {
   EXPECT_EQ(scene.source, "dir/my_scene.toml");
   EXPECT_EQ(scene.duration, 2.0);
   EXPECT_EQ(scene.frame_rate, 60.0);
-  EXPECT_EQ(scene.solver.tolerance, 1e-3);
+  EXPECT_EQ(scene.solver.tolerance, 1e-2);
   EXPECT_EQ(scene.solver.max_iterations, 1000);
   EXPECT_TRUE(scene.effects.air_drag);
   EXPECT_FALSE(scene.effects.self_collision);
