@@ -132,6 +132,19 @@ int Simulation::num_frames() const {
   return static_cast<int>(std::lround(scene_.duration * scene_.frame_rate));
 }
 
+// A contact constraint prescribes the normal velocity, so it can pull as well as push. One
+// that pulled in the last step (negative impulse: the cloth wants to lift off) is released,
+// unless the particle would now end inside the shell on its own; kept, it would glue cloth to
+// the obstacle and freeze stretch into it.
+void Simulation::ReleaseAdhesiveContacts() {
+  std::erase_if(contacts_, [this](const Contact& c) {
+    const double normal_velocity = state_.velocities.row(c.particle).dot(c.normal);
+    const bool would_penetrate = normal_velocity < c.target_normal_velocity;
+    return normal_impulse_[c.particle] < 0.0 && !would_penetrate;
+  });
+  for (Contact& c : contacts_) c.previous_normal_impulse = std::max(normal_impulse_[c.particle], 0.0);
+}
+
 void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
   contacts_.clear();
@@ -140,10 +153,10 @@ void Simulation::StepOnce(FrameReport& report) {
     FindSphereContacts(sphere, state_.positions, state_.velocities, h, 0.5 * sphere.thickness,
                        contacts_);
   }
-  for (Contact& c : contacts_) c.previous_normal_impulse = normal_impulse_[c.particle];
+  ReleaseAdhesiveContacts();
   const StepReport step_report = stepper_.Step(state_, h, contacts_);
   std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
-  for (const Contact& c : contacts_) normal_impulse_[c.particle] = std::max(c.normal_impulse, 0.0);
+  for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
   report.steps += 1;
   report.iterations += step_report.iterations;
   report.converged = report.converged && step_report.converged;

@@ -67,6 +67,7 @@ class Simulation {
   Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
              std::vector<GarmentRange> garments, const StepperSettings& settings);
   void StepOnce(FrameReport& report);
+  void ReleaseAdhesiveContacts();
 
   SceneDescription scene_;
   std::shared_ptr<const ClothModel> model_;
@@ -75,7 +76,8 @@ class Simulation {
   ClothState state_;
   std::vector<SphereObstacle> spheres_;
   std::vector<Contact> contacts_;
-  /// Each particle's contact normal impulse in the last step [N·s] (friction's bound).
+  /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
+  /// friction, a negative one releases the contact.
   std::vector<double> normal_impulse_;
 };
 

@@ -14,14 +14,15 @@
 namespace costume::sim {
 
 struct PcgSettings {
-  /// Stop when rᵀP⁻¹r < tolerance² · (Sb)ᵀP⁻¹(Sb) (B&W's criterion) [-].
+  /// Stop when ‖S(b − AΔv)‖ < tolerance · ‖Sb‖ [-] (see the .cc for why not B&W's
+  /// preconditioned norm).
   double tolerance = 1e-2;
   int max_iterations = 1000;
 };
 
 struct PcgReport {
   int iterations = 0;
-  /// sqrt(rᵀP⁻¹r / (Sb)ᵀP⁻¹(Sb)) at exit [-].
+  /// ‖S(b − AΔv)‖ / ‖Sb‖ at exit [-].
   double relative_residual = 0.0;
   bool converged = false;
 };

@@ -31,7 +31,7 @@ SceneDescription ExtremeScene(int n, double k, double mass, double h, SolverMeth
   // Frames of at most 1000 Hz (the scene format's limit), split into substeps of h.
   scene.solver.substeps = h < 1e-3 ? 2 : 1;
   scene.frame_rate = 1.0 / (h * scene.solver.substeps);
-  scene.solver.max_iterations = n > 65 ? 200 : 1000;
+  scene.solver.max_iterations = 1000;
   return scene;
 }
 
