@@ -136,6 +136,7 @@ constexpr Range kNonNegative{0.0, kInfinity, false, true};
 constexpr Range kDurationRange{0.0, 3600.0, true, false};
 constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
 constexpr Range kToleranceRange{0.0, 1.0, true, true};
+constexpr Range kStrainLimitRange{0.0, 10.0, false, false};
 
 // ---- fields and tables ------------------------------------------------------------------
 
@@ -394,7 +395,7 @@ void RefuseDuplicateName(std::map<std::string, toml::source_position>& seen, con
 // ---- tables -----------------------------------------------------------------------------
 
 sim::SolverSettings ParseSolver(const TableView& table) {
-  table.RefuseUnknownKeys({"method", "tolerance", "max_iterations", "substeps"});
+  table.RefuseUnknownKeys({"method", "tolerance", "max_iterations", "substeps", "strain_limit"});
   sim::SolverSettings solver;
   if (const std::optional<Field> method = table.Find("method")) {
     solver.method = ReadChoice(*method, {"pcg", "direct"}) == "pcg" ? sim::SolverMethod::kPcg
@@ -403,6 +404,8 @@ sim::SolverSettings ParseSolver(const TableView& table) {
   solver.tolerance = NumberOr(table, "tolerance", solver.tolerance, kToleranceRange, "");
   solver.max_iterations = IntegerOr(table, "max_iterations", solver.max_iterations, 1, 100000);
   solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, 1000);
+  solver.strain_limit =
+      NumberOr(table, "strain_limit", solver.strain_limit, kStrainLimitRange, "");
   return solver;
 }
 

@@ -31,6 +31,7 @@ struct Run {
   double tolerance = 1e-2;
   int max_iterations = 1000;
   int frames = 120;
+  double strain_limit = 0.1;
 };
 
 /// A peer's figure from docs/BENCHMARKS.md: ms per frame and max strain.
@@ -64,6 +65,7 @@ SceneDescription MakeScene(const Run& run) {
   scene.solver.method = run.solver == "direct" ? SolverMethod::kDirect : SolverMethod::kPcg;
   scene.solver.tolerance = run.tolerance;
   scene.solver.max_iterations = run.max_iterations;
+  scene.solver.strain_limit = run.strain_limit;
   scene.solver.substeps = std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * run.dt))));
   scene.frame_rate = 60.0;
   scene.duration = run.frames / 60.0;
@@ -89,7 +91,7 @@ json Measure(const Run& run) {
   const SceneDescription scene = MakeScene(run);
   auto sim = Simulation::Build(scene);
   std::vector<double> ms;
-  long iterations = 0, unconverged = 0, rolled_back = 0;
+  long iterations = 0, unconverged = 0, rolled_back = 0, strain_corrections = 0;
   double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
   for (int f = 0; f < run.frames; ++f) {
     const auto report = sim->AdvanceFrame();
@@ -97,6 +99,7 @@ json Measure(const Run& run) {
     iterations += report.iterations;
     unconverged += report.converged ? 0 : 1;
     rolled_back += report.rolled_back_steps;
+    strain_corrections += report.strain_corrections;
     penetration = std::max(penetration, report.max_penetration);
     min_distance = std::min(min_distance, MinSphereDistance(*sim));
   }
@@ -109,12 +112,14 @@ json Measure(const Run& run) {
               {"dt", sim->step()},
               {"substeps", scene.solver.substeps},
               {"tolerance", run.tolerance},
+              {"strain_limit", run.strain_limit},
               {"frames", run.frames},
               {"ms_per_frame_median", Median(ms)},
               {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
               {"iterations_per_frame", static_cast<double>(iterations) / run.frames},
               {"frames_unconverged", unconverged},
               {"steps_rolled_back", rolled_back},
+              {"strain_corrections", strain_corrections},
               {"max_strain", strain.max},
               {"mean_strain", strain.mean},
               {"nan", !x.allFinite()}};
@@ -156,6 +161,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-14, 0.999))->capture_default_str();
   app.add_option("--max-iterations", base.max_iterations, "PCG iteration cap per step")
       ->check(CLI::Range(1, 1000000))->capture_default_str();
+  app.add_option("--strain-limit", base.strain_limit, "Strain limit after each step; 0 = off")
+      ->check(CLI::Range(0.0, 10.0))->capture_default_str();
   app.add_option("--frames", base.frames, "Frames per run (60 per second)")
       ->check(CLI::Range(1, 100000))->capture_default_str();
   CLI11_PARSE(app, argc, argv);

@@ -93,6 +93,7 @@ void ValidateSolver(const SolverSettings& solver, const Refuser& refuser) {
   refuser.RequireNumber("solver.tolerance", solver.tolerance, 0.0, 1.0, true, true, "");
   refuser.RequireInteger("solver.max_iterations", solver.max_iterations, 1, 100000);
   refuser.RequireInteger("solver.substeps", solver.substeps, 1, 1000);
+  refuser.RequireNumber("solver.strain_limit", solver.strain_limit, 0.0, 10.0, false, false, "");
 }
 
 void ValidateMaterials(const std::vector<Material>& materials, const Refuser& refuser) {
@@ -190,14 +191,6 @@ void ValidateSphere(const SphereObstacleSpec& sphere, std::size_t index,
 }
 
 }  // namespace
-
-const char* SolverMethodName(SolverMethod method) {
-  switch (method) {
-    case SolverMethod::kPcg: return "pcg";
-    case SolverMethod::kDirect: return "direct";
-  }
-  return "unknown";
-}
 
 void ValidateScene(const SceneDescription& scene) {
   const Refuser refuser(scene.source);

@@ -12,19 +12,9 @@
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/material.h"
 #include "sim_core/cloth/mesh_cloth.h"
+#include "sim_core/solver/solver_method.h"
 
 namespace costume::sim {
-
-/// How the linear system of each implicit step is solved.
-enum class SolverMethod {
-  /// Filtered preconditioned conjugate gradient (Baraff & Witkin 1998 §5.3).
-  kPcg,
-  /// Sparse Cholesky through CHOLMOD: the accuracy reference.
-  kDirect,
-};
-
-/// "pcg" or "direct".
-const char* SolverMethodName(SolverMethod method);
 
 struct SolverSettings {
   SolverMethod method = SolverMethod::kPcg;
@@ -35,6 +25,9 @@ struct SolverSettings {
   int max_iterations = 1000;
   /// Implicit steps per frame, >= 1; the step is 1/(frame_rate·substeps).
   int substeps = 1;
+  /// Largest strain structural and shear springs keep after a step [-], in [0, 10]; 0
+  /// switches strain limiting off (strain_limit.h: Provot 1995).
+  double strain_limit = 0.1;
 };
 
 /// Which optional effects the scene switches on. Off costs nothing: the engine does not

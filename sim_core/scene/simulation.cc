@@ -7,6 +7,7 @@
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/mesh_cloth.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/solver/strain_limit.h"
 
 namespace costume::sim {
 
@@ -145,6 +146,11 @@ void Simulation::ReleaseAdhesiveContacts() {
   for (Contact& c : contacts_) c.previous_normal_impulse = std::max(normal_impulse_[c.particle], 0.0);
 }
 
+void Simulation::ApplyStrainLimit(FrameReport& report) {
+  constexpr int kPasses = 4;  // enough to bring a step's overshoot back; more buys little
+  report.strain_corrections += LimitStrain(*model_, scene_.solver.strain_limit, kPasses, state_);
+}
+
 void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
   contacts_.clear();
@@ -163,6 +169,7 @@ void Simulation::StepOnce(FrameReport& report) {
   report.rolled_back_steps += step_report.rolled_back ? 1 : 0;
   report.num_contacts += step_report.num_contacts;
   if (step_report.rolled_back) return;
+  if (scene_.solver.strain_limit > 0.0) ApplyStrainLimit(report);
   for (const SphereObstacle& sphere : spheres_) {
     report.max_penetration = std::max(
         report.max_penetration, ProjectOutOfSphere(sphere, state_.positions, state_.velocities));

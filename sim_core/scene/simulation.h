@@ -36,6 +36,8 @@ struct FrameReport {
   int rolled_back_steps = 0;
   /// Contacts summed over the frame's steps.
   int num_contacts = 0;
+  /// Springs shortened by the strain limit, summed over the frame's steps.
+  int strain_corrections = 0;
   /// Deepest penetration into an obstacle's shell found after a solve, before the position
   /// correction removed it [m].
   double max_penetration = 0.0;
@@ -68,6 +70,7 @@ class Simulation {
              std::vector<GarmentRange> garments, const StepperSettings& settings);
   void StepOnce(FrameReport& report);
   void ReleaseAdhesiveContacts();
+  void ApplyStrainLimit(FrameReport& report);
 
   SceneDescription scene_;
   std::shared_ptr<const ClothModel> model_;

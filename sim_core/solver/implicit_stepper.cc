@@ -8,6 +8,14 @@
 
 namespace costume::sim {
 
+const char* SolverMethodName(SolverMethod method) {
+  switch (method) {
+    case SolverMethod::kPcg: return "pcg";
+    case SolverMethod::kDirect: return "direct";
+  }
+  return "unknown";
+}
+
 void RequireStableStep(const ClothModel& model, double h, const std::string& context) {
   double k_max = 0.0;
   for (const Spring& s : model.springs()) k_max = std::max(k_max, s.stiffness);
@@ -21,8 +29,8 @@ void RequireStableStep(const ClothModel& model, double h, const std::string& con
                    " kg: h²k/m = " + FormatValue(ratio) + " exceeds " +
                    FormatValue(kMaxStiffnessRatio) +
                    ", beyond which one linearisation per step can inject energy. Allowed: "
-                   "h <= " + FormatValue(longest) + " s, e.g. " + std::to_string(substeps) +
-                   " times more solver.substeps, a softer material or heavier particles");
+                   "h <= " + FormatValue(longest) + " s: multiply solver.substeps by " +
+                   std::to_string(substeps) + ", or use a softer material or heavier particles");
 }
 
 ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,

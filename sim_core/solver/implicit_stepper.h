@@ -14,7 +14,7 @@
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
 #include "sim_core/collision/contact.h"
-#include "sim_core/scene/scene_description.h"
+#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/constraints.h"
 #include "sim_core/solver/filtered_pcg.h"
 #include "sim_core/solver/spring_forces.h"
