@@ -395,14 +395,20 @@ void RefuseDuplicateName(std::map<std::string, toml::source_position>& seen, con
 // ---- tables -----------------------------------------------------------------------------
 
 sim::SolverSettings ParseSolver(const TableView& table) {
-  table.RefuseUnknownKeys({"method", "tolerance", "max_iterations", "substeps", "strain_limit"});
+  table.RefuseUnknownKeys(
+      {"method", "tolerance", "max_iterations", "levels", "substeps", "strain_limit"});
   sim::SolverSettings solver;
   if (const std::optional<Field> method = table.Find("method")) {
-    solver.method = ReadChoice(*method, {"pcg", "direct"}) == "pcg" ? sim::SolverMethod::kPcg
-                                                                    : sim::SolverMethod::kDirect;
+    const std::string name =
+        ReadChoice(*method, {"pcg", "hierarchical", "multigrid", "direct"});
+    solver.method = name == "pcg"            ? sim::SolverMethod::kPcg
+                    : name == "hierarchical" ? sim::SolverMethod::kHierarchical
+                    : name == "multigrid"    ? sim::SolverMethod::kMultigrid
+                                             : sim::SolverMethod::kDirect;
   }
   solver.tolerance = NumberOr(table, "tolerance", solver.tolerance, kToleranceRange, "");
   solver.max_iterations = IntegerOr(table, "max_iterations", solver.max_iterations, 1, 100000);
+  solver.levels = IntegerOr(table, "levels", solver.levels, 0, 16);
   solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, 1000);
   solver.strain_limit =
       NumberOr(table, "strain_limit", solver.strain_limit, kStrainLimitRange, "");

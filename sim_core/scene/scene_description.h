@@ -23,6 +23,9 @@ struct SolverSettings {
   double tolerance = 1e-2;
   /// PCG iteration cap per step, >= 1.
   int max_iterations = 1000;
+  /// Pyramid levels the hierarchical and multigrid solvers use, counting level 0; 0 means
+  /// as many as the lattice allows. 1 is the flat solver.
+  int levels = 0;
   /// Implicit steps per frame, >= 1; the step is 1/(frame_rate·substeps).
   int substeps = 1;
   /// Largest strain structural and shear springs keep after a step [-], in [0, 10]; 0

@@ -11,6 +11,8 @@ namespace costume::sim {
 const char* SolverMethodName(SolverMethod method) {
   switch (method) {
     case SolverMethod::kPcg: return "pcg";
+    case SolverMethod::kHierarchical: return "hierarchical";
+    case SolverMethod::kMultigrid: return "multigrid";
     case SolverMethod::kDirect: return "direct";
   }
   return "unknown";

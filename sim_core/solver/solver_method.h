@@ -6,13 +6,19 @@ namespace costume::sim {
 
 /// How the linear system of each implicit step is solved.
 enum class SolverMethod {
-  /// Filtered preconditioned conjugate gradient (Baraff & Witkin 1998 §5.3).
+  /// Filtered preconditioned conjugate gradient (Baraff & Witkin 1998 §5.3), block-Jacobi
+  /// preconditioned: the flat solver.
   kPcg,
+  /// The paper's hierarchical step (Figure 5): the quincunx pyramid's top level is solved
+  /// from zero, each result filtered into the next finer level's initial guess.
+  kHierarchical,
+  /// PCG on level 0 preconditioned by a multigrid V-cycle over the same pyramid.
+  kMultigrid,
   /// Sparse Cholesky through CHOLMOD: the accuracy reference.
   kDirect,
 };
 
-/// "pcg" or "direct".
+/// "pcg", "hierarchical", "multigrid" or "direct".
 const char* SolverMethodName(SolverMethod method);
 
 }  // namespace costume::sim
