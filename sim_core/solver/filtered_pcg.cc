@@ -5,29 +5,24 @@
 
 namespace costume::sim {
 
-FilteredPcg::FilteredPcg(int num_particles)
-    : inverse_diagonal_(num_particles),
-      r_(3 * num_particles),
-      c_(3 * num_particles),
-      q_(3 * num_particles),
-      s_(3 * num_particles) {}
-
-void FilteredPcg::UpdatePreconditioner(const SystemMatrix& a) {
+void BlockJacobiPreconditioner::Update(const SystemMatrix& a, const Constraints&) {
   for (int i = 0; i < a.num_particles(); ++i) {
     inverse_diagonal_[i] = a.DiagonalBlock(i).inverse();
   }
 }
 
-void FilteredPcg::Precondition(const Eigen::VectorXd& in, Eigen::VectorXd& out) const {
+void BlockJacobiPreconditioner::Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) {
   for (std::size_t i = 0; i < inverse_diagonal_.size(); ++i) {
-    out.segment<3>(3 * i).noalias() = inverse_diagonal_[i] * in.segment<3>(3 * i);
+    z.segment<3>(3 * i).noalias() = inverse_diagonal_[i] * r.segment<3>(3 * i);
   }
 }
 
+FilteredPcg::FilteredPcg(int num_particles)
+    : r_(3 * num_particles), c_(3 * num_particles), q_(3 * num_particles), s_(3 * num_particles) {}
+
 PcgReport FilteredPcg::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
                              const Constraints& constraints, const PcgSettings& settings,
-                             Eigen::VectorXd& dv) {
-  UpdatePreconditioner(a);
+                             PcgPreconditioner& preconditioner, Eigen::VectorXd& dv) {
   PcgReport report;
   // Start from the guess with its constrained components replaced by the prescribed ones.
   constraints.Filter(dv);
@@ -44,7 +39,7 @@ PcgReport FilteredPcg::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
   a.Multiply(dv, q_);
   r_ = b - q_;
   constraints.Filter(r_);
-  Precondition(r_, c_);
+  preconditioner.Apply(r_, c_);
   constraints.Filter(c_);
   double delta = r_.dot(c_);
   double residual = r_.squaredNorm();
@@ -58,11 +53,11 @@ PcgReport FilteredPcg::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
     dv.noalias() += alpha * c_;
     r_.noalias() -= alpha * q_;
     residual = r_.squaredNorm();
-    Precondition(r_, s_);
+    preconditioner.Apply(r_, s_);
+    constraints.Filter(s_);
     const double delta_old = delta;
     delta = r_.dot(s_);
-    c_ = s_ + (delta / delta_old) * c_;
-    constraints.Filter(c_);
+    c_ = s_ + (delta / delta_old) * c_;  // both terms filtered already
     ++report.iterations;
   }
   report.converged = residual <= threshold;

@@ -2,8 +2,9 @@
 /// @file
 /// The modified preconditioned conjugate gradient of Baraff & Witkin 1998 §5.3: solves
 /// A Δv = b on the free directions while the constrained directions hold their prescribed
-/// values exactly throughout the iteration. Preconditioner: the inverse 3×3 diagonal blocks
-/// of A (block Jacobi), which B&W's scalar diagonal is the special case of.
+/// values exactly throughout the iteration. The preconditioner is pluggable: block Jacobi
+/// (the inverse 3×3 diagonal blocks, B&W's scalar diagonal being its special case) or the
+/// multigrid V-cycle of sim_core/hierarchy.
 
 #include <Eigen/Core>
 #include <vector>
@@ -27,23 +28,41 @@ struct PcgReport {
   bool converged = false;
 };
 
+/// An approximation M⁻¹ of A⁻¹ for PCG; must be symmetric positive definite on the free
+/// directions.
+class PcgPreconditioner {
+ public:
+  virtual ~PcgPreconditioner() = default;
+  /// Prepares for systems with matrix `a` under `constraints`. Never allocates.
+  virtual void Update(const SystemMatrix& a, const Constraints& constraints) = 0;
+  /// z = M⁻¹ r (3n vectors). Never allocates.
+  virtual void Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) = 0;
+};
+
+/// M = the 3×3 diagonal blocks of A.
+class BlockJacobiPreconditioner : public PcgPreconditioner {
+ public:
+  explicit BlockJacobiPreconditioner(int num_particles) : inverse_diagonal_(num_particles) {}
+  void Update(const SystemMatrix& a, const Constraints& constraints) override;
+  void Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) override;
+
+ private:
+  std::vector<Eigen::Matrix3d> inverse_diagonal_;
+};
+
 class FilteredPcg {
  public:
   /// Allocates the workspace for `num_particles`.
   explicit FilteredPcg(int num_particles);
 
   /// Solves with initial guess `dv` (3n, in/out): on return S(A dv − b) ≈ 0 and
-  /// (I − S) dv = constraints.prescribed(). Never allocates; never throws.
+  /// (I − S) dv = constraints.prescribed(). `preconditioner` must have been updated for
+  /// `a` and `constraints`. Never allocates; never throws.
   PcgReport Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
                   const Constraints& constraints, const PcgSettings& settings,
-                  Eigen::VectorXd& dv);
+                  PcgPreconditioner& preconditioner, Eigen::VectorXd& dv);
 
  private:
-  void UpdatePreconditioner(const SystemMatrix& a);
-  /// out = P⁻¹ in.
-  void Precondition(const Eigen::VectorXd& in, Eigen::VectorXd& out) const;
-
-  std::vector<Eigen::Matrix3d> inverse_diagonal_;
   Eigen::VectorXd r_, c_, q_, s_;
 };
 

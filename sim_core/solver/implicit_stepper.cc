@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "sim_core/common/input_error.h"
-#include "sim_core/solver/direct_solver.h"
+#include "sim_core/solver/implicit_system.h"
 
 namespace costume::sim {
 
@@ -36,12 +36,13 @@ void RequireStableStep(const ClothModel& model, double h, const std::string& con
 }
 
 ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
-                                 const StepperSettings& settings)
+                                 const StepperSettings& settings,
+                                 std::unique_ptr<StepSolver> solver)
     : model_(std::move(model)),
       settings_(settings),
       a_(*model_),
       constraints_(model_->num_particles()),
-      pcg_(model_->num_particles()) {
+      solver_(std::move(solver)) {
   RequireInRange("solver.tolerance", settings.pcg.tolerance, 1e-300, 1.0, "");
   RequireInRange("solver.max_iterations", settings.pcg.max_iterations, 1, 1e6, "");
   for (int c = 0; c < 3; ++c) RequireFinite("gravity", settings.external.gravity[c], "m/s²");
@@ -49,35 +50,14 @@ ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
   b_ = Eigen::VectorXd::Zero(n3);
   dv_ = Eigen::VectorXd::Zero(n3);
   a_dv_ = Eigen::VectorXd::Zero(n3);
-  if (settings.method == SolverMethod::kDirect) direct_ = std::make_unique<DirectSolver>(a_);
+  if (!solver_ && settings.method == SolverMethod::kDirect) {
+    solver_ = std::make_unique<DirectStepSolver>(a_);
+  } else if (!solver_) {
+    solver_ = std::make_unique<FlatPcgSolver>(model_->num_particles(), settings.pcg);
+  }
 }
 
 ImplicitStepper::~ImplicitStepper() = default;
-
-void ImplicitStepper::Assemble(const ClothState& state, double h) {
-  const ClothModel& m = *model_;
-  const ExternalForces& ext = settings_.external;
-  a_.SetZero();
-  for (int i = 0; i < m.num_particles(); ++i) {
-    const double drag = ext.air_drag ? m.drag()[i] : 0.0;
-    a_.AddToDiagonal(i, (m.masses()[i] + h * drag) * Eigen::Matrix3d::Identity());
-    const Eigen::Vector3d v = state.velocities.row(i).transpose();
-    b_.segment<3>(3 * i) = h * (m.masses()[i] * ext.gravity - drag * v);
-  }
-  const auto& springs = m.springs();
-  for (int k = 0; k < m.num_springs(); ++k) {
-    const Spring& s = springs[k];
-    const Eigen::Vector3d va = state.velocities.row(s.a).transpose();
-    const Eigen::Vector3d vb = state.velocities.row(s.b).transpose();
-    const SpringTerms t = EvaluateSpring(s, state.positions.row(s.a).transpose(),
-                                         state.positions.row(s.b).transpose(), va, vb,
-                                         settings_.jacobian);
-    a_.AddSpringCoupling(k, h * t.df_dv + (h * h) * t.df_dx);
-    const Eigen::Vector3d rhs = h * (t.force_on_a + h * (t.df_dx * (vb - va)));
-    b_.segment<3>(3 * s.a) += rhs;
-    b_.segment<3>(3 * s.b) -= rhs;
-  }
-}
 
 // Coulomb friction, regularised and implicit. Applied after the solve, friction would undo
 // velocity changes the stiff solve counted on for the neighbours and freeze stretch into the
@@ -111,17 +91,14 @@ void ImplicitStepper::SetConstraints(const ClothState& state, std::span<const Co
   }
 }
 
-bool ImplicitStepper::Solve(StepReport& report) {
-  if (direct_) {
-    report.converged = direct_->Solve(a_, b_, constraints_, dv_);
-    return report.converged;
-  }
+bool ImplicitStepper::Solve(const ClothState& state, double h, StepReport& report) {
   if (!settings_.warm_start) dv_.setZero();
-  const PcgReport pcg = pcg_.Solve(a_, b_, constraints_, settings_.pcg, dv_);
-  report.iterations = pcg.iterations;
-  report.relative_residual = pcg.relative_residual;
-  report.converged = pcg.converged;
-  return true;
+  const SolveReport solve = solver_->Solve(state, h, a_, b_, constraints_, dv_);
+  report.iterations = solve.iterations;
+  report.coarse_iterations = solve.coarse_iterations;
+  report.relative_residual = solve.relative_residual;
+  report.converged = solve.converged;
+  return solve.solved;
 }
 
 void ImplicitStepper::StoreContactImpulses(std::span<Contact> contacts) const {
@@ -142,9 +119,9 @@ StepReport ImplicitStepper::Step(ClothState& state, double h, std::span<Contact>
   report.num_contacts = static_cast<int>(contacts.size());
   backup_ = state;
   SetConstraints(state, contacts);
-  Assemble(state, h);
+  AssembleImplicitSystem(*model_, state, h, settings_.jacobian, settings_.external, a_, b_);
   AddFriction(state, h, contacts);
-  const bool solved = Solve(report);
+  const bool solved = Solve(state, h, report);
   if (solved && !contacts.empty()) {
     a_.Multiply(dv_, a_dv_);
     StoreContactImpulses(contacts);

@@ -2,8 +2,8 @@
 /// @file
 /// One backward-Euler step linearised once (Baraff & Witkin 1998, eq. 16–18):
 ///   (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f₀ + h ∂f/∂x v₀),  v ← v + Δv,  x ← x + h v,
-/// with pins and contacts as filtered velocity constraints (§5), solved by filtered PCG or
-/// CHOLMOD. Forces: springs with axial damping, gravity, linear air drag, and Coulomb
+/// with pins and contacts as filtered velocity constraints (§5), solved by a StepSolver
+/// (flat PCG, CHOLMOD, the hierarchical step or multigrid PCG). Forces: springs with axial damping, gravity, linear air drag, and Coulomb
 /// friction at contacts, linearised inside the solve (see AddFriction in the .cc).
 
 #include <Eigen/Core>
@@ -14,15 +14,13 @@
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
 #include "sim_core/collision/contact.h"
-#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/constraints.h"
-#include "sim_core/solver/filtered_pcg.h"
+#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/spring_forces.h"
+#include "sim_core/solver/step_solver.h"
 #include "sim_core/solver/system_matrix.h"
 
 namespace costume::sim {
-
-class DirectSolver;
 
 struct StepperSettings {
   SolverMethod method = SolverMethod::kPcg;
@@ -31,11 +29,15 @@ struct StepperSettings {
   ExternalForces external;
   /// Start PCG from the previous step's Δv (cheap and usually close).
   bool warm_start = true;
+  /// Pyramid levels for kHierarchical and kMultigrid, counting level 0; 0 = all.
+  int levels = 0;
 };
 
 /// What happened in one step. Flags instead of exceptions: the step never throws.
 struct StepReport {
   int iterations = 0;
+  /// Iterations on the pyramid's coarser levels (hierarchical step only).
+  int coarse_iterations = 0;
   double relative_residual = 0.0;
   /// PCG reached its tolerance (always true for the direct solver when it succeeds).
   bool converged = true;
@@ -58,8 +60,11 @@ void RequireStableStep(const ClothModel& model, double h, const std::string& con
 
 class ImplicitStepper {
  public:
-  /// Allocates everything a step needs for `model`. Throws InputError for bad settings.
-  ImplicitStepper(std::shared_ptr<const ClothModel> model, const StepperSettings& settings);
+  /// Allocates everything a step needs for `model`. `solver` solves each step's system;
+  /// when null, flat PCG or CHOLMOD per settings.method (the hierarchical and multigrid
+  /// solvers live in sim_core/hierarchy: MakeStepSolver). Throws InputError for bad settings.
+  ImplicitStepper(std::shared_ptr<const ClothModel> model, const StepperSettings& settings,
+                  std::unique_ptr<StepSolver> solver = nullptr);
   ~ImplicitStepper();
 
   /// Advances `state` by h [s] (> 0) with pins held and `contacts` constrained; fills each
@@ -70,18 +75,16 @@ class ImplicitStepper {
   const StepperSettings& settings() const { return settings_; }
 
  private:
-  void Assemble(const ClothState& state, double h);
   void AddFriction(const ClothState& state, double h, std::span<const Contact> contacts);
   void SetConstraints(const ClothState& state, std::span<const Contact> contacts);
-  bool Solve(StepReport& report);
+  bool Solve(const ClothState& state, double h, StepReport& report);
   void StoreContactImpulses(std::span<Contact> contacts) const;
 
   std::shared_ptr<const ClothModel> model_;
   StepperSettings settings_;
   SystemMatrix a_;
   Constraints constraints_;
-  FilteredPcg pcg_;
-  std::unique_ptr<DirectSolver> direct_;
+  std::unique_ptr<StepSolver> solver_;
   Eigen::VectorXd b_, dv_, a_dv_;
   ClothState backup_;
 };

@@ -309,7 +309,7 @@ TEST(ParseSceneText, RefusesUnknownKeyListingAllowedOnes) {
   const std::string message = ErrorOf(text);
   EXPECT_TRUE(Contains(message, "test.toml:3:1: solver.tolerence = 0.5"));
   EXPECT_TRUE(Contains(message, "unknown key"));
-  EXPECT_TRUE(Contains(message, "method, tolerance, max_iterations, substeps"));
+  EXPECT_TRUE(Contains(message, "method, tolerance, max_iterations, levels, substeps, strain_limit"));
 }
 
 TEST(ParseSceneText, RefusesAMisspelledTableListingAllowedKeys) {
