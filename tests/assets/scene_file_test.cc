@@ -339,7 +339,7 @@ TEST(ParseSceneText, RefusesWrongTypesNamingTheExpectedOne) {
   EXPECT_TRUE(Contains(ErrorOf("[effects]\nfriction = 1\n" + std::string(kMinimalScene)),
                        "effects.friction = 1: expected true or false, found an integer"));
   EXPECT_TRUE(Contains(ErrorOf("[solver]\nmethod = \"cg\"\n" + std::string(kMinimalScene)),
-                       "must be one of \"pcg\", \"direct\""));
+                       "must be one of \"pcg\", \"hierarchical\", \"multigrid\", \"direct\""));
   EXPECT_TRUE(Contains(ErrorOf("[material]\nname = \"silk\"\n" + std::string(kMinimalScene)),
                        "expected an array of tables, written [[material]]"));
 }
