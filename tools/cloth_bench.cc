@@ -32,6 +32,7 @@ struct Run {
   int max_iterations = 1000;
   int frames = 120;
   double strain_limit = 0.1;
+  int levels = 0;
 };
 
 /// A peer's figure from docs/BENCHMARKS.md: ms per frame and max strain.
@@ -57,12 +58,21 @@ constexpr Peer kPeers[] = {
     {"blender", "drape", "blender_cotton", 129, 2232.0, 0.10},
 };
 
+SolverMethod MethodNamed(const std::string& name) {
+  for (SolverMethod method : {SolverMethod::kPcg, SolverMethod::kHierarchical,
+                              SolverMethod::kMultigrid, SolverMethod::kDirect}) {
+    if (name == costume::sim::SolverMethodName(method)) return method;
+  }
+  return SolverMethod::kPcg;
+}
+
 SceneDescription MakeScene(const Run& run) {
   SceneDescription scene = costume::assets::LoadBuiltInScene(run.scene);
   auto& garment = scene.garments.at(0);
   garment.panel->cols = garment.panel->rows = run.n;
   garment.material = run.material;
-  scene.solver.method = run.solver == "direct" ? SolverMethod::kDirect : SolverMethod::kPcg;
+  scene.solver.method = MethodNamed(run.solver);
+  scene.solver.levels = run.levels;
   scene.solver.tolerance = run.tolerance;
   scene.solver.max_iterations = run.max_iterations;
   scene.solver.strain_limit = run.strain_limit;
@@ -91,12 +101,14 @@ json Measure(const Run& run) {
   const SceneDescription scene = MakeScene(run);
   auto sim = Simulation::Build(scene);
   std::vector<double> ms;
+  long coarse_iterations = 0;
   long iterations = 0, unconverged = 0, rolled_back = 0, strain_corrections = 0;
   double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
   for (int f = 0; f < run.frames; ++f) {
     const auto report = sim->AdvanceFrame();
     ms.push_back(report.wall_ms);
     iterations += report.iterations;
+    coarse_iterations += report.coarse_iterations;
     unconverged += report.converged ? 0 : 1;
     rolled_back += report.rolled_back_steps;
     strain_corrections += report.strain_corrections;
@@ -111,12 +123,14 @@ json Measure(const Run& run) {
               {"solver", run.solver},
               {"dt", sim->step()},
               {"substeps", scene.solver.substeps},
+              {"levels", sim->pyramid() ? sim->pyramid()->num_levels() : 1},
               {"tolerance", run.tolerance},
               {"strain_limit", run.strain_limit},
               {"frames", run.frames},
               {"ms_per_frame_median", Median(ms)},
               {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
               {"iterations_per_frame", static_cast<double>(iterations) / run.frames},
+              {"coarse_iterations_per_frame", static_cast<double>(coarse_iterations) / run.frames},
               {"frames_unconverged", unconverged},
               {"steps_rolled_back", rolled_back},
               {"strain_corrections", strain_corrections},
@@ -153,7 +167,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"stiff_cotton", "blender_cotton"}))->capture_default_str();
   app.add_option("--n", sizes, "Lattice sizes N (N×N particles)")->check(CLI::Range(3, 1025))
       ->capture_default_str();
-  app.add_option("--solver", solvers, "Solvers")->check(CLI::IsMember({"pcg", "direct"}))
+  app.add_option("--solver", solvers, "Solvers")
+      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "direct"}))
       ->capture_default_str();
   app.add_option("--dt", base.dt, "Time step [s]; rounded to 1/60 s divided by an integer")
       ->check(CLI::Range(1e-5, 1.0 / 60.0))->capture_default_str();
@@ -161,6 +176,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1e-14, 0.999))->capture_default_str();
   app.add_option("--max-iterations", base.max_iterations, "PCG iteration cap per step")
       ->check(CLI::Range(1, 1000000))->capture_default_str();
+  app.add_option("--levels", base.levels, "Pyramid levels (hierarchical, multigrid); 0 = all")
+      ->check(CLI::Range(0, 16))->capture_default_str();
   app.add_option("--strain-limit", base.strain_limit, "Strain limit after each step; 0 = off")
       ->check(CLI::Range(0.0, 10.0))->capture_default_str();
   app.add_option("--frames", base.frames, "Frames per run (60 per second)")

@@ -7,6 +7,7 @@
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/mesh_cloth.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/hierarchy/step_solvers.h"
 #include "sim_core/solver/strain_limit.h"
 
 namespace costume::sim {
@@ -98,6 +99,7 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene) {
   settings.pcg.max_iterations = scene.solver.max_iterations;
   settings.external.gravity = scene.gravity;
   settings.external.air_drag = scene.effects.air_drag;
+  settings.levels = scene.solver.levels;
   return settings;
 }
 
@@ -119,7 +121,8 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     : scene_(std::move(scene)),
       model_(std::move(model)),
       garments_(std::move(garments)),
-      stepper_(model_, settings),
+      pyramid_(MakePyramid(model_, settings)),
+      stepper_(model_, settings, MakeStepSolver(*model_, settings, pyramid_)),
       state_(ClothState::AtRest(*model_)) {
   for (const SphereObstacleSpec& s : scene_.spheres) {
     spheres_.push_back({s.center, s.radius, s.thickness,
@@ -165,6 +168,7 @@ void Simulation::StepOnce(FrameReport& report) {
   for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
   report.steps += 1;
   report.iterations += step_report.iterations;
+  report.coarse_iterations += step_report.coarse_iterations;
   report.converged = report.converged && step_report.converged;
   report.rolled_back_steps += step_report.rolled_back ? 1 : 0;
   report.num_contacts += step_report.num_contacts;

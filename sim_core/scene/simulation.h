@@ -11,6 +11,7 @@
 #include "sim_core/cloth/cloth_state.h"
 #include "sim_core/collision/contact.h"
 #include "sim_core/collision/sphere_contacts.h"
+#include "sim_core/hierarchy/quincunx_pyramid.h"
 #include "sim_core/scene/scene_description.h"
 #include "sim_core/solver/implicit_stepper.h"
 
@@ -28,8 +29,10 @@ struct GarmentRange {
 /// What happened during one frame (all substeps).
 struct FrameReport {
   int steps = 0;
-  /// PCG iterations summed over the frame's steps.
+  /// Level-0 solver iterations summed over the frame's steps.
   int iterations = 0;
+  /// Coarse-level iterations of the hierarchical step, summed over the frame's steps.
+  int coarse_iterations = 0;
   /// Every step reached its solver tolerance.
   bool converged = true;
   /// Steps that produced non-finite values and were undone (see StepReport).
@@ -60,6 +63,8 @@ class Simulation {
   const ClothState& state() const { return state_; }
   ClothState& mutable_state() { return state_; }
   const std::vector<GarmentRange>& garments() const { return garments_; }
+  /// The pyramid the hierarchical and multigrid solvers use; null for the others.
+  const QuincunxPyramid* pyramid() const { return pyramid_.get(); }
   /// Step length [s].
   double step() const { return 1.0 / (scene_.frame_rate * scene_.solver.substeps); }
   /// Number of frames the scene's duration asks for.
@@ -75,6 +80,8 @@ class Simulation {
   SceneDescription scene_;
   std::shared_ptr<const ClothModel> model_;
   std::vector<GarmentRange> garments_;
+  /// The quincunx pyramid, for the hierarchical and multigrid solvers (null otherwise).
+  std::shared_ptr<QuincunxPyramid> pyramid_;
   ImplicitStepper stepper_;
   ClothState state_;
   std::vector<SphereObstacle> spheres_;

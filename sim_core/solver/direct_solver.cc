@@ -92,18 +92,26 @@ void CopyFiltered(const SystemMatrix& a, const Constraints& constraints,
 
 }  // namespace
 
+bool DirectSolver::Factorize(const SystemMatrix& a, const Constraints& constraints) {
+  CopyFiltered(a, constraints, *impl_);
+  impl_->cholesky.factorize(impl_->filtered);
+  return impl_->cholesky.info() == Eigen::Success;
+}
+
+void DirectSolver::SolveFactored(const Eigen::VectorXd& rhs, Eigen::VectorXd& y) {
+  y = impl_->cholesky.solve(rhs);
+}
+
 bool DirectSolver::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,
                          const Constraints& constraints, Eigen::VectorXd& dv) {
   Impl& m = *impl_;
-  CopyFiltered(a, constraints, m);
-  m.cholesky.factorize(m.filtered);
-  if (m.cholesky.info() != Eigen::Success) return false;
+  if (!Factorize(a, constraints)) return false;
   m.az.resize(b.size());
   a.Multiply(constraints.prescribed(), m.az);
   m.rhs = b - m.az;
   constraints.Filter(m.rhs);
-  m.y = m.cholesky.solve(m.rhs);
-  if (m.cholesky.info() != Eigen::Success) return false;
+  SolveFactored(m.rhs, m.y);
+  if (m.cholesky.info() != Eigen::Success || !m.y.allFinite()) return false;
   dv = m.y + constraints.prescribed();
   return true;
 }

@@ -24,6 +24,12 @@ class DirectSolver {
   bool Solve(const SystemMatrix& a, const Eigen::VectorXd& b, const Constraints& constraints,
              Eigen::VectorXd& dv);
 
+  /// The two halves of Solve, for solving one factorisation many times (the multigrid's
+  /// coarsest level): factorises S A S + (I − S); false when that fails.
+  bool Factorize(const SystemMatrix& a, const Constraints& constraints);
+  /// y = (S A S + (I − S))⁻¹ rhs with the last factorisation; rhs must be filtered (S rhs).
+  void SolveFactored(const Eigen::VectorXd& rhs, Eigen::VectorXd& y);
+
   /// CHOLMOD's state, opaque outside direct_solver.cc.
   struct Impl;
 

@@ -45,6 +45,7 @@ class BlockJacobiPreconditioner : public PcgPreconditioner {
   explicit BlockJacobiPreconditioner(int num_particles) : inverse_diagonal_(num_particles) {}
   void Update(const SystemMatrix& a, const Constraints& constraints) override;
   void Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) override;
+  const std::vector<Eigen::Matrix3d>& inverse_diagonal() const { return inverse_diagonal_; }
 
  private:
   std::vector<Eigen::Matrix3d> inverse_diagonal_;

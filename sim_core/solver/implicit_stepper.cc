@@ -51,7 +51,7 @@ ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
   dv_ = Eigen::VectorXd::Zero(n3);
   a_dv_ = Eigen::VectorXd::Zero(n3);
   if (!solver_ && settings.method == SolverMethod::kDirect) {
-    solver_ = std::make_unique<DirectStepSolver>(a_);
+    solver_ = std::make_unique<DirectStepSolver>(*model_);
   } else if (!solver_) {
     solver_ = std::make_unique<FlatPcgSolver>(model_->num_particles(), settings.pcg);
   }

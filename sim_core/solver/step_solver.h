@@ -55,7 +55,8 @@ class FlatPcgSolver : public StepSolver {
 /// CHOLMOD: the exact solution of the filtered system.
 class DirectStepSolver : public StepSolver {
  public:
-  explicit DirectStepSolver(const SystemMatrix& pattern) : direct_(pattern) {}
+  /// Analyses the sparsity of `model`'s system once.
+  explicit DirectStepSolver(const ClothModel& model) : direct_(SystemMatrix(model)) {}
   SolveReport Solve(const ClothState& state, double h, const SystemMatrix& a,
                     const Eigen::VectorXd& b, const Constraints& constraints,
                     Eigen::VectorXd& dv) override;

@@ -1,0 +1,80 @@
+#include "sim_core/hierarchy/multigrid_solver.h"
+
+namespace costume::sim {
+
+MultigridSolver::MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid,
+                                 const PcgSettings& settings, JacobianMode mode,
+                                 const ExternalForces& external)
+    : settings_(settings),
+      levels_(pyramid, mode, external),
+      pcg_(pyramid->level(0).model->num_particles()),
+      fine_jacobi_(pyramid->level(0).model->num_particles()),
+      fine_residual_(3 * pyramid->level(0).model->num_particles()),
+      fine_scratch_(3 * pyramid->level(0).model->num_particles()) {
+  if (pyramid->num_levels() > 1) {
+    coarsest_ = std::make_unique<DirectSolver>(levels_.level(pyramid->num_levels() - 1).a);
+  }
+}
+
+MultigridSolver::~MultigridSolver() = default;
+
+SolveReport MultigridSolver::Solve(const ClothState& state, double h, const SystemMatrix& a,
+                                   const Eigen::VectorXd& b, const Constraints& constraints,
+                                   Eigen::VectorXd& dv) {
+  levels_.Assemble(state, h, constraints);
+  SolveReport report;
+  if (coarsest_) {
+    LevelSystem& top = levels_.level(levels_.num_levels() - 1);
+    report.solved = coarsest_->Factorize(top.a, top.constraints);
+  }
+  Update(a, constraints);
+  const PcgReport pcg = pcg_.Solve(a, b, constraints, settings_, *this, dv);
+  report.iterations = pcg.iterations;
+  report.relative_residual = pcg.relative_residual;
+  report.converged = pcg.converged && report.solved;
+  return report;
+}
+
+void MultigridSolver::Update(const SystemMatrix& a, const Constraints& constraints) {
+  fine_a_ = &a;
+  fine_constraints_ = &constraints;
+  fine_jacobi_.Update(a, constraints);
+}
+
+void MultigridSolver::Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) { Cycle(0, r, z); }
+
+void MultigridSolver::Cycle(int l, const Eigen::VectorXd& r, Eigen::VectorXd& z) {
+  const bool fine = l == 0;
+  const SystemMatrix& a = fine ? *fine_a_ : levels_.level(l).a;
+  const Constraints& constraints = fine ? *fine_constraints_ : levels_.level(l).constraints;
+  BlockJacobiPreconditioner& jacobi = fine ? fine_jacobi_ : levels_.level(l).jacobi;
+  Eigen::VectorXd& residual = fine ? fine_residual_ : levels_.level(l).r;
+  Eigen::VectorXd& scratch = fine ? fine_scratch_ : levels_.level(l).t;
+  if (l == levels_.num_levels() - 1 && coarsest_) {
+    residual = r;
+    constraints.Filter(residual);
+    coarsest_->SolveFactored(residual, z);
+    return;
+  }
+  // Pre-smoothing from z = 0: the first damped block-Jacobi sweep needs no product.
+  jacobi.Apply(r, z);
+  constraints.Filter(z);
+  z *= kOmega;
+  SmoothJacobi(a, r, constraints, jacobi, kSweeps - 1, z, residual, scratch);
+  if (l + 1 < levels_.num_levels()) {
+    // Coarse correction of the smoothed residual.
+    a.Multiply(z, scratch);
+    residual = r - scratch;
+    constraints.Filter(residual);
+    LevelSystem& coarse = levels_.level(l + 1);
+    levels_.pyramid().Restrict(l + 1, residual, coarse.b);
+    coarse.constraints.Filter(coarse.b);
+    Cycle(l + 1, coarse.b, coarse.x);
+    levels_.pyramid().Prolongate(l + 1, coarse.x, scratch);
+    constraints.Filter(scratch);
+    z += scratch;
+  }
+  SmoothJacobi(a, r, constraints, jacobi, kSweeps, z, residual, scratch);
+}
+
+}  // namespace costume::sim
