@@ -5,9 +5,22 @@
 
 namespace costume::sim {
 
-void BlockJacobiPreconditioner::Update(const SystemMatrix& a, const Constraints&) {
+// Constrained particles get the inverse of their filtered block, S(SDS + I − S)⁻¹S, not
+// S D⁻¹ S: where D couples the contact normal to the tangent plane the latter can exceed the
+// true inverse, and a multigrid smoother built on it then amplifies instead of smoothing.
+void BlockJacobiPreconditioner::Update(const SystemMatrix& a, const Constraints& constraints) {
   for (int i = 0; i < a.num_particles(); ++i) {
     inverse_diagonal_[i] = a.DiagonalBlock(i).inverse();
+  }
+  for (int i : constraints.constrained()) {
+    if (constraints.num_constrained_directions(i) == 3) {
+      inverse_diagonal_[i].setZero();
+      continue;
+    }
+    const Eigen::Vector3d& n = constraints.normal(i);
+    const Eigen::Matrix3d normal = n * n.transpose();
+    const Eigen::Matrix3d s = Eigen::Matrix3d::Identity() - normal;
+    inverse_diagonal_[i] = s * (s * a.DiagonalBlock(i) * s + normal).inverse() * s;
   }
 }
 
