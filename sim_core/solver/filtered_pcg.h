@@ -15,8 +15,8 @@
 namespace costume::sim {
 
 struct PcgSettings {
-  /// Stop when ‖S(b − AΔv)‖ < tolerance · ‖Sb‖ [-] (see the .cc for why not B&W's
-  /// preconditioned norm).
+  /// Stop when ‖S(b − AΔv)‖ < tolerance · ‖Sb‖ and rᵀP⁻¹r < tolerance² · (Sb)ᵀP⁻¹(Sb)
+  /// [-] (see the .cc for why both).
   double tolerance = 1e-2;
   int max_iterations = 1000;
 };
