@@ -9,10 +9,7 @@ HierarchicalSolver::HierarchicalSolver(std::shared_ptr<const QuincunxPyramid> py
                                        const ExternalForces& external)
     : settings_(settings),
       levels_(pyramid, mode, external),
-      pcg_(pyramid->level(0).model->num_particles()),
-      fine_jacobi_(pyramid->level(0).model->num_particles()),
-      fine_residual_(3 * pyramid->level(0).model->num_particles()),
-      fine_scratch_(3 * pyramid->level(0).model->num_particles()) {}
+      fine_(pyramid->level(0).model->num_particles()) {}
 
 SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const SystemMatrix& a,
                                       const Eigen::VectorXd& b, const Constraints& constraints,
@@ -36,12 +33,12 @@ SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const S
                    finer.r, finer.t);
     }
   }
-  fine_jacobi_.Update(a, constraints);
+  fine_.jacobi.Update(a, constraints);
   if (top > 0) {
-    SmoothJacobi(a, b, constraints, fine_jacobi_, kSmoothingSweeps, dv, fine_residual_,
-                 fine_scratch_);
+    SmoothJacobi(a, b, constraints, fine_.jacobi, kSmoothingSweeps, dv, fine_.residual,
+                 fine_.scratch);
   }
-  const PcgReport fine = pcg_.Solve(a, b, constraints, settings_, fine_jacobi_, dv);
+  const PcgReport fine = fine_.pcg.Solve(a, b, constraints, settings_, fine_.jacobi, dv);
   report.iterations = fine.iterations;
   report.relative_residual = fine.relative_residual;
   report.converged = fine.converged;

@@ -28,9 +28,7 @@ class HierarchicalSolver : public StepSolver {
  private:
   PcgSettings settings_;
   LevelSystems levels_;
-  FilteredPcg pcg_;
-  BlockJacobiPreconditioner fine_jacobi_;
-  Eigen::VectorXd fine_residual_, fine_scratch_;
+  FineWorkspace fine_;
 };
 
 }  // namespace costume::sim

@@ -27,6 +27,18 @@ struct LevelSystem {
   Eigen::VectorXd x, r, t;
 };
 
+/// Level 0's scratch for the pyramid's solvers (its system is the stepper's).
+struct FineWorkspace {
+  explicit FineWorkspace(int num_particles)
+      : pcg(num_particles),
+        jacobi(num_particles),
+        residual(3 * num_particles),
+        scratch(3 * num_particles) {}
+  FilteredPcg pcg;
+  BlockJacobiPreconditioner jacobi;
+  Eigen::VectorXd residual, scratch;
+};
+
 class LevelSystems {
  public:
   /// Allocates the systems of levels 1 .. pyramid.num_levels() − 1.

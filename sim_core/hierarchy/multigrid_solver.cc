@@ -7,10 +7,7 @@ MultigridSolver::MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid,
                                  const ExternalForces& external)
     : settings_(settings),
       levels_(pyramid, mode, external),
-      pcg_(pyramid->level(0).model->num_particles()),
-      fine_jacobi_(pyramid->level(0).model->num_particles()),
-      fine_residual_(3 * pyramid->level(0).model->num_particles()),
-      fine_scratch_(3 * pyramid->level(0).model->num_particles()) {
+      fine_(pyramid->level(0).model->num_particles()) {
   if (pyramid->num_levels() > 1) {
     coarsest_ = std::make_unique<DirectSolver>(levels_.level(pyramid->num_levels() - 1).a);
   }
@@ -28,7 +25,7 @@ SolveReport MultigridSolver::Solve(const ClothState& state, double h, const Syst
     report.solved = coarsest_->Factorize(top.a, top.constraints);
   }
   Update(a, constraints);
-  const PcgReport pcg = pcg_.Solve(a, b, constraints, settings_, *this, dv);
+  const PcgReport pcg = fine_.pcg.Solve(a, b, constraints, settings_, *this, dv);
   report.iterations = pcg.iterations;
   report.relative_residual = pcg.relative_residual;
   report.converged = pcg.converged && report.solved;
@@ -38,7 +35,7 @@ SolveReport MultigridSolver::Solve(const ClothState& state, double h, const Syst
 void MultigridSolver::Update(const SystemMatrix& a, const Constraints& constraints) {
   fine_a_ = &a;
   fine_constraints_ = &constraints;
-  fine_jacobi_.Update(a, constraints);
+  fine_.jacobi.Update(a, constraints);
 }
 
 void MultigridSolver::Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) { Cycle(0, r, z); }
@@ -47,9 +44,9 @@ void MultigridSolver::Cycle(int l, const Eigen::VectorXd& r, Eigen::VectorXd& z)
   const bool fine = l == 0;
   const SystemMatrix& a = fine ? *fine_a_ : levels_.level(l).a;
   const Constraints& constraints = fine ? *fine_constraints_ : levels_.level(l).constraints;
-  BlockJacobiPreconditioner& jacobi = fine ? fine_jacobi_ : levels_.level(l).jacobi;
-  Eigen::VectorXd& residual = fine ? fine_residual_ : levels_.level(l).r;
-  Eigen::VectorXd& scratch = fine ? fine_scratch_ : levels_.level(l).t;
+  BlockJacobiPreconditioner& jacobi = fine ? fine_.jacobi : levels_.level(l).jacobi;
+  Eigen::VectorXd& residual = fine ? fine_.residual : levels_.level(l).r;
+  Eigen::VectorXd& scratch = fine ? fine_.scratch : levels_.level(l).t;
   if (l == levels_.num_levels() - 1 && coarsest_) {
     residual = r;
     constraints.Filter(residual);

@@ -38,13 +38,11 @@ class MultigridSolver : public StepSolver, private PcgPreconditioner {
 
   PcgSettings settings_;
   LevelSystems levels_;
-  FilteredPcg pcg_;
-  BlockJacobiPreconditioner fine_jacobi_;
+  FineWorkspace fine_;
   std::unique_ptr<DirectSolver> coarsest_;
   // Level 0 for the duration of a solve.
   const SystemMatrix* fine_a_ = nullptr;
   const Constraints* fine_constraints_ = nullptr;
-  Eigen::VectorXd fine_residual_, fine_scratch_;
 };
 
 }  // namespace costume::sim
