@@ -93,12 +93,8 @@ void ImplicitStepper::SetConstraints(const ClothState& state, std::span<const Co
 
 bool ImplicitStepper::Solve(const ClothState& state, double h, StepReport& report) {
   if (!settings_.warm_start) dv_.setZero();
-  const SolveReport solve = solver_->Solve(state, h, a_, b_, constraints_, dv_);
-  report.iterations = solve.iterations;
-  report.coarse_iterations = solve.coarse_iterations;
-  report.relative_residual = solve.relative_residual;
-  report.converged = solve.converged;
-  return solve.solved;
+  static_cast<SolveReport&>(report) = solver_->Solve(state, h, a_, b_, constraints_, dv_);
+  return report.solved;
 }
 
 void ImplicitStepper::StoreContactImpulses(std::span<Contact> contacts) const {

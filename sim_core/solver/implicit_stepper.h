@@ -33,14 +33,9 @@ struct StepperSettings {
   int levels = 0;
 };
 
-/// What happened in one step. Flags instead of exceptions: the step never throws.
-struct StepReport {
-  int iterations = 0;
-  /// Iterations on the pyramid's coarser levels (hierarchical step only).
-  int coarse_iterations = 0;
-  double relative_residual = 0.0;
-  /// PCG reached its tolerance (always true for the direct solver when it succeeds).
-  bool converged = true;
+/// What happened in one step: the solve's report (iterations, residual, converged) plus
+/// the step's own flags. Flags instead of exceptions: the step never throws.
+struct StepReport : SolveReport {
   /// The step produced a non-finite value, the factorisation failed or h was not a finite
   /// positive number; the state was restored to its value before the step. Remedy: a
   /// smaller step or softer material.

@@ -107,7 +107,7 @@ Eigen::VectorXd StepChange(std::shared_ptr<const ClothModel> model, const ClothS
 std::shared_ptr<const ClothModel> NaiveCopy(const QuincunxPyramid& pyramid, int l) {
   ClothModelData data = pyramid.level(l).model->data();
   const ClothModel& fine = *pyramid.level(0).model;
-  for (std::size_t p = 0; p < data.masses.size(); ++p) {
+  for (Eigen::Index p = 0; p < data.masses.size(); ++p) {
     data.masses[p] = fine.masses()[pyramid.level(l).level0_index[p]];
   }
   for (Spring& s : data.springs) {
