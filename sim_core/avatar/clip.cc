@@ -1,0 +1,158 @@
+#include "sim_core/avatar/clip.h"
+
+#include <cmath>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+/// Joints a retargeting needs both skeletons to have, or the result is not a humanoid.
+constexpr HAnimJoint kRequiredForRetargeting[] = {
+    HAnimJoint::kHumanoidRoot, HAnimJoint::kLHip,      HAnimJoint::kRHip,
+    HAnimJoint::kLKnee,        HAnimJoint::kRKnee,     HAnimJoint::kLShoulder,
+    HAnimJoint::kRShoulder,    HAnimJoint::kLElbow,    HAnimJoint::kRElbow};
+
+Eigen::Vector3d RestPosition(const Skeleton& skeleton, HAnimJoint joint) {
+  return skeleton.rest_world()[skeleton.Find(joint)].translation();
+}
+
+/// The horizontal direction the skeleton faces in its rest pose: left hip minus right hip,
+/// turned a quarter about +y (x left, y up, z forward).
+Eigen::Vector3d Facing(const Skeleton& skeleton) {
+  Eigen::Vector3d left =
+      RestPosition(skeleton, HAnimJoint::kLHip) - RestPosition(skeleton, HAnimJoint::kRHip);
+  left.y() = 0.0;
+  return left.cross(Eigen::Vector3d::UnitY()).normalized();
+}
+
+double LegLength(const Skeleton& skeleton) {
+  return (RestPosition(skeleton, HAnimJoint::kLHip) - RestPosition(skeleton, HAnimJoint::kLKnee))
+             .norm() * 2.0;
+}
+
+/// The first H-Anim child of `joint` both skeletons have: where the bone points.
+std::optional<HAnimJoint> SharedChild(HAnimJoint joint, const Skeleton& a, const Skeleton& b) {
+  for (HAnimJoint child : AllHAnimJoints()) {
+    if (HAnimParent(child) != joint || a.Find(child) < 0 || b.Find(child) < 0) continue;
+    // The spine's first child stands for the bone; the shoulders branch off it.
+    if (joint == HAnimJoint::kVc7 && child != HAnimJoint::kSkullbase) continue;
+    if (joint == HAnimJoint::kHumanoidRoot && child != HAnimJoint::kVl5) continue;
+    if (joint == HAnimJoint::kSacroiliac) continue;  // the pelvis has two bones: no direction
+    return child;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+double Clip::duration() const {
+  const double n = static_cast<double>(frames.size());
+  return (loops ? n : std::max(0.0, n - 1.0)) * frame_time;
+}
+
+void ValidateClip(const Clip& clip) {
+  const std::string where = "clip '" + clip.name + "'";
+  if (!clip.skeleton) throw InputError(where + ": has no skeleton");
+  if (clip.frames.empty()) throw InputError(where + ": has no frames");
+  if (!std::isfinite(clip.frame_time) || clip.frame_time <= 0.0) {
+    throw InputError(where + ": frame_time " + FormatValue(clip.frame_time) +
+                     " s (allowed: > 0)");
+  }
+  const std::size_t num_joints = clip.skeleton->num_joints();
+  for (std::size_t f = 0; f < clip.frames.size(); ++f) {
+    const Pose& pose = clip.frames[f];
+    const std::string frame = where + ", frame " + std::to_string(f);
+    if (pose.rotations.size() != num_joints) {
+      throw InputError(frame + ": " + std::to_string(pose.rotations.size()) +
+                       " joint rotations, skeleton has " + std::to_string(num_joints));
+    }
+    for (const Eigen::Quaterniond& q : pose.rotations) {
+      if (!q.coeffs().allFinite() || q.norm() < 1e-9) {
+        throw InputError(frame + ": non-finite or zero rotation");
+      }
+    }
+    if (!pose.root_translation.allFinite() || !pose.orientation.coeffs().allFinite()) {
+      throw InputError(frame + ": non-finite root translation or orientation");
+    }
+  }
+}
+
+void SampleClip(const Clip& clip, double t, Pose& out) {
+  const int n = static_cast<int>(clip.frames.size());
+  double position = t / clip.frame_time;
+  if (clip.loops) {
+    position = std::fmod(position, static_cast<double>(n));
+    if (position < 0.0) position += n;
+  } else {
+    position = std::clamp(position, 0.0, static_cast<double>(n - 1));
+  }
+  const int first = std::min(static_cast<int>(position), n - 1);
+  const int second = clip.loops ? (first + 1) % n : std::min(first + 1, n - 1);
+  InterpolatePoses(clip.frames[first], clip.frames[second], position - first, out);
+}
+
+Retargeter::Retargeter(std::shared_ptr<const Skeleton> source,
+                       std::shared_ptr<const Skeleton> target)
+    : source_(std::move(source)), target_(std::move(target)) {
+  std::string missing;
+  for (HAnimJoint joint : kRequiredForRetargeting) {
+    if (source_->Find(joint) < 0 || target_->Find(joint) < 0) {
+      missing += (missing.empty() ? "" : ", ") + std::string(HAnimName(joint));
+    }
+  }
+  if (!missing.empty()) {
+    throw InputError("retargeting skeleton '" + source_->name() + "' onto '" + target_->name() +
+                     "': both must map the H-Anim joints " + missing);
+  }
+  facing_.setFromTwoVectors(Facing(*source_), Facing(*target_));
+  translation_scale_ = LegLength(*target_) / LegLength(*source_);
+
+  const int n = target_->num_joints();
+  source_of_target_.assign(n, -1);
+  alignment_.assign(n, Eigen::Quaterniond::Identity());
+  for (int j = 0; j < n; ++j) {
+    const std::optional<HAnimJoint> hanim = target_->joint(j).hanim;
+    if (!hanim || source_->Find(*hanim) < 0) continue;
+    source_of_target_[j] = source_->Find(*hanim);
+    const std::optional<HAnimJoint> child = SharedChild(*hanim, *source_, *target_);
+    if (!child) continue;
+    const Eigen::Vector3d target_bone =
+        RestPosition(*target_, *child) - RestPosition(*target_, *hanim);
+    const Eigen::Vector3d source_bone =
+        facing_ * (RestPosition(*source_, *child) - RestPosition(*source_, *hanim));
+    alignment_[j].setFromTwoVectors(target_bone, source_bone);
+  }
+}
+
+void Retargeter::Apply(const Pose& source_pose, Pose& target_pose) const {
+  ComputeJointWorld(*source_, source_pose, source_world_);
+  const int n = target_->num_joints();
+  target_pose.rotations.resize(n);
+  target_world_.resize(n);
+  const std::vector<Eigen::Isometry3d>& source_rest = source_->rest_world();
+  const std::vector<Eigen::Isometry3d>& target_rest = target_->rest_world();
+  for (int j = 0; j < n; ++j) {
+    const Joint& joint = target_->joint(j);
+    const Eigen::Quaterniond parent_world =
+        joint.parent >= 0 ? target_world_[joint.parent] : Eigen::Quaterniond::Identity();
+    const Eigen::Quaterniond rest_local(joint.rest_local.linear());
+    const int s = source_of_target_[j];
+    if (s < 0) {
+      target_pose.rotations[j].setIdentity();
+      target_world_[j] = parent_world * rest_local;
+      continue;
+    }
+    // World rotation the source joint made relative to its rest, seen in the target's
+    // facing frame, applied to the target's (bone-aligned) rest frame.
+    const Eigen::Quaterniond delta =
+        facing_ * Eigen::Quaterniond(source_world_[s].linear() * source_rest[s].linear().transpose()) *
+        facing_.conjugate();
+    target_world_[j] = (delta * alignment_[j] * Eigen::Quaterniond(target_rest[j].linear())).normalized();
+    target_pose.rotations[j] = ((parent_world * rest_local).conjugate() * target_world_[j]).normalized();
+  }
+  target_pose.root_translation = facing_ * source_pose.root_translation * translation_scale_;
+  target_pose.orientation = source_pose.orientation;
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,39 @@
+#include "sim_core/avatar/pose.h"
+
+namespace costume::sim {
+
+Pose RestPose(const Skeleton& skeleton) {
+  Pose pose;
+  pose.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  return pose;
+}
+
+void ComputeJointWorld(const Skeleton& skeleton, const Pose& pose,
+                       std::vector<Eigen::Isometry3d>& world) {
+  const int n = skeleton.num_joints();
+  world.resize(n);
+  Eigen::Isometry3d placement = Eigen::Isometry3d::Identity();
+  placement.linear() = pose.orientation.normalized().toRotationMatrix();
+  for (int i = 0; i < n; ++i) {
+    const Joint& joint = skeleton.joint(i);
+    Eigen::Isometry3d local = joint.rest_local;
+    local.linear() = local.linear() * pose.rotations[i].normalized().toRotationMatrix();
+    if (joint.parent >= 0) {
+      world[i] = world[joint.parent] * local;
+    } else {
+      local.translation() += pose.root_translation;
+      world[i] = placement * local;
+    }
+  }
+}
+
+void InterpolatePoses(const Pose& a, const Pose& b, double t, Pose& out) {
+  out.rotations.resize(a.rotations.size());
+  for (std::size_t i = 0; i < a.rotations.size(); ++i) {
+    out.rotations[i] = a.rotations[i].slerp(t, b.rotations[i]);
+  }
+  out.root_translation = (1.0 - t) * a.root_translation + t * b.root_translation;
+  out.orientation = a.orientation.slerp(t, b.orientation);
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,83 @@
+#include "sim_core/avatar/skeleton.h"
+
+#include <cmath>
+#include <unordered_set>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+std::string Where(const std::string& skeleton, int index, const std::string& joint) {
+  return "skeleton '" + skeleton + "', joint " + std::to_string(index) + " ('" + joint + "')";
+}
+
+void RequireRigid(const std::string& where, const Eigen::Isometry3d& transform) {
+  if (!transform.matrix().allFinite()) {
+    throw InputError(where + ": rest transform has non-finite entries");
+  }
+  const Eigen::Matrix3d r = transform.linear();
+  const double error = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (error > 1e-6 || r.determinant() < 0.0) {
+    throw InputError(where + ": rest transform is not a rotation (|RᵀR − I| = " +
+                     FormatValue(error) + ", det = " + FormatValue(r.determinant()) +
+                     "; allowed: orthonormal, det +1, within 1e-6)");
+  }
+}
+
+}  // namespace
+
+std::shared_ptr<const Skeleton> Skeleton::Create(std::string name, std::vector<Joint> joints) {
+  if (joints.empty()) throw InputError("skeleton '" + name + "': has no joints");
+  std::unordered_set<std::string> names;
+  std::array<bool, kNumHAnimJoints> hanim_used{};
+  for (int i = 0; i < static_cast<int>(joints.size()); ++i) {
+    const Joint& joint = joints[i];
+    const std::string where = Where(name, i, joint.name);
+    if (joint.name.empty()) throw InputError(where + ": empty name");
+    if (!names.insert(joint.name).second) throw InputError(where + ": name used twice");
+    if (joint.parent < -1 || joint.parent >= i) {
+      throw InputError(where + ": parent index " + std::to_string(joint.parent) +
+                       " out of range (allowed: -1 for a root, or 0.." + std::to_string(i - 1) +
+                       ", parents before children)");
+    }
+    RequireRigid(where, joint.rest_local);
+    if (joint.hanim) {
+      bool& used = hanim_used[static_cast<int>(*joint.hanim)];
+      if (used) {
+        throw InputError(where + ": H-Anim joint '" + std::string(HAnimName(*joint.hanim)) +
+                         "' is mapped twice");
+      }
+      used = true;
+    }
+  }
+  return std::shared_ptr<const Skeleton>(new Skeleton(std::move(name), std::move(joints)));
+}
+
+Skeleton::Skeleton(std::string name, std::vector<Joint> joints)
+    : name_(std::move(name)), joints_(std::move(joints)) {
+  hanim_index_.fill(-1);
+  rest_world_.resize(joints_.size());
+  for (std::size_t i = 0; i < joints_.size(); ++i) {
+    const Joint& joint = joints_[i];
+    rest_world_[i] =
+        joint.parent < 0 ? joint.rest_local : rest_world_[joint.parent] * joint.rest_local;
+    if (joint.hanim) hanim_index_[static_cast<int>(*joint.hanim)] = static_cast<int>(i);
+  }
+}
+
+int Skeleton::FindByName(const std::string& name) const {
+  for (std::size_t i = 0; i < joints_.size(); ++i) {
+    if (joints_[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::optional<HAnimJoint> Skeleton::HAnimSegmentOf(int index) const {
+  for (int j = index; j >= 0; j = joints_[j].parent) {
+    if (joints_[j].hanim) return joints_[j].hanim;
+  }
+  return std::nullopt;
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,57 @@
+#pragma once
+/// @file
+/// An animated obstacle the cloth collides with (the avatar's body), behind one interface
+/// so the fast superquadric method and the accurate mesh method (paper §4) are chosen at
+/// run time.
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/collision/contact.h"
+
+namespace costume::sim {
+
+/// What every collider shares.
+struct BodyCollisionSettings {
+  /// Cloth thickness kept off the body's surface [m] >= 0.
+  double thickness = 0.004;
+  /// Coulomb friction coefficient between cloth and body [-] >= 0.
+  double friction = 0.5;
+};
+
+/// Counters of the last FindContacts call, for benchmarks and the status bar.
+struct BodyCollisionStats {
+  /// Elementary tests done (particle against superquadric, or particle against region or
+  /// triangle), the work the paper's adaptive regions save.
+  long long num_tests = 0;
+  int num_contacts = 0;
+};
+
+class BodyCollider {
+ public:
+  virtual ~BodyCollider() = default;
+
+  /// Moves the body to its pose at the end of the coming step: the joint frames from
+  /// ComputeJointWorld and the skinned vertices from SkinVertices, `dt` [s] > 0 after the
+  /// previous call (the body's velocity is taken from the two). The first call sets the
+  /// pose with zero velocity. Never throws; allocation only on the first call.
+  virtual void Update(const std::vector<Eigen::Isometry3d>& joint_world,
+                      const Points& skinned_vertices, double dt) = 0;
+
+  /// Appends a contact (contact.h) for each particle that is inside the body's shell
+  /// (surface + thickness) or would end the step of length h [s] within `margin` [m] of it
+  /// at its current velocity. The target normal velocity is the body surface's own normal
+  /// velocity plus what brings the particle onto the shell within the step. Never throws.
+  virtual void FindContacts(const Points& positions, const Points& velocities, double h,
+                            double margin, std::vector<Contact>& contacts) = 0;
+
+  /// Moves particles that ended inside the shell back onto it and removes their velocity
+  /// into the body relative to the body (the paper's position correction). Returns the
+  /// deepest penetration before the correction [m]. Never throws.
+  virtual double ProjectOut(Points& positions, Points& velocities) = 0;
+
+  virtual BodyCollisionStats stats() const = 0;
+};
+
+}  // namespace costume::sim
