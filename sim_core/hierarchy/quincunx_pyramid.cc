@@ -2,6 +2,8 @@
 
 #include <utility>
 
+#include "sim_core/hierarchy/mesh_coarsening.h"
+
 namespace costume::sim {
 
 namespace {
@@ -71,10 +73,14 @@ QuincunxPyramid::QuincunxPyramid(std::shared_ptr<const ClothModel> level0, int m
   for (int i = 0; i < base.model->num_particles(); ++i) base.level0_index.push_back(i);
   levels_.push_back(std::move(base));
   constants_.push_back(ConstantsOf(*levels_[0].model));
-  if (levels_[0].model->lattice_rows() == 0) return;  // not a single lattice panel
+  const bool lattice = levels_[0].model->lattice_rows() > 0;
   while (max_levels == 0 || num_levels() < max_levels) {
     const int before = num_levels();
-    AddLevel();
+    if (lattice) {
+      AddLevel();
+    } else {
+      AddMeshLevel();
+    }
     if (num_levels() == before) break;
   }
 }
@@ -186,6 +192,21 @@ void QuincunxPyramid::AddLevel() {
   coarse.model = ClothModel::Create(std::move(data));
   levels_.push_back(std::move(coarse));
   constants_.push_back(constants);
+}
+
+void QuincunxPyramid::AddMeshLevel() {
+  const PyramidLevel& fine = levels_.back();
+  std::optional<MeshCoarsening> step = CoarsenMesh(*fine.model, kMinParticles);
+  if (!step) return;
+  PyramidLevel coarse;
+  for (int f : step->fine_index) coarse.level0_index.push_back(fine.level0_index[f]);
+  coarse.kept = std::move(step->kept);
+  coarse.interpolation_start = std::move(step->interpolation_start);
+  coarse.interpolation_from = std::move(step->interpolation_from);
+  step->coarse.name = levels_[0].model->name() + " level " + std::to_string(num_levels());
+  coarse.model = ClothModel::Create(std::move(step->coarse));
+  constants_.push_back(ConstantsOf(*coarse.model));
+  levels_.push_back(std::move(coarse));
 }
 
 void QuincunxPyramid::Prolongate(int l, const Eigen::VectorXd& coarse, Eigen::VectorXd& fine) const {

@@ -7,7 +7,9 @@
 /// spring constants the dynamic equivalent of the level below (docs/pyramid.md derives them).
 /// Because coarse particles are a subset of the fine ones, restricting a state or a
 /// constraint is a gather; prolongation gives each dropped particle the mean of its kept
-/// structural neighbours.
+/// structural neighbours. Models that are not one lattice panel (sewn garments, meshes from
+/// files) are coarsened by the independent-set rule of mesh_coarsening.h instead, which
+/// reduces to quincunx sampling on a lattice.
 
 #include <Eigen/Core>
 #include <memory>
@@ -37,7 +39,8 @@ struct PyramidLevel {
   std::vector<int> kept;
 };
 
-/// Spring constants and damping of each kind on one level (uniform on a lattice panel).
+/// Spring constants and damping of each kind on one level (uniform on a lattice panel; on
+/// a general mesh's levels each spring has its own, and this holds the first of each kind).
 struct KindConstants {
   double stiffness[3] = {0, 0, 0};  // indexed by SpringKind
   double damping[3] = {0, 0, 0};
@@ -47,7 +50,9 @@ class QuincunxPyramid {
  public:
   /// Builds up to `max_levels` levels counting level 0 (0 = as many as the lattice allows:
   /// coarsening stops before a level would have fewer than kMinParticles particles).
-  /// A model that is not a single lattice panel (lattice_rows() == 0) gets level 0 only.
+  /// A model that is not a single lattice panel (lattice_rows() == 0) is coarsened by
+  /// CoarsenMesh until a level would have fewer than kMinParticles particles or coarsening
+  /// stalls.
   QuincunxPyramid(std::shared_ptr<const ClothModel> level0, int max_levels);
 
   /// The smallest level the pyramid builds.
@@ -79,6 +84,7 @@ class QuincunxPyramid {
 
  private:
   void AddLevel();
+  void AddMeshLevel();
   std::vector<PyramidLevel> levels_;
   std::vector<KindConstants> constants_;
 };

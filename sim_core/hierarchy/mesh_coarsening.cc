@@ -1,0 +1,315 @@
+#include "sim_core/hierarchy/mesh_coarsening.h"
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <map>
+
+namespace costume::sim {
+namespace {
+
+/// The 15 distinct components of the symmetric tensor n⊗n⊗n⊗n, each weighted by the square
+/// root of its multiplicity so that the Euclidean norm of this vector is the tensor's
+/// Frobenius norm.
+using Tensor4 = Eigen::Matrix<double, 15, 1>;
+Tensor4 Quartic(const Eigen::Vector3d& n) {
+  static const double kFactorial[] = {1, 1, 2, 6, 24};
+  Tensor4 t;
+  int k = 0;
+  for (int a = 4; a >= 0; --a) {
+    for (int b = 4 - a; b >= 0; --b) {
+      const int c = 4 - a - b;
+      const double multiplicity = kFactorial[4] / (kFactorial[a] * kFactorial[b] * kFactorial[c]);
+      t[k++] = std::sqrt(multiplicity) * std::pow(n.x(), a) * std::pow(n.y(), b) * std::pow(n.z(), c);
+    }
+  }
+  return t;
+}
+
+/// Structural neighbours of every particle.
+std::vector<std::vector<int>> StructuralNeighbours(const ClothModel& model) {
+  std::vector<std::vector<int>> neighbours(model.num_particles());
+  for (const Spring& s : model.springs()) {
+    if (s.kind != SpringKind::kStructural) continue;
+    neighbours[s.a].push_back(s.b);
+    neighbours[s.b].push_back(s.a);
+  }
+  return neighbours;
+}
+
+/// Greedy maximal independent set: pinned particles first (so pins survive), then index
+/// order, which on a lattice panel's row-major numbering yields the checkerboard.
+std::vector<bool> SelectKept(const ClothModel& model, const std::vector<std::vector<int>>& nbrs) {
+  std::vector<bool> kept(model.num_particles(), false), blocked(model.num_particles(), false);
+  auto take = [&](int p) {
+    if (blocked[p]) return;
+    kept[p] = blocked[p] = true;
+    for (int q : nbrs[p]) blocked[q] = true;
+  };
+  for (int p : model.pinned()) take(p);
+  for (int p = 0; p < model.num_particles(); ++p) take(p);
+  return kept;
+}
+
+/// Interpolation and lumped masses (PᵀMP lumped: a dropped particle's mass, area and drag
+/// go in equal shares to the kept neighbours it is interpolated from).
+void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& nbrs,
+                 MeshCoarsening& out) {
+  const int nc = static_cast<int>(out.fine_index.size());
+  ClothModelData& data = out.coarse;
+  data.masses = Eigen::VectorXd::Zero(nc);
+  data.areas = Eigen::VectorXd::Zero(nc);
+  data.drag = Eigen::VectorXd::Zero(nc);
+  out.interpolation_start.assign(1, 0);
+  const bool has_drag = fine.drag().size() == fine.num_particles();
+  for (int f = 0; f < fine.num_particles(); ++f) {
+    if (out.kept[f] >= 0) {
+      out.interpolation_from.push_back(out.kept[f]);
+    } else {
+      for (int q : nbrs[f]) {
+        if (out.kept[q] >= 0) out.interpolation_from.push_back(out.kept[q]);
+      }
+    }
+    const int first = out.interpolation_start.back();
+    const int count = static_cast<int>(out.interpolation_from.size()) - first;
+    for (int k = first; k < first + count; ++k) {
+      const int c = out.interpolation_from[k];
+      data.masses[c] += fine.masses()[f] / count;
+      data.areas[c] += fine.areas()[f] / count;
+      if (has_drag) data.drag[c] += fine.drag()[f] / count;
+    }
+    out.interpolation_start.push_back(first + count);
+  }
+}
+
+/// Coarse pairs two structural steps apart, each marked structural when some path between
+/// them turns at the dropped particle (angle below 135°: a cell diagonal of the finer level)
+/// and shear when every path runs straight through it — on a lattice, exactly the rotated
+/// lattice's structural and shear springs, borders included.
+std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
+                                                const std::vector<std::vector<int>>& nbrs,
+                                                const std::vector<int>& kept) {
+  std::map<std::pair<int, int>, bool> pairs;
+  const Points& x = fine.rest_positions();
+  for (std::size_t f = 0; f < nbrs.size(); ++f) {
+    if (kept[f] >= 0) continue;
+    for (std::size_t i = 0; i < nbrs[f].size(); ++i) {
+      for (std::size_t j = i + 1; j < nbrs[f].size(); ++j) {
+        const int p = nbrs[f][i], q = nbrs[f][j];
+        const int a = kept[p], b = kept[q];
+        if (a < 0 || b < 0 || a == b) continue;
+        const Eigen::Vector3d to_p = (x.row(p) - x.row(f)).normalized();
+        const Eigen::Vector3d to_q = (x.row(q) - x.row(f)).normalized();
+        const bool turns = to_p.dot(to_q) > -0.7071;
+        bool& structural = pairs.try_emplace({std::min(a, b), std::max(a, b)}, false).first->second;
+        structural = structural || turns;
+      }
+    }
+  }
+  return pairs;
+}
+
+/// Each coarse particle's share of the fine stretch/shear stiffness tensor: half of every
+/// fine spring goes to each end, a dropped end's half shared like its mass.
+std::vector<Tensor4> FineTensorShares(const ClothModel& fine, const MeshCoarsening& out) {
+  std::vector<Tensor4> shares(out.fine_index.size(), Tensor4::Zero());
+  for (const Spring& s : fine.springs()) {
+    if (s.kind == SpringKind::kBending) continue;
+    const Eigen::Vector3d d = fine.rest_positions().row(s.b) - fine.rest_positions().row(s.a);
+    const Tensor4 half = 0.25 * s.stiffness * d.squaredNorm() * Quartic(d.normalized());
+    for (int end : {s.a, s.b}) {
+      const int first = out.interpolation_start[end], last = out.interpolation_start[end + 1];
+      for (int k = first; k < last; ++k) shares[out.interpolation_from[k]] += half / (last - first);
+    }
+  }
+  return shares;
+}
+
+/// Pairs of coarse springs leaving one particle in opposite directions (cosine below
+/// −0.8): the continuation of one line of springs through that particle.
+std::vector<std::pair<int, int>> OppositePairs(const ClothModelData& coarse,
+                                               const std::vector<Spring>& springs) {
+  std::vector<std::vector<int>> at(coarse.rest_positions.rows());
+  for (std::size_t e = 0; e < springs.size(); ++e) {
+    at[springs[e].a].push_back(static_cast<int>(e));
+    at[springs[e].b].push_back(static_cast<int>(e));
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (std::size_t m = 0; m < at.size(); ++m) {
+    auto direction = [&](int e) {
+      const int other = springs[e].a == static_cast<int>(m) ? springs[e].b : springs[e].a;
+      return Eigen::Vector3d((coarse.rest_positions.row(other) - coarse.rest_positions.row(m))
+                                 .transpose().normalized());
+    };
+    for (std::size_t i = 0; i < at[m].size(); ++i) {
+      for (std::size_t j = i + 1; j < at[m].size(); ++j) {
+        if (direction(at[m][i]).dot(direction(at[m][j])) < -0.8) {
+          pairs.emplace_back(at[m][i], at[m][j]);
+        }
+      }
+    }
+  }
+  return pairs;
+}
+
+/// Least-squares stiffnesses of the coarse stretch/shear springs: Σ over each coarse
+/// particle of |its springs' tensor share − its fine share|². Per-particle sums leave
+/// stiffnesses that alternate along a line of springs undetermined (+δ, −δ cancels at every
+/// particle), so a smoothness term ties each spring to its continuation through a particle;
+/// where the fine model is uniform the exact solution is uniform and pays nothing for it.
+/// A tiny pull towards the mean fine stiffness keeps isolated springs finite; negative
+/// results (possible on irregular meshes) are clamped to zero.
+Eigen::VectorXd FitStiffness(const ClothModelData& coarse, const std::vector<Spring>& springs,
+                             const std::vector<Tensor4>& shares, double mean_stiffness) {
+  const int ns = static_cast<int>(springs.size());
+  std::vector<Eigen::Triplet<double>> entries;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(15 * static_cast<int>(shares.size()));
+  for (std::size_t c = 0; c < shares.size(); ++c) rhs.segment<15>(15 * c) = shares[c];
+  for (int e = 0; e < ns; ++e) {
+    const Eigen::Vector3d d =
+        coarse.rest_positions.row(springs[e].b) - coarse.rest_positions.row(springs[e].a);
+    const Tensor4 unit = 0.25 * d.squaredNorm() * Quartic(d.normalized());
+    for (int end : {springs[e].a, springs[e].b}) {
+      for (int k = 0; k < 15; ++k) entries.emplace_back(15 * end + k, e, unit[k]);
+    }
+  }
+  Eigen::SparseMatrix<double> a(rhs.size(), ns);
+  a.setFromTriplets(entries.begin(), entries.end());
+  Eigen::SparseMatrix<double> normal = a.transpose() * a;
+  const double scale = normal.diagonal().mean();
+  const double smooth = scale, lambda = 1e-9 * scale;
+  for (const auto& [e1, e2] : OppositePairs(coarse, springs)) {
+    normal.coeffRef(e1, e1) += smooth;
+    normal.coeffRef(e2, e2) += smooth;
+    normal.coeffRef(e1, e2) -= smooth;
+    normal.coeffRef(e2, e1) -= smooth;
+  }
+  Eigen::VectorXd b = a.transpose() * rhs;
+  for (int e = 0; e < ns; ++e) {
+    normal.coeffRef(e, e) += lambda;
+    b[e] += lambda * mean_stiffness;
+  }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
+  return solver.solve(b).cwiseMax(0.0);
+}
+
+/// Damping per unit stiffness of the fine springs of one family (c = τ·k holds per family).
+double DampingRatio(const ClothModel& fine, bool bending) {
+  double k = 0.0, c = 0.0;
+  for (const Spring& s : fine.springs()) {
+    if ((s.kind == SpringKind::kBending) != bending) continue;
+    k += s.stiffness;
+    c += s.damping;
+  }
+  return k > 0.0 ? c / k : 0.0;
+}
+
+void AddStretchShearSprings(const ClothModel& fine, const std::vector<std::vector<int>>& nbrs,
+                            MeshCoarsening& out) {
+  ClothModelData& data = out.coarse;
+  std::vector<Spring> springs;
+  for (const auto& [pair, structural] : CoarsePairs(fine, nbrs, out.kept)) {
+    Spring s;
+    s.a = pair.first;
+    s.b = pair.second;
+    s.kind = structural ? SpringKind::kStructural : SpringKind::kShear;
+    s.rest_length = (data.rest_positions.row(s.b) - data.rest_positions.row(s.a)).norm();
+    springs.push_back(s);
+  }
+  double sum = 0.0;
+  int count = 0;
+  for (const Spring& s : fine.springs()) {
+    if (s.kind != SpringKind::kBending) sum += s.stiffness, ++count;
+  }
+  const Eigen::VectorXd k =
+      FitStiffness(data, springs, FineTensorShares(fine, out), count ? sum / count : 0.0);
+  const double tau = DampingRatio(fine, false);
+  for (std::size_t e = 0; e < springs.size(); ++e) {
+    if (k[e] <= 0.0) continue;
+    springs[e].stiffness = k[e];
+    springs[e].damping = tau * k[e];
+    data.springs.push_back(springs[e]);
+  }
+}
+
+/// Bending springs skip one coarse structural neighbour along the straightest line
+/// (angle > 150°), with the fine rigidity B = kℓ²/4 averaged over the particles each end
+/// stands for, and K = 4B/L² at the coarse length L.
+void AddBendingSprings(const ClothModel& fine, MeshCoarsening& out) {
+  ClothModelData& data = out.coarse;
+  const int nc = static_cast<int>(out.fine_index.size());
+  Eigen::VectorXd rigidity = Eigen::VectorXd::Zero(nc), weight = Eigen::VectorXd::Zero(nc);
+  for (const Spring& s : fine.springs()) {
+    if (s.kind != SpringKind::kBending) continue;
+    const double b = s.stiffness * s.rest_length * s.rest_length / 4.0;
+    for (int end : {s.a, s.b}) {
+      const int first = out.interpolation_start[end], last = out.interpolation_start[end + 1];
+      for (int k = first; k < last; ++k) {
+        rigidity[out.interpolation_from[k]] += b;
+        weight[out.interpolation_from[k]] += 1.0;
+      }
+    }
+  }
+  if (weight.sum() == 0.0) return;
+  std::vector<std::vector<int>> structural(nc);
+  for (const Spring& s : data.springs) {
+    if (s.kind != SpringKind::kStructural) continue;
+    structural[s.a].push_back(s.b);
+    structural[s.b].push_back(s.a);
+  }
+  const double tau = DampingRatio(fine, true);
+  std::map<std::pair<int, int>, bool> added;
+  for (int m = 0; m < nc; ++m) {
+    const Eigen::Vector3d x = data.rest_positions.row(m).transpose();
+    for (int a : structural[m]) {
+      const Eigen::Vector3d da = (data.rest_positions.row(a).transpose() - x).normalized();
+      int best = -1;
+      double best_cos = std::cos(150.0 / 180.0 * 3.14159265358979);
+      for (int b : structural[m]) {
+        const double cosine = da.dot((data.rest_positions.row(b).transpose() - x).normalized());
+        if (b != a && cosine < best_cos) best = b, best_cos = cosine;
+      }
+      if (best < 0 || !added.emplace(std::minmax(a, best), true).second) continue;
+      const double b_mean = 0.5 * (rigidity[a] / std::max(1.0, weight[a]) +
+                                   rigidity[best] / std::max(1.0, weight[best]));
+      Spring s;
+      s.a = std::min(a, best);
+      s.b = std::max(a, best);
+      s.kind = SpringKind::kBending;
+      s.rest_length = (data.rest_positions.row(s.b) - data.rest_positions.row(s.a)).norm();
+      s.stiffness = 4.0 * b_mean / (s.rest_length * s.rest_length);
+      s.damping = tau * s.stiffness;
+      if (s.stiffness > 0.0) data.springs.push_back(s);
+    }
+  }
+}
+
+}  // namespace
+
+std::optional<MeshCoarsening> CoarsenMesh(const ClothModel& fine, int min_particles) {
+  const std::vector<std::vector<int>> nbrs = StructuralNeighbours(fine);
+  const std::vector<bool> selected = SelectKept(fine, nbrs);
+  MeshCoarsening out;
+  out.kept.assign(fine.num_particles(), -1);
+  for (int p = 0; p < fine.num_particles(); ++p) {
+    if (!selected[p]) continue;
+    out.kept[p] = static_cast<int>(out.fine_index.size());
+    out.fine_index.push_back(p);
+  }
+  const int nc = static_cast<int>(out.fine_index.size());
+  if (nc < min_particles || 4 * nc > 3 * fine.num_particles()) return std::nullopt;
+
+  ClothModelData& data = out.coarse;
+  data.name = fine.name() + " (coarse)";
+  data.rest_positions.resize(nc, 3);
+  for (int c = 0; c < nc; ++c) data.rest_positions.row(c) = fine.rest_positions().row(out.fine_index[c]);
+  for (int p : fine.pinned()) {
+    if (out.kept[p] >= 0) data.pinned.push_back(out.kept[p]);
+  }
+  Interpolate(fine, nbrs, out);
+  AddStretchShearSprings(fine, nbrs, out);
+  AddBendingSprings(fine, out);
+  return out;
+}
+
+}  // namespace costume::sim

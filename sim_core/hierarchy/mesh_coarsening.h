@@ -1,0 +1,42 @@
+#pragma once
+/// @file
+/// One coarsening step for a cloth model of any topology (several sewn panels, a mesh read
+/// from a file): the general-mesh analogue of quincunx sampling (DESIGN.md, paper §3.2;
+/// derivation in docs/pyramid.md, "General meshes").
+///
+/// Kept particles are a maximal independent set of the structural-spring graph, chosen
+/// greedily with pinned particles first and then in index order — on a lattice panel that is
+/// exactly the quincunx set (i + j even). A dropped particle is interpolated as the mean of
+/// its kept structural neighbours. Coarse springs join kept particles two structural steps
+/// apart; their stiffnesses are fitted so that every coarse particle's share of the
+/// stretch/shear stiffness tensor Σ ½kℓ² n⊗n⊗n⊗n equals the fine particles' it stands for,
+/// which on a lattice gives the quincunx rule K_s = 2k_d, K_d = k_s/2 exactly. Bending
+/// springs keep the fine bending rigidity B = kℓ²/4 at their new length.
+
+#include <optional>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+
+namespace costume::sim {
+
+/// A coarse level made from a finer one.
+struct MeshCoarsening {
+  ClothModelData coarse;
+  /// For each fine particle, its coarse index, −1 when dropped.
+  std::vector<int> kept;
+  /// Fine index of each coarse particle.
+  std::vector<int> fine_index;
+  /// Fine particle f is interpolated as the mean of the coarse particles
+  /// interpolation_from[interpolation_start[f] .. interpolation_start[f + 1]).
+  std::vector<int> interpolation_start;
+  std::vector<int> interpolation_from;
+};
+
+/// Coarsens `fine` once. Returns nullopt when the coarse level would have fewer than
+/// `min_particles` particles or keep more than 3/4 of the fine ones (coarsening has stalled,
+/// e.g. on a graph with no structural springs). Springs of the coarse model carry level-0
+/// rest lengths from `fine`'s rest positions.
+std::optional<MeshCoarsening> CoarsenMesh(const ClothModel& fine, int min_particles);
+
+}  // namespace costume::sim
