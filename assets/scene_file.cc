@@ -15,6 +15,8 @@
 #include <string_view>
 
 #include "assets/mesh_import.h"
+#include "sim_core/avatar/procedural_clips.h"
+#include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
 
 // How the parser works: every table is read through a TableView, which refuses unknown keys
@@ -532,7 +534,8 @@ sim::SurfaceMesh ParseMesh(const TableView& table) {
 }
 
 sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::string>& materials) {
-  table.RefuseUnknownKeys({"name", "material", "pin_points", "pin_tolerance", "panel", "mesh"});
+  table.RefuseUnknownKeys(
+      {"name", "material", "pin_points", "pin_tolerance", "panel", "mesh", "pattern", "resolution"});
   sim::GarmentSpec garment;
   garment.source_line = table.line();
   garment.name = ReadName(table.Require("name"));
@@ -548,13 +551,17 @@ sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::str
   garment.pin_tolerance = NumberOr(table, "pin_tolerance", garment.pin_tolerance, kPositive, "m");
   const std::optional<TableView> panel = FindTable(table, "panel", "[garment.panel]");
   const std::optional<TableView> mesh = FindTable(table, "mesh", "[garment.mesh]");
-  if (panel.has_value() == mesh.has_value()) {
-    table.Refuse(table.name() + " " + Quote(garment.name) + ": has " +
-                 (panel ? "both [garment.panel] and" : "neither [garment.panel] nor") +
-                 " [garment.mesh]; a garment needs exactly one of them");
+  const std::optional<Field> pattern = table.Find("pattern");
+  if (panel.has_value() + mesh.has_value() + pattern.has_value() != 1) {
+    table.Refuse(table.name() + " " + Quote(garment.name) +
+                 ": needs exactly one of [garment.panel], [garment.mesh] and pattern = \"...\"");
   }
   if (panel) garment.panel = ParsePanel(*panel);
   if (mesh) garment.mesh = ParseMesh(*mesh);
+  if (pattern) {
+    garment.pattern = ReadChoice(*pattern, {"skirt", "cape", "dress"});
+    garment.pattern_resolution = IntegerOr(table, "resolution", garment.pattern_resolution, 8, 1024);
+  }
   return garment;
 }
 
@@ -581,6 +588,51 @@ sim::SphereObstacleSpec ParseSphere(const TableView& table) {
   return sphere;
 }
 
+/// The built-in clip `name`, or none for "none".
+std::shared_ptr<const sim::Clip> BuiltInClip(const Field& field,
+                                             std::shared_ptr<const sim::Skeleton> skeleton) {
+  std::vector<std::string_view> choices = {"none"};
+  for (const std::string& name : sim::BuiltInClipNames()) choices.push_back(name);
+  const auto* text = field.node->as_string();
+  if (!text || std::find(choices.begin(), choices.end(), text->get()) == choices.end()) {
+    std::vector<std::string> quoted;
+    for (std::string_view choice : choices) quoted.push_back(Quote(choice));
+    field.Refuse("must be one of " + Join(quoted));
+  }
+  if (text->get() == "none") return nullptr;
+  return std::make_shared<const sim::Clip>(sim::MakeBuiltInClip(text->get(), std::move(skeleton)));
+}
+
+/// [avatar]: the built-in humanoid, the clip it plays, how cloth collides with it.
+sim::AvatarSpec ParseAvatar(const TableView& table) {
+  table.RefuseUnknownKeys({"model", "clip", "collision", "thickness", "friction", "fit_time",
+                           "blend_time", "position", "heading"});
+  sim::AvatarSpec avatar;
+  avatar.source_line = table.line();
+  if (const std::optional<Field> model = table.Find("model")) ReadChoice(*model, {"builtin"});
+  avatar.avatar = sim::MakeHumanoid();
+  if (const std::optional<Field> clip = table.Find("clip")) {
+    avatar.clip = BuiltInClip(*clip, avatar.avatar->shared_skeleton());
+  }
+  if (const std::optional<Field> collision = table.Find("collision")) {
+    avatar.collision = ReadChoice(*collision, {"superquadric", "mesh"}) == "mesh"
+                           ? sim::BodyCollisionMethod::kMesh
+                           : sim::BodyCollisionMethod::kSuperquadric;
+  }
+  avatar.thickness = NumberOr(table, "thickness", avatar.thickness, {0.0, 0.05, false, false}, "m");
+  avatar.friction = NumberOr(table, "friction", avatar.friction, {0.0, 2.0, false, false}, "");
+  avatar.motion.fit_time =
+      NumberOr(table, "fit_time", avatar.motion.fit_time, {0.0, 60.0, false, false}, "s");
+  avatar.motion.blend_time =
+      NumberOr(table, "blend_time", avatar.motion.blend_time, {0.0, 60.0, false, false}, "s");
+  avatar.motion.posture.root_translation =
+      Vector3Or(table, "position", Eigen::Vector3d::Zero(), "m");
+  const double heading = NumberOr(table, "heading", 0.0, {-360.0, 360.0, false, false}, "degrees");
+  avatar.motion.posture.orientation =
+      Eigen::AngleAxisd(heading * std::acos(-1.0) / 180.0, Eigen::Vector3d::UnitY());
+  return avatar;
+}
+
 /// The scene's name when the file gives none: the file name without folder and extension.
 std::string DefaultSceneName(const std::string& source_name) {
   const std::string stem = std::filesystem::path(source_name).stem().string();
@@ -589,7 +641,7 @@ std::string DefaultSceneName(const std::string& source_name) {
 
 sim::SceneDescription ParseScene(const TableView& root) {
   root.RefuseUnknownKeys({"name", "duration", "frame_rate", "gravity", "solver", "effects",
-                          "material", "garment", "sphere"});
+                          "material", "garment", "sphere", "avatar"});
   sim::SceneDescription scene;
   scene.source = root.source().name;
   scene.name = DefaultSceneName(scene.source);
@@ -602,6 +654,9 @@ sim::SceneDescription ParseScene(const TableView& root) {
   }
   if (const std::optional<TableView> effects = FindTable(root, "effects", "[effects]")) {
     scene.effects = ParseEffects(*effects);
+  }
+  if (const std::optional<TableView> avatar = FindTable(root, "avatar", "[avatar]")) {
+    scene.avatar = ParseAvatar(*avatar);
   }
   scene.materials = ParseMaterials(root);
   scene.garments = ParseGarments(root, KnownMaterialNames(scene.materials));

@@ -149,10 +149,14 @@ void ValidateGarment(const GarmentSpec& garment, std::size_t index,
   const Refuser refuser = scene_refuser.AtLine(garment.source_line);
   const std::string field = "garment[" + std::to_string(index) + "]";
   if (garment.name.empty()) refuser.Refuse(field + ".name", "\"\"", "must not be empty");
-  if (garment.panel.has_value() == garment.mesh.has_value()) {
+  const int shapes = garment.panel.has_value() + garment.mesh.has_value() + garment.pattern.has_value();
+  if (shapes != 1) {
     refuser.Refuse(field, Quote(garment.name),
-                   std::string("has ") + (garment.panel ? "both" : "neither") +
-                       " a panel and a mesh: a garment needs exactly one of them");
+                   std::string("has ") + (shapes ? "more than one of" : "none of") +
+                       " a panel, a mesh and a pattern: a garment needs exactly one of them");
+  }
+  if (garment.pattern) {
+    refuser.RequireInteger(field + ".resolution", garment.pattern_resolution, 8, 1024);
   }
   if (!IsKnownMaterial(garment.material, materials)) {
     refuser.Refuse(field + ".material", Quote(garment.material),
@@ -191,7 +195,31 @@ void ValidateSphere(const SphereObstacleSpec& sphere, std::size_t index,
   refuser.RequireNonNegative(field + ".friction", sphere.friction, "");
 }
 
+void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser) {
+  if (!scene.avatar) {
+    for (std::size_t i = 0; i < scene.garments.size(); ++i) {
+      if (scene.garments[i].pattern) {
+        scene_refuser.AtLine(scene.garments[i].source_line)
+            .Refuse("garment[" + std::to_string(i) + "].pattern", Quote(*scene.garments[i].pattern),
+                    "a pattern garment is fitted to an avatar, and the scene has none");
+      }
+    }
+    return;
+  }
+  const AvatarSpec& avatar = *scene.avatar;
+  const Refuser refuser = scene_refuser.AtLine(avatar.source_line);
+  if (!avatar.avatar) refuser.Refuse("avatar", "none", "the avatar was not loaded");
+  refuser.RequireNumber("avatar.thickness", avatar.thickness, 0.0, 0.05, false, false, "m");
+  refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, 2.0, false, false, "");
+  refuser.RequireNumber("avatar.fit_time", avatar.motion.fit_time, 0.0, 60.0, false, false, "s");
+  refuser.RequireNumber("avatar.blend_time", avatar.motion.blend_time, 0.0, 60.0, false, false, "s");
+}
+
 }  // namespace
+
+const char* BodyCollisionMethodName(BodyCollisionMethod method) {
+  return method == BodyCollisionMethod::kMesh ? "mesh" : "superquadric";
+}
 
 void ValidateScene(const SceneDescription& scene) {
   const Refuser refuser(scene.source);
@@ -201,6 +229,7 @@ void ValidateScene(const SceneDescription& scene) {
   ValidateSolver(scene.solver, refuser);
   ValidateMaterials(scene.materials, refuser);
   ValidateGarments(scene, refuser);
+  ValidateAvatar(scene, refuser);
   for (std::size_t i = 0; i < scene.spheres.size(); ++i) {
     ValidateSphere(scene.spheres[i], i, refuser);
   }

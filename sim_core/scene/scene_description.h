@@ -9,6 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "sim_core/avatar/avatar.h"
+#include "sim_core/avatar/avatar_motion.h"
+#include "sim_core/avatar/clip.h"
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/material.h"
 #include "sim_core/cloth/mesh_cloth.h"
@@ -41,19 +44,51 @@ struct Effects {
   bool self_collision = false;
 };
 
-/// A garment: one lattice panel or one mesh, a material, pins.
+/// A garment: one lattice panel, one mesh, or a built-in pattern sewn around the avatar;
+/// a material, pins.
 struct GarmentSpec {
   std::string name = "cloth";
   /// Name of a material of the scene or a built-in one ("stiff_cotton", "blender_cotton").
   std::string material = "stiff_cotton";
-  /// Exactly one of panel or mesh is set.
+  /// Exactly one of panel, mesh or pattern is set.
   std::optional<LatticePanel> panel;
   std::optional<SurfaceMesh> mesh;
+  /// A built-in garment ("skirt", "cape", "dress": garment_patterns.h), fitted to the
+  /// scene's avatar and attached to it; needs an avatar.
+  std::optional<std::string> pattern;
+  /// Particles around the pattern's circumference, in [8, 1024].
+  int pattern_resolution = 64;
   /// Pinned particles: the particle nearest to each point is pinned [m].
   std::vector<Eigen::Vector3d> pin_points;
   /// A pin point must have a particle within this distance [m].
   double pin_tolerance = 1e-3;
   /// Line of the garment's table in the scene file (0 when not from a file), for messages.
+  int source_line = 0;
+};
+
+/// How cloth collides with the avatar (paper §4).
+enum class BodyCollisionMethod {
+  /// One fitted superquadric per H-Anim segment with the skin's distance mapped over it.
+  kSuperquadric,
+  /// The skinned mesh through Bullet's BVH with curvature-adaptive regions.
+  kMesh,
+};
+
+/// "superquadric" or "mesh".
+const char* BodyCollisionMethodName(BodyCollisionMethod method);
+
+/// The avatar a scene dresses, already loaded (the assets layer resolves files and names).
+struct AvatarSpec {
+  std::shared_ptr<const Avatar> avatar;
+  /// The clip it plays (any skeleton with H-Anim joints; retargeted); null to hold still.
+  std::shared_ptr<const Clip> clip;
+  /// Posture, placement, fitting and blend times.
+  AvatarMotionSettings motion;
+  BodyCollisionMethod collision = BodyCollisionMethod::kSuperquadric;
+  /// Cloth thickness kept off the skin [m] in [0, 0.05].
+  double thickness = 0.004;
+  /// Coulomb friction between cloth and skin [-] in [0, 2].
+  double friction = 0.5;
   int source_line = 0;
 };
 
@@ -86,6 +121,8 @@ struct SceneDescription {
   std::vector<Material> materials;
   std::vector<GarmentSpec> garments;
   std::vector<SphereObstacleSpec> spheres;
+  /// The avatar; none for the benchmark scenes.
+  std::optional<AvatarSpec> avatar;
 };
 
 /// Checks ranges that do not need a file (solver, rates, obstacles, garments have a shape);

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "sim_core/avatar/garment_patterns.h"
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/mesh_cloth.h"
 #include "sim_core/common/input_error.h"
@@ -37,8 +38,28 @@ Material ResolveMaterial(const SceneDescription& scene, const GarmentSpec& garme
                    "stiff_cotton, blender_cotton");
 }
 
-ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& garment) {
+/// A pattern garment fitted to the scene's avatar; its attached particles are pinned and
+/// listed in `attachments` (indices local to the garment).
+ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentSpec& garment,
+                                   const Material& material,
+                                   std::vector<BodyAttachment>& attachments) {
+  const Avatar& avatar = *scene.avatar->avatar;
+  GarmentPattern pattern = MakeBuiltInGarment(*garment.pattern, MeasureBody(avatar), material,
+                                              garment.pattern_resolution);
+  pattern.data.name = garment.name;
+  const int joint = avatar.skeleton().Find(pattern.attached_to);
+  const Eigen::Isometry3d to_joint = avatar.skeleton().rest_world()[joint].inverse();
+  for (int p : pattern.attached) {
+    pattern.data.pinned.push_back(p);
+    attachments.push_back({p, joint, to_joint * Eigen::Vector3d(pattern.data.rest_positions.row(p))});
+  }
+  return std::move(pattern.data);
+}
+
+ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& garment,
+                            std::vector<BodyAttachment>& attachments) {
   const Material material = ResolveMaterial(scene, garment);
+  if (garment.pattern) return BuildPatternGarment(scene, garment, material, attachments);
   ClothModelData data = garment.panel
                             ? BuildLatticePanel(*garment.panel, material, garment.name)
                             : BuildMeshCloth(*garment.mesh, material, garment.name);
@@ -74,11 +95,17 @@ void Append(ClothModelData& whole, const ClothModelData& part) {
 }  // namespace
 
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
-                                                  std::vector<GarmentRange>* garments) {
+                                                  std::vector<GarmentRange>* garments,
+                                                  std::vector<BodyAttachment>* attachments) {
   ClothModelData whole;
   whole.name = scene.name;
   for (const GarmentSpec& spec : scene.garments) {
-    const ClothModelData part = BuildGarment(scene, spec);
+    std::vector<BodyAttachment> own;
+    const ClothModelData part = BuildGarment(scene, spec, own);
+    for (BodyAttachment a : own) {
+      a.particle += static_cast<int>(whole.masses.size());
+      attachments->push_back(a);
+    }
     garments->push_back({spec.name, static_cast<int>(whole.masses.size()),
                          static_cast<int>(part.masses.size()),
                          static_cast<int>(whole.triangles.size()),
@@ -110,14 +137,17 @@ std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene) {
                      "this version (it arrives with avatar collision); set it to false");
   }
   std::vector<GarmentRange> garments;
-  auto model = BuildSceneModel(scene, &garments);
+  std::vector<BodyAttachment> attachments;
+  auto model = BuildSceneModel(scene, &garments, &attachments);
   RequireStableStep(*model, 1.0 / (scene.frame_rate * scene.solver.substeps), scene.source);
-  return std::unique_ptr<Simulation>(
-      new Simulation(scene, std::move(model), std::move(garments), StepperSettingsOf(scene)));
+  return std::unique_ptr<Simulation>(new Simulation(scene, std::move(model), std::move(garments),
+                                                    std::move(attachments),
+                                                    StepperSettingsOf(scene)));
 }
 
 Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
-                       std::vector<GarmentRange> garments, const StepperSettings& settings)
+                       std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
+                       const StepperSettings& settings)
     : scene_(std::move(scene)),
       model_(std::move(model)),
       garments_(std::move(garments)),
@@ -127,6 +157,16 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   for (const SphereObstacleSpec& s : scene_.spheres) {
     spheres_.push_back({s.center, s.radius, s.thickness,
                         scene_.effects.friction ? s.friction : 0.0});
+  }
+  if (scene_.avatar) {
+    const AvatarSpec& spec = *scene_.avatar;
+    avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+    BodyCollisionSettings contact;
+    contact.thickness = spec.thickness;
+    contact.friction = scene_.effects.friction ? spec.friction : 0.0;
+    body_ = MakeBodyCollider(spec.collision, spec.avatar, contact);
+    body_->Update(avatar_->joint_world(), avatar_->vertices(), step());
+    attachments_ = std::move(attachments);
   }
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
@@ -154,14 +194,38 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
   report.strain_corrections += LimitStrain(*model_, scene_.solver.strain_limit, kPasses, state_);
 }
 
-void Simulation::StepOnce(FrameReport& report) {
-  const double h = step();
+// The avatar moves to where it will be at the end of the step first, so contacts target the
+// body's new surface and attached particles land where the body takes them.
+void Simulation::MoveAvatar(double t, double h) {
+  avatar_->Evaluate(t);
+  body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
+  for (const BodyAttachment& a : attachments_) {
+    const Eigen::Vector3d target = avatar_->joint_world()[a.joint] * a.local;
+    stepper_.SetPinVelocity(a.particle,
+                            (target - state_.positions.row(a.particle).transpose()) / h);
+  }
+}
+
+void Simulation::FindContacts(double h, FrameReport& report) {
   contacts_.clear();
   for (const SphereObstacle& sphere : spheres_) {
     // Contacts are caught half a thickness early so resting cloth stays constrained.
     FindSphereContacts(sphere, state_.positions, state_.velocities, h, 0.5 * sphere.thickness,
                        contacts_);
   }
+  if (body_) {
+    const auto start = std::chrono::steady_clock::now();
+    body_->FindContacts(state_.positions, state_.velocities, h, 0.5 * scene_.avatar->thickness,
+                        contacts_);
+    report.collision_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  }
+}
+
+void Simulation::StepOnce(FrameReport& report) {
+  const double h = step();
+  if (avatar_) MoveAvatar(state_.time + h, h);
+  FindContacts(h, report);
   ReleaseAdhesiveContacts();
   const StepReport step_report = stepper_.Step(state_, h, contacts_);
   std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
@@ -177,6 +241,13 @@ void Simulation::StepOnce(FrameReport& report) {
   for (const SphereObstacle& sphere : spheres_) {
     report.max_penetration = std::max(
         report.max_penetration, ProjectOutOfSphere(sphere, state_.positions, state_.velocities));
+  }
+  if (body_) {
+    const auto start = std::chrono::steady_clock::now();
+    report.max_penetration =
+        std::max(report.max_penetration, body_->ProjectOut(state_.positions, state_.velocities));
+    report.collision_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
 }
 

@@ -7,8 +7,10 @@
 #include <string>
 #include <vector>
 
+#include "sim_core/avatar/avatar_motion.h"
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
+#include "sim_core/collision/body_collider.h"
 #include "sim_core/collision/contact.h"
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
@@ -24,6 +26,15 @@ struct GarmentRange {
   int num_particles = 0;
   int first_triangle = 0;
   int num_triangles = 0;
+};
+
+/// A particle held to the avatar: it follows `joint`'s rigid motion from the rest pose.
+struct BodyAttachment {
+  int particle = 0;
+  /// Joint index in the avatar's skeleton.
+  int joint = 0;
+  /// The particle's rest position in the joint's rest frame [m].
+  Eigen::Vector3d local = Eigen::Vector3d::Zero();
 };
 
 /// What happened during one frame (all substeps).
@@ -44,6 +55,8 @@ struct FrameReport {
   /// Deepest penetration into an obstacle's shell found after a solve, before the position
   /// correction removed it [m].
   double max_penetration = 0.0;
+  /// Time spent finding contacts with the avatar and correcting positions [ms].
+  double collision_ms = 0.0;
   /// Wall-clock time of the frame [ms].
   double wall_ms = 0.0;
 };
@@ -72,8 +85,11 @@ class Simulation {
 
  private:
   Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
-             std::vector<GarmentRange> garments, const StepperSettings& settings);
+             std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
+             const StepperSettings& settings);
   void StepOnce(FrameReport& report);
+  void MoveAvatar(double t, double h);
+  void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts();
   void ApplyStrainLimit(FrameReport& report);
 
@@ -85,6 +101,9 @@ class Simulation {
   ImplicitStepper stepper_;
   ClothState state_;
   std::vector<SphereObstacle> spheres_;
+  std::unique_ptr<AvatarMotion> avatar_;
+  std::unique_ptr<BodyCollider> body_;
+  std::vector<BodyAttachment> attachments_;
   std::vector<Contact> contacts_;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
@@ -94,9 +113,16 @@ class Simulation {
 /// The stepper settings a scene asks for.
 StepperSettings StepperSettingsOf(const SceneDescription& scene);
 
-/// Merges the scene's garments into one model (panels and meshes, materials resolved,
-/// pins found). Throws InputError. Exposed for tools and tests.
+/// Merges the scene's garments into one model (panels, meshes and patterns, materials
+/// resolved, pins found, pattern garments fitted to the avatar and their attached particles
+/// pinned and listed in `attachments`). Throws InputError. Exposed for tools and tests.
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
-                                                  std::vector<GarmentRange>* garments);
+                                                  std::vector<GarmentRange>* garments,
+                                                  std::vector<BodyAttachment>* attachments);
+
+/// The collider `method` builds around `avatar` (superquadric_collider.h, mesh_collider.h).
+std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
+                                               std::shared_ptr<const Avatar> avatar,
+                                               const BodyCollisionSettings& settings);
 
 }  // namespace costume::sim

@@ -50,6 +50,7 @@ ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
   b_ = Eigen::VectorXd::Zero(n3);
   dv_ = Eigen::VectorXd::Zero(n3);
   a_dv_ = Eigen::VectorXd::Zero(n3);
+  pin_velocity_ = Points::Zero(model_->num_particles(), 3);
   if (!solver_ && settings.method == SolverMethod::kDirect) {
     solver_ = std::make_unique<DirectStepSolver>(*model_);
   } else if (!solver_) {
@@ -85,9 +86,10 @@ void ImplicitStepper::SetConstraints(const ClothState& state, std::span<const Co
     const double current = state.velocities.row(c.particle).dot(c.normal);
     constraints_.ConstrainNormal(c.particle, c.normal, c.target_normal_velocity - current);
   }
-  // Pins last: they override contacts. A pin holds its particle still (Δv = −v).
+  // Pins last: they override contacts. A pin moves at its prescribed velocity (Δv = v_pin
+  // − v), zero unless the pin is attached to a moving body.
   for (int i : model_->pinned()) {
-    constraints_.Fix(i, -state.velocities.row(i).transpose());
+    constraints_.Fix(i, (pin_velocity_.row(i) - state.velocities.row(i)).transpose());
   }
 }
 

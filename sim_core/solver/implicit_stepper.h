@@ -66,6 +66,14 @@ class ImplicitStepper {
   /// contact's normal_impulse. Never throws; allocation-free after the first call.
   StepReport Step(ClothState& state, double h, std::span<Contact> contacts);
 
+  /// The velocity pinned particle `particle` has after the coming steps [m/s]: zero by
+  /// default (a pin holds still); a garment attached to a moving body sets it before each
+  /// step so the pin lands where the body takes it. Ignored for unpinned particles. Never
+  /// throws; never allocates.
+  void SetPinVelocity(int particle, const Eigen::Vector3d& velocity) {
+    pin_velocity_.row(particle) = velocity.transpose();
+  }
+
   const ClothModel& model() const { return *model_; }
   const StepperSettings& settings() const { return settings_; }
 
@@ -81,6 +89,7 @@ class ImplicitStepper {
   Constraints constraints_;
   std::unique_ptr<StepSolver> solver_;
   Eigen::VectorXd b_, dv_, a_dv_;
+  Points pin_velocity_;
   ClothState backup_;
 };
 

@@ -1,0 +1,62 @@
+#pragma once
+/// @file
+/// The avatar as a scene plays it (paper §6, mode A): garments are placed around its rest
+/// pose, so during the first half of the fitting time it moves from the rest pose into the
+/// designer's posture and holds it for the second half while the garment settles; then the
+/// clip, retargeted onto it, blends in. Skinned every step.
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "sim_core/avatar/avatar.h"
+#include "sim_core/avatar/clip.h"
+#include "sim_core/avatar/pose.h"
+
+namespace costume::sim {
+
+struct AvatarMotionSettings {
+  /// The posture the garment is fitted in and the clip starts from (rotations empty = rest
+  /// pose), with the avatar's placement (root_translation, orientation), both reached from
+  /// the rest pose over the first half of fit_time.
+  Pose posture;
+  /// Time the avatar holds the posture before the clip starts [s] >= 0: the fitting.
+  double fit_time = 0.5;
+  /// Time over which the clip blends in from the posture [s] >= 0.
+  double blend_time = 0.3;
+};
+
+class AvatarMotion {
+ public:
+  /// `clip` may be null (the avatar holds its posture). Throws InputError when the clip
+  /// cannot be retargeted onto the avatar (Retargeter) or the posture has the wrong number
+  /// of rotations.
+  AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
+               AvatarMotionSettings settings);
+
+  /// Poses, forward kinematics and skinning at scene time t [s]. Never throws; allocates
+  /// only on the first call.
+  void Evaluate(double t);
+
+  const Avatar& avatar() const { return *avatar_; }
+  const std::shared_ptr<const Avatar>& shared_avatar() const { return avatar_; }
+  const Pose& pose() const { return pose_; }
+  /// Joint frames in world coordinates at the last Evaluate.
+  const std::vector<Eigen::Isometry3d>& joint_world() const { return joint_world_; }
+  /// Skinned vertices (n×3) [m] at the last Evaluate.
+  const Points& vertices() const { return vertices_; }
+  /// Joint frames of the posture (the fitting pose), computed once.
+  const std::vector<Eigen::Isometry3d>& posture_world() const { return posture_world_; }
+  const AvatarMotionSettings& settings() const { return settings_; }
+
+ private:
+  std::shared_ptr<const Avatar> avatar_;
+  std::shared_ptr<const Clip> clip_;
+  std::optional<Retargeter> retargeter_;
+  AvatarMotionSettings settings_;
+  Pose rest_, clip_pose_, retargeted_, pose_;
+  std::vector<Eigen::Isometry3d> joint_world_, posture_world_, skinning_;
+  Points vertices_;
+};
+
+}  // namespace costume::sim
