@@ -202,6 +202,21 @@ void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
 
 }  // namespace
 
+namespace {
+
+/// About two triangles per cell, the cells shaped after the region's current extent.
+void SizeGrid(MeshColliderRegion& region) {
+  const int target = std::max(1, region.count / 2);
+  const double extent_u = std::max(region.u_max - region.u_min, 1e-9);
+  const double extent_v = std::max(region.v_max - region.v_min, 1e-9);
+  region.cells_u = std::clamp(
+      static_cast<int>(std::lround(std::sqrt(target * extent_u / extent_v))), 1, target);
+  region.cells_v =
+      std::clamp(static_cast<int>(std::lround(double(target) / region.cells_u)), 1, target);
+}
+
+}  // namespace
+
 MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
                            const BodyCollisionSettings& settings,
                            const MeshCollisionOptions& options)
@@ -231,17 +246,11 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
   r.triangle_cell.assign(num_triangles, 0);
-  // Grids of about two triangles per cell, shaped after the rest pose's extent.
+  // Grids sized on the rest pose, kept as the skin moves.
   int max_cells = 1;
   for (MeshColliderRegion& region : r.data) {
     ProjectRegion(normals_, vertices_, r, region);
-    const int target = std::max(1, region.count / 2);
-    const double extent_u = std::max(region.u_max - region.u_min, 1e-9);
-    const double extent_v = std::max(region.v_max - region.v_min, 1e-9);
-    region.cells_u = std::clamp(
-        static_cast<int>(std::lround(std::sqrt(target * extent_u / extent_v))), 1, target);
-    region.cells_v = std::clamp(static_cast<int>(std::lround(double(target) / region.cells_u)),
-                                1, target);
+    SizeGrid(region);
     region.cell_first = static_cast<int>(r.cell_start.size());
     r.cell_start.resize(r.cell_start.size() + region.cells_u * region.cells_v + 1, 0);
     max_cells = std::max(max_cells, region.cells_u * region.cells_v);
@@ -368,9 +377,8 @@ MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, do
   MeshColliderRegions& r = *regions_;
   const double half = std::max(reach - settings_.thickness, 0.0);
   const btVector3 center = ToBullet(point);
-  const btDbvtVolume query =
-      btDbvtVolume::FromMM(center - btVector3(half, half, half), center + btVector3(half, half, half));
-  const double reach_squared = reach * reach;
+  const btVector3 extent(half, half, half);
+  const btDbvtVolume query = btDbvtVolume::FromMM(center - extent, center + extent);
   r.touched.clear();
   r.stack.clear();
   if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
@@ -384,58 +392,73 @@ MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, do
       r.stack.push_back(node->childs[1]);
       continue;
     }
-    const MeshColliderRegion& region = r.data[static_cast<std::size_t>(
-        reinterpret_cast<std::intptr_t>(node->data))];
-    ++num_tests_;  // the slab along the region's mean normal
-    const double w = point.dot(region.axis);
-    if (w < region.w_min - reach || w > region.w_max + reach) continue;
-    const double u = point.dot(region.tangent_u);
-    const double v = point.dot(region.tangent_v);
-    if (u + reach + region.spread_u < region.u_min || u - reach - region.spread_u > region.u_max ||
-        v + reach + region.spread_v < region.v_min || v - reach - region.spread_v > region.v_max) {
-      continue;
-    }
-    const int u_lo = CellIndex(u - reach - region.spread_u, region.u_min, region.cell_size_u,
-                               region.cells_u);
-    const int u_hi = CellIndex(u + reach + region.spread_u, region.u_min, region.cell_size_u,
-                               region.cells_u);
-    const int v_lo = CellIndex(v - reach - region.spread_v, region.v_min, region.cell_size_v,
-                               region.cells_v);
-    const int v_hi = CellIndex(v + reach + region.spread_v, region.v_min, region.cell_size_v,
-                               region.cells_v);
-    const int* start = &r.cell_start[region.cell_first];
-    for (int cv = v_lo; cv <= v_hi; ++cv) {
-      for (int cu = u_lo; cu <= u_hi; ++cu) {
-        ++num_tests_;  // a grid cell
-        const int cell = cv * region.cells_u + cu;
-        for (int j = start[cell]; j < start[cell + 1]; ++j) {
-          ++num_tests_;  // a triangle
-          const int t = r.cell_triangles[region.first + j];
-          const Eigen::Vector3i& tri = normals_.triangles()[t];
-          const TrianglePoint closest = ClosestPointOnTriangle(
-              point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
-              vertices_.row(tri[2]).transpose());
-          const double squared = (point - closest.point).squaredNorm();
-          if (squared > reach_squared) continue;
-          const int piece = normals_.piece_of(t);
-          if (r.best_triangle[piece] < 0) {
-            r.touched.push_back(piece);
-          } else if (squared >= r.best_squared[piece]) {
-            continue;
-          }
-          r.best_squared[piece] = squared;
-          r.best_triangle[piece] = t;
-          r.best_point[piece] = closest;
-        }
+    SearchRegion(r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(node->data))],
+                 point, reach);
+  }
+  return Resolve(point);
+}
+
+void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
+                                double reach) {
+  MeshColliderRegions& r = *regions_;
+  ++num_tests_;  // the slab along the region's mean normal
+  const double w = point.dot(region.axis);
+  if (w < region.w_min - reach || w > region.w_max + reach) return;
+  // A triangle within `reach` of the point has its centroid's plane coordinates within
+  // reach + spread of the point's: those cells are all that can hold it.
+  const double u = point.dot(region.tangent_u);
+  const double v = point.dot(region.tangent_v);
+  const double range_u = reach + region.spread_u;
+  const double range_v = reach + region.spread_v;
+  if (u + range_u < region.u_min || u - range_u > region.u_max || v + range_v < region.v_min ||
+      v - range_v > region.v_max) {
+    return;
+  }
+  const int u_lo = CellIndex(u - range_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int u_hi = CellIndex(u + range_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int v_lo = CellIndex(v - range_v, region.v_min, region.cell_size_v, region.cells_v);
+  const int v_hi = CellIndex(v + range_v, region.v_min, region.cell_size_v, region.cells_v);
+  const int* start = &r.cell_start[region.cell_first];
+  for (int cv = v_lo; cv <= v_hi; ++cv) {
+    for (int cu = u_lo; cu <= u_hi; ++cu) {
+      ++num_tests_;  // a grid cell
+      const int cell = cv * region.cells_u + cu;
+      for (int j = start[cell]; j < start[cell + 1]; ++j) {
+        TestTriangle(r.cell_triangles[region.first + j], point, reach);
       }
     }
   }
+}
+
+void MeshCollider::TestTriangle(int triangle, const Eigen::Vector3d& point, double reach) {
+  MeshColliderRegions& r = *regions_;
+  ++num_tests_;
+  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+  const TrianglePoint closest =
+      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
+                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
+  const double squared = (point - closest.point).squaredNorm();
+  if (squared > reach * reach) return;
+  const int piece = normals_.piece_of(triangle);
+  if (r.best_triangle[piece] < 0) {
+    r.touched.push_back(piece);
+  } else if (squared >= r.best_squared[piece]) {
+    return;
+  }
+  r.best_squared[piece] = squared;
+  r.best_triangle[piece] = triangle;
+  r.best_point[piece] = closest;
+}
+
+MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
+  MeshColliderRegions& r = *regions_;
   Nearest nearest;
   nearest.signed_distance = kInf;
   for (int piece : r.touched) {
     const int t = r.best_triangle[piece];
     const TrianglePoint& closest = r.best_point[piece];
-    r.best_triangle[piece] = -1;
+    r.best_triangle[piece] = -1;  // ready for the next query
+    // Each piece's own closest feature decides its sign; the union takes the smallest.
     const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
     const Eigen::Vector3d offset = point - closest.point;
     const double distance = std::sqrt(r.best_squared[piece]);
@@ -447,9 +470,10 @@ MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, do
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : pseudonormal;
     const Eigen::Vector3i& tri = normals_.triangles()[t];
-    nearest.surface_velocity = Eigen::Vector3d::Zero();
+    nearest.surface_velocity.setZero();
     for (int k = 0; k < 3; ++k) {
-      nearest.surface_velocity += closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
+      nearest.surface_velocity +=
+          closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
     }
   }
   return nearest;

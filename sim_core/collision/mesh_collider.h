@@ -25,7 +25,9 @@
 
 namespace costume::sim {
 
-struct MeshColliderRegions;  // internal (mesh_collider.cc): regions, grids, the Bullet tree
+// Internal (mesh_collider.cc): one region, and all regions with their grids and Bullet tree.
+struct MeshColliderRegion;
+struct MeshColliderRegions;
 
 /// Options of the mesh method's regions.
 struct MeshCollisionOptions {
@@ -94,6 +96,12 @@ class MeshCollider : public BodyCollider {
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
   };
   Nearest FindNearest(const Eigen::Vector3d& point, double reach);
+  /// Keeps, per piece, the closest of the region's triangles within `reach` of `point`.
+  void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
+                    double reach);
+  void TestTriangle(int triangle, const Eigen::Vector3d& point, double reach);
+  /// The smallest signed distance over the pieces SearchRegion touched; resets them.
+  Nearest Resolve(const Eigen::Vector3d& point);
   void Refit();
 
   std::shared_ptr<const Avatar> avatar_;

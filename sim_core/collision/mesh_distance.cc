@@ -138,9 +138,9 @@ void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, doubl
     }
     const int t = LeafTriangle(node);
     const Eigen::Vector3i& tri = normals_.triangles()[t];
-    const TrianglePoint closest =
-        ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
-                               vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
+    const TrianglePoint closest = ClosestPointOnTriangle(
+        point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
+        vertices_.row(tri[2]).transpose());
     const double squared = (point - closest.point).squaredNorm();
     if (squared <= best_squared) {
       best_squared = squared;

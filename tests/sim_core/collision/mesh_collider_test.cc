@@ -292,6 +292,9 @@ TEST(MeshCollider, CurvedBodyGivesTheSameContactsAdaptiveOrFixed) {
   fixed.FindContacts(x, v, kH, 0.003, b);
   ASSERT_EQ(a.size(), b.size());
   ASSERT_GT(a.size(), 100u);
+  std::printf("curved: regions %d adaptive / %d fixed; tests %lld adaptive / %lld fixed\n",
+              adaptive.num_regions(), fixed.num_regions(), adaptive.stats().num_tests,
+              fixed.stats().num_tests);
   for (std::size_t k = 0; k < a.size(); ++k) {
     ASSERT_EQ(a[k].particle, b[k].particle);
     EXPECT_LT((a[k].normal - b[k].normal).norm(), 1e-12);
