@@ -1,0 +1,533 @@
+#include "sim_core/collision/mesh_collider.h"
+
+#include <BulletCollision/BroadphaseCollision/btDbvt.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// Triangles of each region.
+using RegionList = std::vector<std::vector<int>>;
+
+void ValidateInputs(const Avatar* avatar, const BodyCollisionSettings& settings,
+                    const MeshCollisionOptions& options) {
+  if (avatar == nullptr) throw InputError("mesh collider: no avatar given");
+  const std::string where = "mesh collider of avatar '" + avatar->name() + "'";
+  if (avatar->triangles().empty()) throw InputError(where + ": the avatar has no triangles");
+  RequireNonNegative(where + " settings.thickness", settings.thickness, "m");
+  RequireNonNegative(where + " settings.friction", settings.friction, "");
+  if (options.region_size < 1 || options.region_size > 256) {
+    throw InputError(where + ": options.region_size is " + std::to_string(options.region_size) +
+                     " (allowed 1..256)");
+  }
+  if (!(options.flatness_angle >= 0.0 && options.flatness_angle < kPi / 2)) {
+    throw InputError(where + ": options.flatness_angle is " +
+                     FormatValue(options.flatness_angle) + " rad (allowed [0, pi/2))");
+  }
+  if (options.max_merge_levels < 0 || options.max_merge_levels > 16) {
+    throw InputError(where + ": options.max_merge_levels is " +
+                     std::to_string(options.max_merge_levels) + " (allowed 0..16)");
+  }
+  RequirePositive(where + " options.max_penetration", options.max_penetration, "m");
+}
+
+/// Regions of up to `target` triangles, each grown breadth first over edge adjacency from
+/// the lowest unassigned triangle, so they are compact patches.
+RegionList GrowBaseRegions(const SurfacePseudonormals& mesh, int target) {
+  std::vector<int> owner(mesh.num_triangles(), -1);
+  RegionList regions;
+  std::vector<int> queue;
+  for (int seed = 0; seed < mesh.num_triangles(); ++seed) {
+    if (owner[seed] >= 0) continue;
+    const int id = static_cast<int>(regions.size());
+    regions.emplace_back();
+    queue.assign(1, seed);
+    owner[seed] = id;
+    std::size_t head = 0;
+    while (head < queue.size() && static_cast<int>(regions[id].size()) < target) {
+      const int t = queue[head++];
+      regions[id].push_back(t);
+      for (int k = 0; k < 3; ++k) {
+        const int n = mesh.neighbour(t, k);
+        if (n >= 0 && owner[n] < 0) {
+          owner[n] = id;
+          queue.push_back(n);
+        }
+      }
+    }
+    for (std::size_t i = head; i < queue.size(); ++i) owner[queue[i]] = -1;  // not taken
+  }
+  return regions;
+}
+
+/// Half-angle [rad] of the cone around the area-weighted mean normal of `a` ∪ `b` that
+/// holds every (non-degenerate) triangle normal of them: Provot's normal-cone test.
+double ConeHalfAngle(const SurfacePseudonormals& mesh, const std::vector<int>& a,
+                     const std::vector<int>& b) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto* list : {&a, &b}) {
+    for (int t : *list) sum += mesh.double_area(t) * mesh.face_normal(t);
+  }
+  if (!(sum.norm() > 0.0)) return kPi;
+  const Eigen::Vector3d axis = sum.normalized();
+  double min_cos = 1.0;
+  for (const auto* list : {&a, &b}) {
+    for (int t : *list) {
+      if (mesh.double_area(t) > 0.0) min_cos = std::min(min_cos, axis.dot(mesh.face_normal(t)));
+    }
+  }
+  return std::acos(std::clamp(min_cos, -1.0, 1.0));
+}
+
+/// Regions sharing an edge with each region, ascending.
+std::vector<std::vector<int>> RegionAdjacency(const SurfacePseudonormals& mesh,
+                                              const RegionList& regions) {
+  std::vector<int> owner(mesh.num_triangles(), -1);
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    for (int t : regions[r]) owner[t] = static_cast<int>(r);
+  }
+  std::vector<std::vector<int>> adjacency(regions.size());
+  for (int t = 0; t < mesh.num_triangles(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int n = mesh.neighbour(t, k);
+      if (n >= 0 && owner[n] != owner[t]) adjacency[owner[t]].push_back(owner[n]);
+    }
+  }
+  for (auto& list : adjacency) {
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+  }
+  return adjacency;
+}
+
+/// One quadtree-like level: each region not yet taken joins up to three of its untaken
+/// neighbours while the union stays within the flatness cone. Returns whether any merged.
+bool MergeLevel(const SurfacePseudonormals& mesh, double flatness_angle, RegionList& regions) {
+  const auto adjacency = RegionAdjacency(mesh, regions);
+  std::vector<char> taken(regions.size(), 0);
+  RegionList merged;
+  bool any = false;
+  for (std::size_t r = 0; r < regions.size(); ++r) {
+    if (taken[r]) continue;
+    taken[r] = 1;
+    std::vector<int> group = regions[r];
+    int members = 1;
+    for (int n : adjacency[r]) {
+      if (members == 4) break;
+      if (taken[n] || ConeHalfAngle(mesh, group, regions[n]) > flatness_angle) continue;
+      group.insert(group.end(), regions[n].begin(), regions[n].end());
+      taken[n] = 1;
+      ++members;
+    }
+    any = any || members > 1;
+    merged.push_back(std::move(group));
+  }
+  regions = std::move(merged);
+  return any;
+}
+
+btVector3 ToBullet(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+
+/// Index of the grid cell holding coordinate `x` along one axis, clamped to the grid.
+int CellIndex(double x, double origin, double size, int count) {
+  const double cell = std::floor((x - origin) / size);
+  if (!(cell >= 0.0)) return 0;  // also NaN
+  return cell >= count ? count - 1 : static_cast<int>(cell);
+}
+
+}  // namespace
+
+/// One region and its plane grid, refitted every frame.
+struct MeshColliderRegion {
+  /// Its triangles: slots [first, first + count) of MeshColliderRegions::triangles
+  /// (grouped by region)
+  /// and of MeshColliderRegions::cell_triangles (by region, then by cell).
+  int first = 0;
+  int count = 0;
+  /// Its grid: cells_u × cells_v cells, whose start offsets (relative to `first`) are
+  /// MeshColliderRegions::cell_start[cell_first + cell], plus one past the last cell.
+  int cell_first = 0;
+  int cells_u = 1;
+  int cells_v = 1;
+  btDbvtNode* leaf = nullptr;
+  /// Mean plane frame: unit normal axis and two tangents [-].
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitY();
+  Eigen::Vector3d tangent_u = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d tangent_v = Eigen::Vector3d::UnitX();
+  /// Extent along the axis (the slab) and the grid's origin and cell sizes [m].
+  double w_min = 0.0, w_max = 0.0;
+  double u_min = 0.0, u_max = 0.0, v_min = 0.0, v_max = 0.0;
+  double cell_size_u = 1.0, cell_size_v = 1.0;
+  /// Largest distance, along u and along v, of a triangle's corner from its centroid [m]:
+  /// a triangle within distance r of a point has its centroid within r + spread of it.
+  double spread_u = 0.0, spread_v = 0.0;
+  /// Box of its vertices [m].
+  Eigen::Vector3d box_min = Eigen::Vector3d::Zero(), box_max = Eigen::Vector3d::Zero();
+};
+
+struct MeshColliderRegions {
+  std::vector<MeshColliderRegion> data;
+  std::vector<int> triangles;
+  std::vector<int> cell_start;
+  std::vector<int> cell_triangles;
+  /// Per slot of `triangles`: the centroid's plane coordinates and its cell (scratch).
+  std::vector<double> centroid_u, centroid_v;
+  std::vector<int> triangle_cell;
+  std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
+  btDbvt tree;
+  std::vector<const btDbvtNode*> stack;
+  /// Nearest triangle per piece of the current query, and the pieces touched.
+  std::vector<double> best_squared;
+  std::vector<int> best_triangle;
+  std::vector<TrianglePoint> best_point;
+  std::vector<int> touched;
+};
+
+namespace {
+
+/// Recomputes a region's plane frame, extents, centroids and box for `vertices`.
+void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
+                   MeshColliderRegions& regions, MeshColliderRegion& region);
+
+}  // namespace
+
+namespace {
+
+/// About two triangles per cell, the cells shaped after the region's current extent.
+void SizeGrid(MeshColliderRegion& region) {
+  const int target = std::max(1, region.count / 2);
+  const double extent_u = std::max(region.u_max - region.u_min, 1e-9);
+  const double extent_v = std::max(region.v_max - region.v_min, 1e-9);
+  region.cells_u = std::clamp(
+      static_cast<int>(std::lround(std::sqrt(target * extent_u / extent_v))), 1, target);
+  region.cells_v =
+      std::clamp(static_cast<int>(std::lround(double(target) / region.cells_u)), 1, target);
+}
+
+}  // namespace
+
+MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
+                           const BodyCollisionSettings& settings,
+                           const MeshCollisionOptions& options)
+    : avatar_((ValidateInputs(avatar.get(), settings, options), std::move(avatar))),
+      settings_(settings),
+      options_(options),
+      normals_(avatar_->num_vertices(), avatar_->triangles()),
+      vertices_(avatar_->rest_vertices()),
+      vertex_velocities_(Points::Zero(avatar_->num_vertices(), 3)),
+      regions_(std::make_unique<MeshColliderRegions>()) {
+  normals_.Update(vertices_);
+  RegionList list = GrowBaseRegions(normals_, options_.region_size * options_.region_size);
+  num_base_regions_ = static_cast<int>(list.size());
+  for (int level = 0; options_.adaptive && level < options_.max_merge_levels; ++level) {
+    if (!MergeLevel(normals_, options_.flatness_angle, list)) break;
+  }
+  MeshColliderRegions& r = *regions_;
+  const int num_triangles = normals_.num_triangles();
+  r.triangles.reserve(num_triangles);
+  r.data.resize(list.size());
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    r.data[i].first = static_cast<int>(r.triangles.size());
+    r.data[i].count = static_cast<int>(list[i].size());
+    r.triangles.insert(r.triangles.end(), list[i].begin(), list[i].end());
+  }
+  r.cell_triangles.assign(num_triangles, 0);
+  r.centroid_u.assign(num_triangles, 0.0);
+  r.centroid_v.assign(num_triangles, 0.0);
+  r.triangle_cell.assign(num_triangles, 0);
+  // Grids sized on the rest pose, kept as the skin moves.
+  int max_cells = 1;
+  for (MeshColliderRegion& region : r.data) {
+    ProjectRegion(normals_, vertices_, r, region);
+    SizeGrid(region);
+    region.cell_first = static_cast<int>(r.cell_start.size());
+    r.cell_start.resize(r.cell_start.size() + region.cells_u * region.cells_v + 1, 0);
+    max_cells = std::max(max_cells, region.cells_u * region.cells_v);
+    region.leaf = r.tree.insert(
+        btDbvtVolume::FromMM(ToBullet(region.box_min), ToBullet(region.box_max)),
+        reinterpret_cast<void*>(static_cast<std::intptr_t>(&region - r.data.data())));
+  }
+  r.cursor.assign(max_cells, 0);
+  r.tree.optimizeTopDown();
+  r.stack.reserve(r.data.size() + 2);
+  r.best_squared.assign(normals_.num_pieces(), kInf);
+  r.best_triangle.assign(normals_.num_pieces(), -1);
+  r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
+  r.touched.reserve(normals_.num_pieces());
+  Refit();
+}
+
+MeshCollider::~MeshCollider() = default;
+
+int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
+
+namespace {
+
+void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
+                   MeshColliderRegions& regions, MeshColliderRegion& region) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const int t = regions.triangles[j];
+    sum += mesh.double_area(t) * mesh.face_normal(t);
+  }
+  // A closed region (normals summing to zero) keeps its last axis: any axis is correct,
+  // only less effective.
+  if (sum.norm() > 0.0) region.axis = sum.normalized();
+  region.tangent_u = region.axis.unitOrthogonal();
+  region.tangent_v = region.axis.cross(region.tangent_u);
+  region.w_min = region.u_min = region.v_min = kInf;
+  region.w_max = region.u_max = region.v_max = -kInf;
+  region.spread_u = region.spread_v = 0.0;
+  region.box_min.setConstant(kInf);
+  region.box_max.setConstant(-kInf);
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
+    double u[3], v[3];
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d x = vertices.row(tri[k]).transpose();
+      u[k] = x.dot(region.tangent_u);
+      v[k] = x.dot(region.tangent_v);
+      const double w = x.dot(region.axis);
+      region.w_min = std::min(region.w_min, w);
+      region.w_max = std::max(region.w_max, w);
+      region.box_min = region.box_min.cwiseMin(x);
+      region.box_max = region.box_max.cwiseMax(x);
+    }
+    const double cu = (u[0] + u[1] + u[2]) / 3.0;
+    const double cv = (v[0] + v[1] + v[2]) / 3.0;
+    regions.centroid_u[j] = cu;
+    regions.centroid_v[j] = cv;
+    for (int k = 0; k < 3; ++k) {
+      region.u_min = std::min(region.u_min, u[k]);
+      region.u_max = std::max(region.u_max, u[k]);
+      region.v_min = std::min(region.v_min, v[k]);
+      region.v_max = std::max(region.v_max, v[k]);
+      region.spread_u = std::max(region.spread_u, std::abs(u[k] - cu));
+      region.spread_v = std::max(region.spread_v, std::abs(v[k] - cv));
+    }
+  }
+}
+
+/// Sorts a region's triangles into its grid cells by centroid (a counting sort).
+void BinRegion(MeshColliderRegions& regions, MeshColliderRegion& region) {
+  const int num_cells = region.cells_u * region.cells_v;
+  region.cell_size_u = std::max((region.u_max - region.u_min) / region.cells_u, 1e-12);
+  region.cell_size_v = std::max((region.v_max - region.v_min) / region.cells_v, 1e-12);
+  int* start = &regions.cell_start[region.cell_first];
+  std::fill(start, start + num_cells + 1, 0);
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const int cell =
+        CellIndex(regions.centroid_v[j], region.v_min, region.cell_size_v, region.cells_v) *
+            region.cells_u +
+        CellIndex(regions.centroid_u[j], region.u_min, region.cell_size_u, region.cells_u);
+    regions.triangle_cell[j] = cell;
+    ++start[cell + 1];
+  }
+  for (int c = 0; c < num_cells; ++c) start[c + 1] += start[c];
+  std::copy(start, start + num_cells, regions.cursor.begin());
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    regions.cell_triangles[region.first + regions.cursor[regions.triangle_cell[j]]++] =
+        regions.triangles[j];
+  }
+}
+
+}  // namespace
+
+void MeshCollider::Refit() {
+  normals_.Update(vertices_);
+  MeshColliderRegions& r = *regions_;
+  const btVector3 fatten(settings_.thickness, settings_.thickness, settings_.thickness);
+  for (MeshColliderRegion& region : r.data) {
+    ProjectRegion(normals_, vertices_, r, region);
+    BinRegion(r, region);
+    // Boxes fattened by the thickness; the query box adds the margin and the motion.
+    btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(region.box_min) - fatten,
+                                            ToBullet(region.box_max) + fatten);
+    r.tree.update(region.leaf, box);
+  }
+}
+
+void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
+                          const Points& skinned_vertices, double dt) {
+  if (skinned_vertices.rows() != vertices_.rows()) return;
+  if (has_pose_ && dt > 0.0) {
+    vertex_velocities_.noalias() = (skinned_vertices - vertices_) / dt;
+  } else {
+    vertex_velocities_.setZero();
+  }
+  max_vertex_speed_ = vertex_velocities_.rowwise().norm().maxCoeff();
+  if (!std::isfinite(max_vertex_speed_)) max_vertex_speed_ = 0.0;
+  vertices_ = skinned_vertices;
+  has_pose_ = true;
+  Refit();
+}
+
+MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
+  MeshColliderRegions& r = *regions_;
+  const double half = std::max(reach - settings_.thickness, 0.0);
+  const btVector3 center = ToBullet(point);
+  const btVector3 extent(half, half, half);
+  const btDbvtVolume query = btDbvtVolume::FromMM(center - extent, center + extent);
+  r.touched.clear();
+  r.stack.clear();
+  if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
+  while (!r.stack.empty()) {
+    const btDbvtNode* node = r.stack.back();
+    r.stack.pop_back();
+    ++num_tests_;
+    if (!Intersect(node->volume, query)) continue;
+    if (node->isinternal()) {
+      r.stack.push_back(node->childs[0]);
+      r.stack.push_back(node->childs[1]);
+      continue;
+    }
+    SearchRegion(r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(node->data))],
+                 point, reach);
+  }
+  return Resolve(point);
+}
+
+void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
+                                double reach) {
+  MeshColliderRegions& r = *regions_;
+  ++num_tests_;  // the slab along the region's mean normal
+  const double w = point.dot(region.axis);
+  if (w < region.w_min - reach || w > region.w_max + reach) return;
+  // A triangle within `reach` of the point has its centroid's plane coordinates within
+  // reach + spread of the point's: those cells are all that can hold it.
+  const double u = point.dot(region.tangent_u);
+  const double v = point.dot(region.tangent_v);
+  const double range_u = reach + region.spread_u;
+  const double range_v = reach + region.spread_v;
+  if (u + range_u < region.u_min || u - range_u > region.u_max || v + range_v < region.v_min ||
+      v - range_v > region.v_max) {
+    return;
+  }
+  const int u_lo = CellIndex(u - range_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int u_hi = CellIndex(u + range_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int v_lo = CellIndex(v - range_v, region.v_min, region.cell_size_v, region.cells_v);
+  const int v_hi = CellIndex(v + range_v, region.v_min, region.cell_size_v, region.cells_v);
+  const int* start = &r.cell_start[region.cell_first];
+  for (int cv = v_lo; cv <= v_hi; ++cv) {
+    for (int cu = u_lo; cu <= u_hi; ++cu) {
+      ++num_tests_;  // a grid cell
+      const int cell = cv * region.cells_u + cu;
+      for (int j = start[cell]; j < start[cell + 1]; ++j) {
+        TestTriangle(r.cell_triangles[region.first + j], point, reach);
+      }
+    }
+  }
+}
+
+void MeshCollider::TestTriangle(int triangle, const Eigen::Vector3d& point, double reach) {
+  MeshColliderRegions& r = *regions_;
+  ++num_tests_;
+  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+  const TrianglePoint closest =
+      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
+                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
+  const double squared = (point - closest.point).squaredNorm();
+  if (squared > reach * reach) return;
+  const int piece = normals_.piece_of(triangle);
+  if (r.best_triangle[piece] < 0) {
+    r.touched.push_back(piece);
+  } else if (squared >= r.best_squared[piece]) {
+    return;
+  }
+  r.best_squared[piece] = squared;
+  r.best_triangle[piece] = triangle;
+  r.best_point[piece] = closest;
+}
+
+MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
+  MeshColliderRegions& r = *regions_;
+  Nearest nearest;
+  nearest.signed_distance = kInf;
+  for (int piece : r.touched) {
+    const int t = r.best_triangle[piece];
+    const TrianglePoint& closest = r.best_point[piece];
+    r.best_triangle[piece] = -1;  // ready for the next query
+    // Each piece's own closest feature decides its sign; the union takes the smallest.
+    const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
+    const Eigen::Vector3d offset = point - closest.point;
+    const double distance = std::sqrt(r.best_squared[piece]);
+    const bool inside = offset.dot(pseudonormal) < 0.0;
+    const double signed_distance = inside ? -distance : distance;
+    if (signed_distance >= nearest.signed_distance) continue;
+    nearest.found = true;
+    nearest.signed_distance = signed_distance;
+    nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
+                                    : pseudonormal;
+    const Eigen::Vector3i& tri = normals_.triangles()[t];
+    nearest.surface_velocity.setZero();
+    for (int k = 0; k < 3; ++k) {
+      nearest.surface_velocity +=
+          closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
+    }
+  }
+  return nearest;
+}
+
+void MeshCollider::FindContacts(const Points& positions, const Points& velocities, double h,
+                                double margin, std::vector<Contact>& contacts) {
+  stats_ = BodyCollisionStats{};
+  num_tests_ = 0;
+  if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
+  margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
+  const double shell = settings_.thickness;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    const Eigen::Vector3d v = velocities.row(i).transpose();
+    // Far enough for a contact at the start (inside the shell, however deep within
+    // max_penetration) and for one reached during the step at the relative speed.
+    const double reach =
+        shell + std::max(margin + h * (v.norm() + max_vertex_speed_), options_.max_penetration);
+    if (!(reach < kInf) || !x.allFinite()) continue;
+    const Nearest nearest = FindNearest(x, reach);
+    if (!nearest.found) continue;
+    const double distance = nearest.signed_distance;
+    const double relative_normal_velocity = (v - nearest.surface_velocity).dot(nearest.normal);
+    if (distance >= shell && distance + h * relative_normal_velocity > shell + margin) continue;
+    Contact contact;
+    contact.particle = static_cast<int>(i);
+    contact.normal = nearest.normal;
+    contact.target_normal_velocity =
+        nearest.surface_velocity.dot(nearest.normal) + (shell - distance) / h;
+    contact.friction = settings_.friction;
+    contacts.push_back(contact);
+    ++stats_.num_contacts;
+  }
+  stats_.num_tests = num_tests_;
+}
+
+double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
+  if (positions.rows() != velocities.rows()) return 0.0;
+  const double shell = settings_.thickness;
+  const double reach = shell + options_.max_penetration;
+  double deepest = 0.0;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    if (!x.allFinite()) continue;
+    const Nearest nearest = FindNearest(x, reach);
+    if (!nearest.found || nearest.signed_distance >= shell) continue;
+    deepest = std::max(deepest, shell - nearest.signed_distance);
+    positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
+    const double inward =
+        (velocities.row(i).transpose() - nearest.surface_velocity).dot(nearest.normal);
+    if (inward < 0.0) velocities.row(i) -= inward * nearest.normal.transpose();
+  }
+  return deepest;
+}
+
+}  // namespace costume::sim

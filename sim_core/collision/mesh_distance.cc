@@ -1,0 +1,205 @@
+#include "sim_core/collision/mesh_distance.h"
+
+#include <BulletCollision/BroadphaseCollision/btDbvt.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <utility>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+btVector3 ToBullet(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+
+btDbvtVolume TriangleBox(const Points& vertices, const Eigen::Vector3i& tri) {
+  const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
+  const Eigen::Vector3d b = vertices.row(tri[1]).transpose();
+  const Eigen::Vector3d c = vertices.row(tri[2]).transpose();
+  return btDbvtVolume::FromMM(ToBullet(a.cwiseMin(b).cwiseMin(c)),
+                              ToBullet(a.cwiseMax(b).cwiseMax(c)));
+}
+
+// Squared distance from `p` to the box `volume` [m²] (0 inside).
+double SquaredBoxDistance(const btDbvtVolume& volume, const Eigen::Vector3d& p) {
+  double sum = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    const double below = volume.Mins()[k] - p[k];
+    const double above = p[k] - volume.Maxs()[k];
+    const double gap = std::max({below, above, 0.0});
+    sum += gap * gap;
+  }
+  return sum;
+}
+
+int LeafTriangle(const btDbvtNode* leaf) {
+  return static_cast<int>(reinterpret_cast<std::intptr_t>(leaf->data));
+}
+
+const std::vector<Eigen::Vector3i>& Validated(const std::string& name, const Points& vertices,
+                                               const std::vector<Eigen::Vector3i>& triangles) {
+  const std::string where = "mesh '" + name + "'";
+  if (triangles.empty()) throw InputError(where + ": has no triangles (need a closed mesh)");
+  for (Eigen::Index v = 0; v < vertices.rows(); ++v) {
+    if (!vertices.row(v).allFinite()) {
+      throw InputError(where + ": vertex " + std::to_string(v) +
+                       " has a non-finite position (allowed: finite coordinates in m)");
+    }
+  }
+  const int n = static_cast<int>(vertices.rows());
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    if (triangles[t].minCoeff() < 0 || triangles[t].maxCoeff() >= n) {
+      throw InputError(where + ": triangle " + std::to_string(t) +
+                       " has a vertex index out of range (allowed 0.." + std::to_string(n - 1) +
+                       ")");
+    }
+  }
+  return triangles;
+}
+
+}  // namespace
+
+struct MeshDistance::Trees {
+  /// One tree per piece, so each piece's closest point (and thus its sign) is found.
+  std::vector<std::unique_ptr<btDbvt>> pieces;
+  /// The leaf of each triangle.
+  std::vector<btDbvtNode*> leaves;
+  /// Traversal scratch, sized for the worst case at construction.
+  mutable std::vector<const btDbvtNode*> stack;
+};
+
+MeshDistance::MeshDistance(std::string name, const Points& vertices,
+                           std::vector<Eigen::Vector3i> triangles)
+    : name_(std::move(name)),
+      num_vertices_(static_cast<int>(vertices.rows())),
+      vertices_(vertices),
+      normals_(num_vertices_, Validated(name_, vertices, triangles)),
+      trees_(std::make_unique<Trees>()) {
+  if (normals_.num_open_edges() > 0) {
+    throw InputError("mesh '" + name_ + "': not closed and consistently oriented: " +
+                     normals_.first_open_edge() + " (" +
+                     std::to_string(normals_.num_open_edges()) +
+                     " such edges; allowed: every edge used by two triangles, once each way)");
+  }
+  trees_->pieces.resize(num_pieces());
+  for (auto& tree : trees_->pieces) tree = std::make_unique<btDbvt>();
+  trees_->leaves.resize(num_triangles());
+  for (int t = 0; t < num_triangles(); ++t) {
+    trees_->leaves[t] = trees_->pieces[normals_.piece_of(t)]->insert(
+        TriangleBox(vertices_, normals_.triangles()[t]),
+        reinterpret_cast<void*>(static_cast<std::intptr_t>(t)));
+  }
+  for (auto& tree : trees_->pieces) tree->optimizeTopDown();
+  // A binary tree's depth-first stack never holds more than one node per leaf plus one.
+  trees_->stack.reserve(num_triangles() + 2);
+  normals_.Update(vertices_);
+}
+
+MeshDistance::~MeshDistance() = default;
+
+bool MeshDistance::Update(const Points& vertices) {
+  if (vertices.rows() != num_vertices_) return false;
+  vertices_ = vertices;  // same size: copies into the existing storage
+  Refit(vertices_);
+  return true;
+}
+
+void MeshDistance::Refit(const Points& vertices) {
+  for (int t = 0; t < num_triangles(); ++t) {
+    btDbvtVolume box = TriangleBox(vertices, normals_.triangles()[t]);
+    trees_->pieces[normals_.piece_of(t)]->update(trees_->leaves[t], box);
+  }
+  normals_.Update(vertices);
+}
+
+void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
+                                  SurfaceDistance& best) const {
+  const btDbvt& tree = *trees_->pieces[piece];
+  if (tree.m_root == nullptr) return;
+  double best_squared = max_radius * max_radius;
+  int best_triangle = -1;
+  TrianglePoint best_point;
+  auto& stack = trees_->stack;
+  stack.clear();
+  stack.push_back(tree.m_root);
+  while (!stack.empty()) {
+    const btDbvtNode* node = stack.back();
+    stack.pop_back();
+    if (SquaredBoxDistance(node->volume, point) > best_squared) continue;
+    if (node->isinternal()) {
+      // Nearer child last, so it is searched first and shrinks the radius sooner.
+      const bool first_nearer = SquaredBoxDistance(node->childs[0]->volume, point) <
+                                SquaredBoxDistance(node->childs[1]->volume, point);
+      stack.push_back(node->childs[first_nearer ? 1 : 0]);
+      stack.push_back(node->childs[first_nearer ? 0 : 1]);
+      continue;
+    }
+    const int t = LeafTriangle(node);
+    const Eigen::Vector3i& tri = normals_.triangles()[t];
+    const TrianglePoint closest = ClosestPointOnTriangle(
+        point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
+        vertices_.row(tri[2]).transpose());
+    const double squared = (point - closest.point).squaredNorm();
+    if (squared <= best_squared) {
+      best_squared = squared;
+      best_triangle = t;
+      best_point = closest;
+    }
+  }
+  if (best_triangle < 0) return;
+  const Eigen::Vector3d pseudonormal = normals_.Of(best_triangle, best_point.feature);
+  const Eigen::Vector3d offset = point - best_point.point;
+  const double distance = std::sqrt(best_squared);
+  const bool inside = offset.dot(pseudonormal) < 0.0;
+  const double signed_distance = inside ? -distance : distance;
+  if (signed_distance >= best.signed_distance) return;
+  best.signed_distance = signed_distance;
+  best.closest_point = best_point.point;
+  best.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
+                               : pseudonormal;
+  best.triangle = best_triangle;
+  best.feature = best_point.feature;
+  best.barycentric = best_point.barycentric;
+}
+
+SurfaceDistance MeshDistance::Query(const Eigen::Vector3d& point, double max_radius) const {
+  SurfaceDistance best;
+  if (!(max_radius >= 0.0) || !point.allFinite()) return best;
+  for (int piece = 0; piece < num_pieces(); ++piece) {
+    NearestInPiece(piece, point, max_radius, best);
+  }
+  return best;
+}
+
+void MeshDistance::PenetrationDepths(const Points& points, double max_radius,
+                                     std::vector<double>& depths) const {
+  depths.resize(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const double distance = SignedDistance(points.row(i).transpose(), max_radius);
+    depths[i] = distance < 0.0 ? -distance : 0.0;
+  }
+}
+
+PenetrationStats MeshDistance::MeasurePenetration(const Points& points,
+                                                  double max_radius) const {
+  std::vector<double> depths;
+  PenetrationDepths(points, max_radius, depths);
+  PenetrationStats stats;
+  stats.num_points = static_cast<int>(points.rows());
+  std::vector<double> inside;
+  for (double depth : depths) {
+    if (depth > 0.0) inside.push_back(depth);
+  }
+  stats.num_inside = static_cast<int>(inside.size());
+  if (inside.empty()) return stats;
+  std::sort(inside.begin(), inside.end());
+  stats.max_depth = inside.back();
+  // Nearest rank: the smallest depth at or above 99% of the inside points.
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.99 * inside.size()));
+  stats.p99_depth = inside[std::max<std::size_t>(rank, 1) - 1];
+  return stats;
+}
+
+}  // namespace costume::sim

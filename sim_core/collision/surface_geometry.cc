@@ -1,0 +1,172 @@
+#include "sim_core/collision/surface_geometry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <utility>
+
+namespace costume::sim {
+namespace {
+
+TrianglePoint Make(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                   double wa, double wb, double wc, TriangleFeature feature) {
+  TrianglePoint result;
+  result.barycentric = Eigen::Vector3d(wa, wb, wc);
+  result.point = wa * a + wb * b + wc * c;
+  result.feature = feature;
+  return result;
+}
+
+// Angle of the triangle at corner `at` between the edges to `u` and `w` [rad].
+double CornerAngle(const Eigen::Vector3d& at, const Eigen::Vector3d& u, const Eigen::Vector3d& w) {
+  const Eigen::Vector3d e1 = u - at;
+  const Eigen::Vector3d e2 = w - at;
+  return std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+}
+
+Eigen::Vector3d NormalisedOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback) {
+  const double norm = v.norm();
+  return norm > 0.0 ? Eigen::Vector3d(v / norm) : fallback;
+}
+
+}  // namespace
+
+TrianglePoint ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a;
+  const Eigen::Vector3d ac = c - a;
+  const Eigen::Vector3d ap = p - a;
+  const double d1 = ab.dot(ap);
+  const double d2 = ac.dot(ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return Make(a, b, c, 1, 0, 0, TriangleFeature::kVertexA);
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp);
+  const double d4 = ac.dot(bp);
+  if (d3 >= 0.0 && d4 <= d3) return Make(a, b, c, 0, 1, 0, TriangleFeature::kVertexB);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double v = d1 / (d1 - d3);
+    return Make(a, b, c, 1 - v, v, 0, TriangleFeature::kEdgeAB);
+  }
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp);
+  const double d6 = ac.dot(cp);
+  if (d6 >= 0.0 && d5 <= d6) return Make(a, b, c, 0, 0, 1, TriangleFeature::kVertexC);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double w = d2 / (d2 - d6);
+    return Make(a, b, c, 1 - w, 0, w, TriangleFeature::kEdgeCA);
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return Make(a, b, c, 0, 1 - w, w, TriangleFeature::kEdgeBC);
+  }
+  const double sum = va + vb + vc;
+  if (!(sum > 0.0)) return Make(a, b, c, 1, 0, 0, TriangleFeature::kVertexA);  // degenerate
+  const double v = vb / sum;
+  const double w = vc / sum;
+  return Make(a, b, c, 1 - v - w, v, w, TriangleFeature::kFace);
+}
+
+SurfacePseudonormals::SurfacePseudonormals(int num_vertices,
+                                           const std::vector<Eigen::Vector3i>& triangles)
+    : triangles_(triangles),
+      neighbours_(triangles.size(), {-1, -1, -1}),
+      pieces_(triangles.size(), 0),
+      face_normals_(triangles.size(), Eigen::Vector3d::UnitY()),
+      double_areas_(triangles.size(), 0.0),
+      vertex_normals_(num_vertices, Eigen::Vector3d::UnitY()) {
+  BuildAdjacency();
+  BuildPieces();
+}
+
+void SurfacePseudonormals::BuildAdjacency() {
+  // Directed edge (from, to) -> the triangles and local edges using it.
+  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> directed;
+  for (int t = 0; t < num_triangles(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      directed[{triangles_[t][k], triangles_[t][(k + 1) % 3]}].emplace_back(t, k);
+    }
+  }
+  for (const auto& [edge, users] : directed) {
+    const auto twin = directed.find({edge.second, edge.first});
+    const std::size_t num_twins = twin == directed.end() ? 0 : twin->second.size();
+    if (users.size() == 1 && num_twins == 1) {
+      const auto [t, k] = users.front();
+      neighbours_[t][k] = twin->second.front().first;
+      continue;
+    }
+    if (edge.first > edge.second && num_twins > 0) continue;  // reported from the twin
+    ++num_open_edges_;
+    if (first_open_edge_.empty()) {
+      first_open_edge_ = "edge (" + std::to_string(edge.first) + ", " +
+                         std::to_string(edge.second) + ") used by " +
+                         std::to_string(users.size() + num_twins) + " triangle(s), " +
+                         std::to_string(users.size()) + " in this direction";
+    }
+  }
+}
+
+void SurfacePseudonormals::BuildPieces() {
+  std::fill(pieces_.begin(), pieces_.end(), -1);
+  std::vector<int> stack;
+  for (int seed = 0; seed < num_triangles(); ++seed) {
+    if (pieces_[seed] >= 0) continue;
+    pieces_[seed] = num_pieces_;
+    stack.assign(1, seed);
+    while (!stack.empty()) {
+      const int t = stack.back();
+      stack.pop_back();
+      for (int n : neighbours_[t]) {
+        if (n >= 0 && pieces_[n] < 0) {
+          pieces_[n] = num_pieces_;
+          stack.push_back(n);
+        }
+      }
+    }
+    ++num_pieces_;
+  }
+}
+
+void SurfacePseudonormals::Update(const Points& vertices) {
+  std::fill(vertex_normals_.begin(), vertex_normals_.end(), Eigen::Vector3d::Zero());
+  for (int t = 0; t < num_triangles(); ++t) {
+    const Eigen::Vector3i& tri = triangles_[t];
+    const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
+    const Eigen::Vector3d b = vertices.row(tri[1]).transpose();
+    const Eigen::Vector3d c = vertices.row(tri[2]).transpose();
+    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    double_areas_[t] = cross.norm();
+    // A degenerate triangle contributes nothing to its vertices (its angles are 0 or π
+    // with a meaningless normal); its own normal keeps the last good value.
+    if (double_areas_[t] > 0.0) face_normals_[t] = cross / double_areas_[t];
+    const Eigen::Vector3d& n = face_normals_[t];
+    if (double_areas_[t] == 0.0) continue;
+    vertex_normals_[tri[0]] += CornerAngle(a, b, c) * n;
+    vertex_normals_[tri[1]] += CornerAngle(b, c, a) * n;
+    vertex_normals_[tri[2]] += CornerAngle(c, a, b) * n;
+  }
+  for (Eigen::Vector3d& n : vertex_normals_) n = NormalisedOr(n, Eigen::Vector3d::UnitY());
+}
+
+Eigen::Vector3d SurfacePseudonormals::Of(int triangle, TriangleFeature feature) const {
+  const Eigen::Vector3i& tri = triangles_[triangle];
+  const Eigen::Vector3d& n = face_normals_[triangle];
+  int edge = -1;
+  switch (feature) {
+    case TriangleFeature::kFace: return n;
+    case TriangleFeature::kVertexA: return vertex_normals_[tri[0]];
+    case TriangleFeature::kVertexB: return vertex_normals_[tri[1]];
+    case TriangleFeature::kVertexC: return vertex_normals_[tri[2]];
+    case TriangleFeature::kEdgeAB: edge = 0; break;
+    case TriangleFeature::kEdgeBC: edge = 1; break;
+    case TriangleFeature::kEdgeCA: edge = 2; break;
+  }
+  const int other = neighbours_[triangle][edge];
+  if (other < 0) return n;  // a hole's rim: the one face there is
+  return NormalisedOr(n + face_normals_[other], n);
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,95 @@
+#pragma once
+/// @file
+/// Geometry shared by the mesh distance and the mesh collider (paper §4, accurate method):
+/// the closest point of a triangle with the feature it lies on, and the angle-weighted
+/// pseudonormals of a triangle mesh (Bærentzen & Aanæs 2005, "Signed distance computation
+/// using the angle weighted pseudonormal"), whose sign test is right at edges and vertices.
+
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+
+namespace costume::sim {
+
+/// The feature of a triangle (a, b, c) a closest point lies on.
+enum class TriangleFeature : std::uint8_t {
+  kVertexA,
+  kVertexB,
+  kVertexC,
+  kEdgeAB,
+  kEdgeBC,
+  kEdgeCA,
+  kFace,
+};
+
+/// A closest point on a triangle.
+struct TrianglePoint {
+  /// The point [m].
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  /// Its barycentric weights of (a, b, c) [-], each in [0, 1], summing to 1.
+  Eigen::Vector3d barycentric = Eigen::Vector3d(1.0, 0.0, 0.0);
+  TriangleFeature feature = TriangleFeature::kVertexA;
+};
+
+/// The point of triangle (a, b, c) [m] closest to `p` [m], by Voronoi regions (Ericson,
+/// Real-Time Collision Detection §5.1.5). A degenerate triangle gives a point of it, not
+/// necessarily the closest. Never throws; never allocates.
+TrianglePoint ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                     const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// Edge adjacency, connected pieces and angle-weighted pseudonormals of a triangle mesh.
+/// The topology is fixed at construction; Update recomputes the normals for new vertex
+/// positions. Triangles are counter-clockwise seen from outside.
+class SurfacePseudonormals {
+ public:
+  /// Builds the edge adjacency and the pieces (sets of triangles connected over edges).
+  /// Does not validate: indices must lie in [0, num_vertices). Edges used by one triangle
+  /// (holes) or more than two (non-manifold) are counted, not refused; see
+  /// num_open_edges().
+  SurfacePseudonormals(int num_vertices, const std::vector<Eigen::Vector3i>& triangles);
+
+  /// Recomputes face, edge and vertex pseudonormals for `vertices` (num_vertices×3) [m].
+  /// Never throws; never allocates. Precondition: vertices.rows() == num_vertices.
+  void Update(const Points& vertices);
+
+  /// Unit pseudonormal of `feature` of triangle `triangle`: the face normal; for an edge
+  /// the normalised sum of its two faces' normals (both have angle π); for a vertex the
+  /// incident face normals weighted by their angle there, normalised.
+  Eigen::Vector3d Of(int triangle, TriangleFeature feature) const;
+  const Eigen::Vector3d& face_normal(int triangle) const { return face_normals_[triangle]; }
+  /// Twice the area of each triangle [m²] from the last Update.
+  double double_area(int triangle) const { return double_areas_[triangle]; }
+
+  int num_triangles() const { return static_cast<int>(triangles_.size()); }
+  const std::vector<Eigen::Vector3i>& triangles() const { return triangles_; }
+  /// The triangle across edge k (from corner k to corner k+1) of `triangle`, -1 for none.
+  int neighbour(int triangle, int k) const { return neighbours_[triangle][k]; }
+  /// Number of connected pieces and the piece of each triangle.
+  int num_pieces() const { return num_pieces_; }
+  int piece_of(int triangle) const { return pieces_[triangle]; }
+  /// Edges used by exactly one triangle, or by more than two, or twice in the same
+  /// direction (an orientation flip): zero for a closed, consistently oriented mesh.
+  int num_open_edges() const { return num_open_edges_; }
+  /// Describes the first such edge ("edge (3, 7) used by 1 triangle"), empty when none.
+  const std::string& first_open_edge() const { return first_open_edge_; }
+
+ private:
+  void BuildAdjacency();
+  void BuildPieces();
+
+  std::vector<Eigen::Vector3i> triangles_;
+  std::vector<std::array<int, 3>> neighbours_;
+  std::vector<int> pieces_;
+  int num_pieces_ = 0;
+  int num_open_edges_ = 0;
+  std::string first_open_edge_;
+  std::vector<Eigen::Vector3d> face_normals_;
+  std::vector<double> double_areas_;
+  std::vector<Eigen::Vector3d> vertex_normals_;
+};
+
+}  // namespace costume::sim

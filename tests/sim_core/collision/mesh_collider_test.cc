@@ -1,0 +1,354 @@
+// The accurate (mesh) avatar collision: contacts and projection against a skinned box with
+// hand-computed normals and target velocities, and adaptive regions checked against fixed
+// regions and against brute force over all triangles.
+#include "sim_core/collision/mesh_collider.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <random>
+
+#include "sim_core/avatar/skeleton.h"
+#include "sim_core/common/input_error.h"
+#include "sim_core/collision/surface_geometry.h"
+#include "tests/sim_core/collision/test_meshes.h"
+
+// Counts heap allocations while `g_count_allocations` is set (as drake's limit_malloc): the
+// executable's malloc takes precedence over libc's, so std::vector, Eigen and Bullet all
+// come through here.
+extern "C" void* __libc_malloc(std::size_t size);
+namespace {
+bool g_count_allocations = false;
+long long g_num_allocations = 0;
+}  // namespace
+extern "C" void* malloc(std::size_t size) {
+  if (g_count_allocations) ++g_num_allocations;
+  return __libc_malloc(size);
+}
+
+namespace costume::sim {
+namespace {
+
+using test::TestMesh;
+
+constexpr double kH = 1.0 / 60.0;
+const Eigen::Vector3d kCenter(0.0, 1.0, 0.0);
+const Eigen::Vector3d kHalf(0.2, 0.2, 0.2);
+
+// An avatar whose only joint carries every vertex of `mesh`.
+std::shared_ptr<const Avatar> RigidAvatar(const TestMesh& mesh) {
+  Joint root;
+  root.name = "root";
+  AvatarData data;
+  data.name = "test body";
+  data.skeleton = Skeleton::Create("one joint", {root});
+  data.rest_vertices = mesh.vertices;
+  data.triangles = mesh.triangles;
+  const Eigen::Index n = mesh.vertices.rows();
+  data.influence_joints.setConstant(n, kMaxInfluences, -1);
+  data.influence_joints.col(0).setZero();
+  data.influence_weights.setZero(n, kMaxInfluences);
+  data.influence_weights.col(0).setOnes();
+  return Avatar::Create(std::move(data));
+}
+
+const std::vector<Eigen::Isometry3d> kJoints = {Eigen::Isometry3d::Identity()};
+
+Points Row(const Eigen::Vector3d& v) { return v.transpose(); }
+
+TEST(MeshCollider, ParticleInsideGetsAnOutwardContactAndProjectsOntoTheShell) {
+  const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
+  BodyCollisionSettings settings;
+  settings.thickness = 0.004;
+  settings.friction = 0.3;
+  MeshCollider collider(RigidAvatar(box), settings);
+  collider.Update(kJoints, box.vertices, kH);
+  // 1 cm below the top face, off its grid lines.
+  Points x = Row(kCenter + Eigen::Vector3d(0.013, kHalf.y() - 0.01, 0.027));
+  Points v = Row(Eigen::Vector3d(0.2, -1.0, 0.5));
+  std::vector<Contact> contacts;
+  collider.FindContacts(x, v, kH, 0.002, contacts);
+  ASSERT_EQ(contacts.size(), 1u);
+  EXPECT_EQ(contacts[0].particle, 0);
+  EXPECT_LT((contacts[0].normal - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+  EXPECT_NEAR(contacts[0].target_normal_velocity, (0.004 + 0.01) / kH, 1e-9);
+  EXPECT_EQ(contacts[0].friction, 0.3);
+  EXPECT_EQ(collider.stats().num_contacts, 1);
+  EXPECT_GT(collider.stats().num_tests, 0);
+
+  const double deepest = collider.ProjectOut(x, v);
+  EXPECT_NEAR(deepest, 0.014, 1e-12);
+  const Eigen::Vector3d moved = x.row(0).transpose();
+  EXPECT_NEAR(test::BoxSignedDistance(moved, kCenter, kHalf), 0.004, 1e-6);
+  EXPECT_NEAR(moved.x(), 0.013, 1e-12);  // moved along the normal only
+  // The inward normal velocity is gone, the tangential one kept.
+  EXPECT_NEAR(v(0, 0), 0.2, 1e-12);
+  EXPECT_NEAR(v(0, 1), 0.0, 1e-12);
+  EXPECT_NEAR(v(0, 2), 0.5, 1e-12);
+  EXPECT_EQ(collider.ProjectOut(x, v), 0.0);  // already on the shell
+}
+
+TEST(MeshCollider, ParticleFarOutsideGetsNoneUnlessItWouldArrive) {
+  const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
+  MeshCollider collider(RigidAvatar(box), BodyCollisionSettings{});
+  collider.Update(kJoints, box.vertices, kH);
+  std::vector<Contact> contacts;
+  collider.FindContacts(Row(kCenter + Eigen::Vector3d(0, 1.0, 0)), Row(Eigen::Vector3d::Zero()),
+                        kH, 0.002, contacts);
+  EXPECT_TRUE(contacts.empty());
+  // 3 cm above the top face: at rest no contact; falling at 3 m/s it would cross the
+  // shell within the step (5 cm of travel), so it gets one.
+  const Points x = Row(kCenter + Eigen::Vector3d(0.05, kHalf.y() + 0.03, -0.04));
+  collider.FindContacts(x, Row(Eigen::Vector3d::Zero()), kH, 0.002, contacts);
+  EXPECT_TRUE(contacts.empty());
+  collider.FindContacts(x, Row(Eigen::Vector3d(0, -3.0, 0)), kH, 0.002, contacts);
+  ASSERT_EQ(contacts.size(), 1u);
+  EXPECT_NEAR(contacts[0].target_normal_velocity, (0.004 - 0.03) / kH, 1e-9);
+}
+
+TEST(MeshCollider, MovingBodyAddsItsVelocityToTheTarget) {
+  const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
+  MeshCollider collider(RigidAvatar(box), BodyCollisionSettings{});
+  const double dt = 0.01;
+  const Eigen::Vector3d body_velocity(0.5, 1.0, -0.3);
+  collider.Update(kJoints, box.vertices, dt);
+  const Eigen::Vector3d moved_center = kCenter + dt * body_velocity;
+  collider.Update(kJoints, test::Translated(box, dt * body_velocity).vertices, dt);
+  // 1 cm inside below the top face and 2 cm inside behind the +x face.
+  Points x(2, 3);
+  x.row(0) = (moved_center + Eigen::Vector3d(0.013, kHalf.y() - 0.01, 0.027)).transpose();
+  x.row(1) = (moved_center + Eigen::Vector3d(kHalf.x() - 0.02, -0.031, 0.018)).transpose();
+  std::vector<Contact> contacts;
+  collider.FindContacts(x, Points::Zero(2, 3), kH, 0.002, contacts);
+  ASSERT_EQ(contacts.size(), 2u);
+  EXPECT_LT((contacts[0].normal - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+  EXPECT_NEAR(contacts[0].target_normal_velocity, 1.0 + (0.004 + 0.01) / kH, 1e-9);
+  EXPECT_LT((contacts[1].normal - Eigen::Vector3d::UnitX()).norm(), 1e-12);
+  EXPECT_NEAR(contacts[1].target_normal_velocity, 0.5 + (0.004 + 0.02) / kH, 1e-9);
+  // Projection removes the velocity into the body relative to the body: a particle at
+  // rest inside the rising top face ends rising with it.
+  Points v = Points::Zero(2, 3);
+  collider.ProjectOut(x, v);
+  EXPECT_NEAR(v(0, 1), 1.0, 1e-12);
+  EXPECT_NEAR(v(1, 0), 0.5, 1e-12);
+}
+
+// ---- adaptive regions against fixed regions and brute force --------------------------
+
+// A 1 m × 1 m slab whose top is tessellated finely and gently waved, so it is flat in
+// places and merges into large regions.
+TestMesh WavySlab() {
+  TestMesh slab = test::TessellatedBox(Eigen::Vector3d::Zero(), Eigen::Vector3d(0.5, 0.05, 0.5),
+                                       Eigen::Vector3i(32, 2, 32));
+  for (Eigen::Index i = 0; i < slab.vertices.rows(); ++i) {
+    if (slab.vertices(i, 1) > 0.049) {
+      slab.vertices(i, 1) += 0.01 * std::sin(3.0 * slab.vertices(i, 0)) *
+                             std::cos(2.0 * slab.vertices(i, 2));
+    }
+  }
+  return slab;
+}
+
+// Brute force over all triangles, written apart from the collider: the closest point by
+// projection onto the plane or else onto the three edges.
+Eigen::Vector3d ClosestOnSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                 const Eigen::Vector3d& b) {
+  const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+  return a + t * (b - a);
+}
+
+Eigen::Vector3d ClosestOnTriangleBrute(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+  const Eigen::Vector3d q = p - n * (p - a).dot(n);
+  const bool inside = (b - a).cross(q - a).dot(n) >= 0 && (c - b).cross(q - b).dot(n) >= 0 &&
+                      (a - c).cross(q - c).dot(n) >= 0;
+  if (inside) return q;
+  Eigen::Vector3d best = ClosestOnSegment(p, a, b);
+  for (const Eigen::Vector3d& e : {ClosestOnSegment(p, b, c), ClosestOnSegment(p, c, a)}) {
+    if ((p - e).squaredNorm() < (p - best).squaredNorm()) best = e;
+  }
+  return best;
+}
+
+struct BruteContact {
+  int particle;
+  Eigen::Vector3d normal;
+  double target;
+};
+
+// Contacts of the collider's rule, from the nearest of all triangles. The sign uses the
+// nearest triangle's face normal: right here, where particles stay well inside the slab's
+// gently curved top and away from its rim.
+std::vector<BruteContact> BruteForceContacts(const TestMesh& mesh, const Points& x,
+                                             const Points& v, const Eigen::Vector3d& body_velocity,
+                                             double thickness, double margin) {
+  std::vector<BruteContact> contacts;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    const Eigen::Vector3d p = x.row(i).transpose();
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d closest = Eigen::Vector3d::Zero(), face = Eigen::Vector3d::UnitY();
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+      const Eigen::Vector3d a = mesh.vertices.row(t[0]), b = mesh.vertices.row(t[1]),
+                            c = mesh.vertices.row(t[2]);
+      const Eigen::Vector3d q = ClosestOnTriangleBrute(p, a, b, c);
+      if ((p - q).squaredNorm() < best) {
+        best = (p - q).squaredNorm();
+        closest = q;
+        face = (b - a).cross(c - a).normalized();
+      }
+    }
+    const double distance = std::sqrt(best);
+    const double sign = (p - closest).dot(face) < 0.0 ? -1.0 : 1.0;
+    const Eigen::Vector3d normal = sign * (p - closest) / distance;
+    const double d = sign * distance;
+    const double relative = (v.row(i).transpose() - body_velocity).dot(normal);
+    if (d >= thickness && d + kH * relative > thickness + margin) continue;
+    contacts.push_back({static_cast<int>(i), normal,
+                        body_velocity.dot(normal) + (thickness - d) / kH});
+  }
+  return contacts;
+}
+
+void ExpectSameContacts(const std::vector<Contact>& got, const std::vector<BruteContact>& want) {
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_EQ(got[k].particle, want[k].particle);
+    EXPECT_LT((got[k].normal - want[k].normal).norm(), 1e-9) << got[k].particle;
+    EXPECT_NEAR(got[k].target_normal_velocity, want[k].target, 1e-7) << got[k].particle;
+  }
+}
+
+TEST(MeshCollider, AdaptiveRegionsTestLessAndFindTheSameContactsAsFixedAndBruteForce) {
+  const TestMesh slab = WavySlab();
+  const auto avatar = RigidAvatar(slab);
+  BodyCollisionSettings settings;
+  MeshCollisionOptions adaptive_options;
+  adaptive_options.max_penetration = 0.02;
+  MeshCollisionOptions fixed_options = adaptive_options;
+  fixed_options.adaptive = false;
+  MeshCollider adaptive(avatar, settings, adaptive_options);
+  MeshCollider fixed(avatar, settings, fixed_options);
+  EXPECT_EQ(adaptive.num_base_regions(), fixed.num_regions());
+  EXPECT_LT(adaptive.num_regions(), fixed.num_regions());
+
+  // The slab moves: surface velocities enter the targets.
+  const double dt = kH;
+  const Eigen::Vector3d body_velocity(0.1, 0.3, -0.2);
+  const TestMesh moved = test::Translated(slab, dt * body_velocity);
+  for (MeshCollider* collider : {&adaptive, &fixed}) {
+    collider->Update(kJoints, slab.vertices, dt);
+    collider->Update(kJoints, moved.vertices, dt);
+  }
+  // Particles over the top, from 1 cm below it to 3 cm above, moving up to 0.5 m/s.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> across(-0.45, 0.45), height(-0.01, 0.03),
+      speed(-0.3, 0.3);
+  const int n = 1500;
+  Points x(n, 3), v(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const double px = across(rng), pz = across(rng);
+    const double top = 0.05 + 0.01 * std::sin(3.0 * px) * std::cos(2.0 * pz);
+    x.row(i) = (dt * body_velocity + Eigen::Vector3d(px, top + height(rng), pz)).transpose();
+    v.row(i) = Eigen::Vector3d(speed(rng), speed(rng), speed(rng)).transpose();
+  }
+  const double margin = 0.003;
+  std::vector<Contact> from_adaptive, from_fixed;
+  adaptive.FindContacts(x, v, kH, margin, from_adaptive);
+  fixed.FindContacts(x, v, kH, margin, from_fixed);
+  const auto brute = BruteForceContacts(moved, x, v, body_velocity, settings.thickness, margin);
+  ASSERT_GT(brute.size(), 200u);
+  ASSERT_LT(brute.size(), static_cast<std::size_t>(n) - 200);  // both cases present
+  ExpectSameContacts(from_adaptive, brute);
+  ExpectSameContacts(from_fixed, brute);
+  EXPECT_LT(adaptive.stats().num_tests, fixed.stats().num_tests);
+  std::printf("regions %d adaptive / %d fixed; tests %lld adaptive / %lld fixed (%.1f%% fewer)\n",
+              adaptive.num_regions(), fixed.num_regions(), adaptive.stats().num_tests,
+              fixed.stats().num_tests,
+              100.0 * (1.0 - double(adaptive.stats().num_tests) / fixed.stats().num_tests));
+}
+
+TEST(MeshCollider, CurvedBodyGivesTheSameContactsAdaptiveOrFixed) {
+  const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 12);
+  const auto avatar = RigidAvatar(sphere);
+  MeshCollisionOptions fixed_options;
+  fixed_options.adaptive = false;
+  MeshCollider adaptive(avatar, BodyCollisionSettings{});
+  MeshCollider fixed(avatar, BodyCollisionSettings{}, fixed_options);
+  std::mt19937 rng(23);
+  std::normal_distribution<double> gauss;
+  std::uniform_real_distribution<double> radial(0.22, 0.29), speed(-1.0, 1.0);
+  const int n = 1000;
+  Points x(n, 3), v(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d direction =
+        Eigen::Vector3d(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    x.row(i) = (kCenter + radial(rng) * direction).transpose();
+    v.row(i) = Eigen::Vector3d(speed(rng), speed(rng), speed(rng)).transpose();
+  }
+  std::vector<Contact> a, b;
+  adaptive.FindContacts(x, v, kH, 0.003, a);
+  fixed.FindContacts(x, v, kH, 0.003, b);
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_GT(a.size(), 100u);
+  std::printf("curved: regions %d adaptive / %d fixed; tests %lld adaptive / %lld fixed\n",
+              adaptive.num_regions(), fixed.num_regions(), adaptive.stats().num_tests,
+              fixed.stats().num_tests);
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ASSERT_EQ(a[k].particle, b[k].particle);
+    EXPECT_LT((a[k].normal - b[k].normal).norm(), 1e-12);
+    EXPECT_NEAR(a[k].target_normal_velocity, b[k].target_normal_velocity, 1e-9);
+    // Outward: the normal points away from the centre.
+    EXPECT_GT(a[k].normal.dot(x.row(a[k].particle).transpose() - kCenter), 0.0);
+  }
+}
+
+TEST(MeshCollider, UpdateFindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
+  const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 8);
+  MeshCollider collider(RigidAvatar(sphere), BodyCollisionSettings{});
+  Points x(200, 3), v = Points::Constant(200, 3, 0.1);
+  for (int i = 0; i < 200; ++i) {
+    const double angle = 0.1 * i;
+    x.row(i) = (kCenter + Eigen::Vector3d(std::cos(angle), std::sin(0.3 * i), std::sin(angle))
+                              .normalized() * (0.24 + 0.0003 * i)).transpose();
+  }
+  std::vector<Contact> contacts;
+  contacts.reserve(x.rows());
+  const TestMesh moved = test::Translated(sphere, Eigen::Vector3d(0.001, 0.002, 0.0));
+  collider.Update(kJoints, sphere.vertices, kH);
+  collider.FindContacts(x, v, kH, 0.003, contacts);
+  Points x2 = x, v2 = v;
+  collider.ProjectOut(x2, v2);
+  ASSERT_GT(contacts.size(), 10u);
+  contacts.clear();
+  g_num_allocations = 0;
+  g_count_allocations = true;
+  collider.Update(kJoints, moved.vertices, kH);
+  collider.FindContacts(x, v, kH, 0.003, contacts);
+  collider.ProjectOut(x, v);
+  g_count_allocations = false;
+  EXPECT_EQ(g_num_allocations, 0);
+  // The counter works: a vector's first push allocates.
+  std::vector<int> probe;
+  g_count_allocations = true;
+  probe.push_back(1);
+  g_count_allocations = false;
+  EXPECT_EQ(g_num_allocations, 1);
+}
+
+TEST(MeshCollider, RefusesBadOptions) {
+  const auto avatar = RigidAvatar(test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(2, 2, 2)));
+  MeshCollisionOptions options;
+  options.region_size = 0;
+  EXPECT_THROW(MeshCollider(avatar, BodyCollisionSettings{}, options), InputError);
+  options = {};
+  options.flatness_angle = 2.0;
+  EXPECT_THROW(MeshCollider(avatar, BodyCollisionSettings{}, options), InputError);
+  BodyCollisionSettings settings;
+  settings.thickness = -0.001;
+  EXPECT_THROW(MeshCollider(avatar, settings), InputError);
+}
+
+}  // namespace
+}  // namespace costume::sim
