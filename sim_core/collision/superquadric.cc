@@ -269,7 +269,7 @@ SuperquadricFit FitSuperquadric(const Points& all_points, const std::string& nam
         lambda *= 4.0;
       }
     }
-    if (!accepted || decrease <= 1e-12 * cost) break;
+    if (!accepted || decrease <= options.relative_tolerance * cost) break;
   }
   fit.superquadric = ToSuperquadric(state);
   fit.final_cost = cost;

@@ -80,6 +80,8 @@ struct SuperquadricFitOptions {
   /// At most this many points enter the fit (an even stride through the input) [-] > 0:
   /// a dense skin adds time, not accuracy.
   int max_points = 4000;
+  /// The fit stops when an iteration lowers the cost by less than this fraction of it [-].
+  double relative_tolerance = 1e-8;
 };
 
 /// A fitted superquadric and how well it fits.

@@ -15,8 +15,9 @@
 ///   gap become the normal gap the solver's contact needs (exact for a locally flat skin).
 /// - The contact normal is, by default, the superquadric's normalised gradient at the
 ///   particle's ray (the paper's choice), not the skin's normal; they differ where the skin
-///   departs from the superquadric (measured: 24° on a capsule's cylinder 2 cm before its
-///   cap, < 1° mid-cylinder). ContactNormal::kSkin takes the map's interpolated skin normal.
+///   departs from the superquadric (measured on a capsule: 23° on its hemispherical cap,
+///   0.4° mid-cylinder; docs/collision.md). ContactNormal::kSkin takes the map's
+///   interpolated skin normal instead.
 /// - The body's velocity at a particle is that of the point rigidly attached to the segment
 ///   at the particle's position, from the change of the joint frame between Update calls.
 
@@ -143,7 +144,8 @@ class SuperquadricCollider : public BodyCollider {
   /// step (as sphere_contacts.cc, for a moving surface). One contact per particle: its most
   /// penetrating segment. Segments whose bounding sphere (grown by the motion of the step)
   /// misses the particles' bounding box are skipped; stats().num_tests counts the
-  /// particle-segment pairs examined. Never throws; allocates only when `contacts` grows.
+  /// particle-segment pairs examined. Preconditions: h > 0, velocities the size of
+  /// positions. Never throws; allocates only when `contacts` grows.
   void FindContacts(const Points& positions, const Points& velocities, double h, double margin,
                     std::vector<Contact>& contacts) override;
 
