@@ -1,0 +1,178 @@
+// Superquadrics: the inside-outside function against closed forms, its gradient against
+// finite differences, and the Solina–Bajcsy fit recovering a known superquadric from noisy
+// samples in an arbitrary pose.
+#include "sim_core/collision/superquadric.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+Superquadric Make(double a1, double a2, double a3, double e1, double e2) {
+  Superquadric s;
+  s.a1 = a1;
+  s.a2 = a2;
+  s.a3 = a3;
+  s.e1 = e1;
+  s.e2 = e2;
+  return s;
+}
+
+TEST(InsideOutside, IsTheEllipsoidQuadricForUnitExponents) {
+  const Superquadric s = Make(0.3, 0.2, 0.5, 1.0, 1.0);
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.1, -0.05, 0.2), Eigen::Vector3d(-0.4, 0.3, 0.0),
+        Eigen::Vector3d(0.0, 0.0, -0.7)}) {
+    const double expected = p.x() * p.x() / 0.09 + p.y() * p.y() / 0.04 + p.z() * p.z() / 0.25;
+    EXPECT_NEAR(InsideOutside(s, p), expected, 1e-12 * expected);
+  }
+}
+
+TEST(InsideOutside, SmallExponentsGiveABoxWithCornersInside) {
+  const Superquadric s = Make(0.3, 0.2, 0.5, 0.1, 0.1);
+  // Each coordinate at 90 % of the half size: F = 3·0.9^20 (a box contains its corners).
+  const Eigen::Vector3d corner(0.27, 0.18, 0.45);
+  EXPECT_NEAR(InsideOutside(s, corner), 3.0 * std::pow(0.9, 20.0), 1e-12);
+  EXPECT_LT(InsideOutside(s, corner), 1.0);
+  // 5 % beyond a face: F = 1.05^20 > 1.
+  EXPECT_NEAR(InsideOutside(s, {0.315, 0.0, 0.0}), std::pow(1.05, 20.0), 1e-9);
+  EXPECT_GT(InsideOutside(s, {0.0, 0.0, 0.51}), 1.0);
+}
+
+TEST(InsideOutside, IsOneOnParametricPointsAndScalesWithTheRayParameter) {
+  for (const Superquadric& s : {Make(0.3, 0.2, 0.5, 0.4, 1.6), Make(0.1, 0.25, 0.15, 1.8, 0.3),
+                                Make(0.2, 0.2, 0.2, 0.1, 2.0)}) {
+    for (double eta = -1.5; eta <= 1.5; eta += 0.25) {
+      for (double omega = -3.1; omega <= 3.1; omega += 0.37) {
+        const Eigen::Vector3d p = ParametricSurfacePoint(s, eta, omega);
+        EXPECT_NEAR(InsideOutside(s, p), 1.0, 1e-9) << eta << " " << omega;
+        for (double scale : {0.3, 2.5}) {
+          EXPECT_NEAR(InsideOutside(s, scale * p), std::pow(scale, 2.0 / s.e1),
+                      1e-9 * std::pow(scale, 2.0 / s.e1));
+        }
+      }
+    }
+  }
+}
+
+TEST(ParametricAngles, InvertTheParametricFormAlongRays) {
+  const Superquadric s = Make(0.3, 0.2, 0.5, 0.6, 1.4);
+  for (double eta = -1.4; eta <= 1.4; eta += 0.2) {
+    for (double omega = -3.0; omega <= 3.0; omega += 0.5) {
+      const Eigen::Vector2d angles =
+          ParametricAngles(s, 1.7 * ParametricSurfacePoint(s, eta, omega));
+      EXPECT_NEAR(angles[0], eta, 1e-9);
+      EXPECT_NEAR(angles[1], omega, 1e-9);
+    }
+  }
+}
+
+TEST(InsideOutsideGradient, MatchesCentralDifferences) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> coordinate(-0.6, 0.6);
+  for (const Superquadric& s : {Make(0.3, 0.2, 0.5, 1.0, 1.0), Make(0.3, 0.2, 0.5, 0.3, 1.7),
+                                Make(0.1, 0.25, 0.15, 1.9, 0.5)}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+      const Eigen::Vector3d gradient = InsideOutsideGradient(s, p);
+      for (int k = 0; k < 3; ++k) {
+        const double step = 1e-6;
+        Eigen::Vector3d plus = p, minus = p;
+        plus[k] += step;
+        minus[k] -= step;
+        const double numeric = (InsideOutside(s, plus) - InsideOutside(s, minus)) / (2 * step);
+        EXPECT_NEAR(gradient[k], numeric, 1e-5 * (1.0 + std::abs(numeric))) << s.e1 << " " << k;
+      }
+    }
+  }
+}
+
+TEST(RadialSurfacePoint, LiesOnTheSurfaceAndOnTheRay) {
+  const Superquadric s = Make(0.3, 0.2, 0.5, 0.5, 1.5);
+  const Eigen::Vector3d p(0.7, -0.2, 0.4);
+  const Eigen::Vector3d surface = RadialSurfacePoint(s, p);
+  EXPECT_NEAR(InsideOutside(s, surface), 1.0, 1e-12);
+  EXPECT_NEAR(surface.normalized().dot(p.normalized()), 1.0, 1e-12);
+  EXPECT_NEAR(RadialDistance(s, p), p.norm() - surface.norm(), 1e-12);
+  EXPECT_GT(RadialDistance(s, p), 0.0);
+  EXPECT_LT(RadialDistance(s, 0.5 * surface), 0.0);
+  // On a sphere the radial distance is the Euclidean one.
+  EXPECT_NEAR(RadialDistance(Make(0.2, 0.2, 0.2, 1.0, 1.0), {0.1, 0.2, -0.2}), 0.1, 1e-12);
+}
+
+/// Points of `truth` at random parametric angles, moved by `truth.frame`, with Gaussian noise.
+Points Sample(const Superquadric& truth, int count, double noise, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> eta(-kPi / 2, kPi / 2), omega(-kPi, kPi);
+  std::normal_distribution<double> jitter(0.0, noise);
+  Points points(count, 3);
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d p = truth.frame * ParametricSurfacePoint(truth, eta(rng), omega(rng));
+    points.row(i) = (p + Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng))).transpose();
+  }
+  return points;
+}
+
+void ExpectRecovered(const Superquadric& truth, const SuperquadricFit& fit) {
+  const Superquadric& s = fit.superquadric;
+  EXPECT_NEAR(s.a1, truth.a1, 0.02 * truth.a1);
+  EXPECT_NEAR(s.a2, truth.a2, 0.02 * truth.a2);
+  EXPECT_NEAR(s.a3, truth.a3, 0.02 * truth.a3);
+  EXPECT_NEAR(s.e1, truth.e1, 0.05);
+  EXPECT_NEAR(s.e2, truth.e2, 0.05);
+  EXPECT_LT((s.frame.translation() - truth.frame.translation()).norm(), 0.02 * truth.a2);
+  // Axes agree up to sign (the superquadric is symmetric under each axis' reflection).
+  const Eigen::Matrix3d agreement =
+      (s.frame.linear().transpose() * truth.frame.linear()).cwiseAbs();
+  EXPECT_TRUE(agreement.isApprox(Eigen::Matrix3d::Identity(), 0.02)) << agreement;
+}
+
+TEST(FitSuperquadric, RecoversAKnownSuperquadricFromNoisyPointsInAnArbitraryPose) {
+  for (const Superquadric& shape :
+       {Make(0.12, 0.07, 0.2, 0.5, 1.5), Make(0.12, 0.07, 0.2, 1.0, 0.3),
+        Make(0.12, 0.07, 0.2, 1.6, 1.0)}) {
+    Superquadric truth = shape;
+    truth.frame = Eigen::Translation3d(0.3, 1.1, -0.2) *
+                  Eigen::AngleAxisd(0.8, Eigen::Vector3d(1, 2, -0.5).normalized());
+    const SuperquadricFit fit = FitSuperquadric(Sample(truth, 1500, 0.0005, 3), "test points");
+    ExpectRecovered(truth, fit);
+    EXPECT_LT(fit.rms_radial_distance, 0.002);
+    EXPECT_LT(fit.final_cost, fit.initial_cost);
+  }
+}
+
+TEST(FitSuperquadric, ExponentsStayWithinTheirBounds) {
+  // A box sharper than e = 0.1 can express: the fit must stop at the bound.
+  Points points(6 * 100, 3);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const Eigen::Vector3d half(0.1, 0.07, 0.2);
+  for (int face = 0; face < 6; ++face) {
+    for (int i = 0; i < 100; ++i) {
+      Eigen::Vector3d p(u(rng), u(rng), u(rng));
+      p[face / 2] = face % 2 ? 1.0 : -1.0;
+      points.row(face * 100 + i) = p.cwiseProduct(half).transpose();
+    }
+  }
+  const SuperquadricFit fit = FitSuperquadric(points, "box");
+  EXPECT_GE(fit.superquadric.e1, kMinSuperquadricExponent);
+  EXPECT_GE(fit.superquadric.e2, kMinSuperquadricExponent);
+  EXPECT_LT(fit.superquadric.e1, 0.2);
+  EXPECT_LT(fit.superquadric.e2, 0.2);
+}
+
+TEST(FitSuperquadric, RefusesTooFewPoints) {
+  EXPECT_THROW(FitSuperquadric(Points::Random(5, 3), "five points"), InputError);
+  EXPECT_THROW(FitSuperquadric(Points::Zero(30, 3), "one point repeated"), InputError);
+}
+
+}  // namespace
+}  // namespace costume::sim
