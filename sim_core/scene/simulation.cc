@@ -7,6 +7,8 @@
 #include "sim_core/avatar/garment_patterns.h"
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/mesh_cloth.h"
+#include "sim_core/collision/mesh_collider.h"
+#include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/hierarchy/step_solvers.h"
 #include "sim_core/solver/strain_limit.h"
@@ -117,6 +119,19 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
     }
   }
   return ClothModel::Create(std::move(whole));
+}
+
+std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
+                                               std::shared_ptr<const Avatar> avatar,
+                                               const BodyCollisionSettings& settings) {
+  if (method == BodyCollisionMethod::kMesh) {
+    return std::make_unique<MeshCollider>(std::move(avatar), settings);
+  }
+  // The skin's own normal (stored in the distance map) rather than the superquadric's
+  // gradient, which is up to 23° off at the rounded ends of limbs (docs/collision.md).
+  SuperquadricColliderOptions options;
+  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
+  return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
 }
 
 StepperSettings StepperSettingsOf(const SceneDescription& scene) {
