@@ -10,9 +10,10 @@ namespace {
 void ValidateInfluences(const AvatarData& data, const std::string& where) {
   const Eigen::Index n = data.rest_vertices.rows();
   if (data.influence_joints.rows() != n || data.influence_weights.rows() != n) {
-    throw InputError(where + ": skin weights given for " +
-                     std::to_string(data.influence_joints.rows()) + " vertices, mesh has " +
-                     std::to_string(n));
+    throw InputError(where + ": influence_joints has " +
+                     std::to_string(data.influence_joints.rows()) + " rows and influence_weights " +
+                     std::to_string(data.influence_weights.rows()) +
+                     " (allowed: one per vertex of rest_vertices, " + std::to_string(n) + ")");
   }
   const int num_joints = data.skeleton->num_joints();
   for (Eigen::Index v = 0; v < n; ++v) {
@@ -21,18 +22,18 @@ void ValidateInfluences(const AvatarData& data, const std::string& where) {
       const int joint = data.influence_joints(v, k);
       const double weight = data.influence_weights(v, k);
       if (joint < -1 || joint >= num_joints) {
-        throw InputError(where + ": vertex " + std::to_string(v) + " influence joint " +
+        throw InputError(where + ": influence_joints of vertex " + std::to_string(v) + " = " +
                          std::to_string(joint) + " out of range (allowed -1.." +
                          std::to_string(num_joints - 1) + ")");
       }
       if (!std::isfinite(weight) || weight < 0.0) {
-        throw InputError(where + ": vertex " + std::to_string(v) + " weight " +
+        throw InputError(where + ": influence_weights of vertex " + std::to_string(v) + " = " +
                          FormatValue(weight) + " (allowed: finite, >= 0)");
       }
       if (joint >= 0) sum += weight;
     }
     if (std::abs(sum - 1.0) > 1e-6) {
-      throw InputError(where + ": vertex " + std::to_string(v) + " weights sum to " +
+      throw InputError(where + ": influence_weights of vertex " + std::to_string(v) + " sum to " +
                        FormatValue(sum) + " (allowed: 1 within 1e-6)");
     }
   }
@@ -54,15 +55,22 @@ int DominantJoint(const AvatarData& data, Eigen::Index v) {
 
 std::shared_ptr<const Avatar> Avatar::Create(AvatarData data) {
   const std::string where = "avatar '" + data.name + "'";
-  if (!data.skeleton) throw InputError(where + ": has no skeleton");
-  if (data.rest_vertices.rows() == 0) throw InputError(where + ": has no vertices");
-  if (!data.rest_vertices.allFinite()) throw InputError(where + ": non-finite vertex position");
+  if (!data.skeleton) throw InputError(where + ": skeleton is missing (allowed: non-null)");
+  if (data.rest_vertices.rows() == 0) {
+    throw InputError(where + ": rest_vertices is empty (allowed: at least one vertex)");
+  }
   const int n = static_cast<int>(data.rest_vertices.rows());
+  for (int v = 0; v < n; ++v) {
+    if (!data.rest_vertices.row(v).allFinite()) {
+      throw InputError(where + ": rest_vertices row " + std::to_string(v) +
+                       " is not finite (allowed: finite coordinates)");
+    }
+  }
   for (std::size_t t = 0; t < data.triangles.size(); ++t) {
     const Eigen::Vector3i& tri = data.triangles[t];
     if (tri.minCoeff() < 0 || tri.maxCoeff() >= n) {
-      throw InputError(where + ": triangle " + std::to_string(t) +
-                       " has a vertex index out of range (allowed 0.." + std::to_string(n - 1) +
+      throw InputError(where + ": triangles[" + std::to_string(t) +
+                       "] has a vertex index out of range (allowed 0.." + std::to_string(n - 1) +
                        ")");
     }
   }

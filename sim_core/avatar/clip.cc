@@ -1,5 +1,6 @@
 #include "sim_core/avatar/clip.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "sim_core/common/input_error.h"
@@ -44,6 +45,14 @@ std::optional<HAnimJoint> SharedChild(HAnimJoint joint, const Skeleton& a, const
   return std::nullopt;
 }
 
+/// Whether any H-Anim joint has `joint` as its parent.
+bool HasHAnimChild(HAnimJoint joint) {
+  for (HAnimJoint child : AllHAnimJoints()) {
+    if (HAnimParent(child) == joint) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 double Clip::duration() const {
@@ -80,7 +89,8 @@ void ValidateClip(const Clip& clip) {
 
 void SampleClip(const Clip& clip, double t, Pose& out) {
   const int n = static_cast<int>(clip.frames.size());
-  double position = t / clip.frame_time;
+  // A non-finite time would make the frame index undefined; show the first frame instead.
+  double position = std::isfinite(t) ? t / clip.frame_time : 0.0;
   if (clip.loops) {
     position = std::fmod(position, static_cast<double>(n));
     if (position < 0.0) position += n;
@@ -115,18 +125,30 @@ Retargeter::Retargeter(std::shared_ptr<const Skeleton> source,
     const std::optional<HAnimJoint> hanim = target_->joint(j).hanim;
     if (!hanim || source_->Find(*hanim) < 0) continue;
     source_of_target_[j] = source_->Find(*hanim);
+    // A joint without a bone of its own (hands, feet, head: no H-Anim child; or a bone of
+    // zero length) keeps its parent's alignment, so its segment stays where the target's
+    // rest pose puts it relative to the parent segment.
+    const int parent = target_->joint(j).parent;
+    if (parent >= 0 && !HasHAnimChild(*hanim)) alignment_[j] = alignment_[parent];
     const std::optional<HAnimJoint> child = SharedChild(*hanim, *source_, *target_);
     if (!child) continue;
     const Eigen::Vector3d target_bone =
         RestPosition(*target_, *child) - RestPosition(*target_, *hanim);
     const Eigen::Vector3d source_bone =
         facing_ * (RestPosition(*source_, *child) - RestPosition(*source_, *hanim));
+    if (target_bone.norm() < 1e-9 || source_bone.norm() < 1e-9) {
+      if (parent >= 0) alignment_[j] = alignment_[parent];
+      continue;
+    }
     alignment_[j].setFromTwoVectors(target_bone, source_bone);
   }
 }
 
 void Retargeter::Apply(const Pose& source_pose, Pose& target_pose) const {
   ComputeJointWorld(*source_, source_pose, source_world_);
+  // The source's world frames include its placement (orientation); take it out here and
+  // give it to the target's pose instead, or the target would be turned twice.
+  const Eigen::Quaterniond unplace = source_pose.orientation.normalized().conjugate();
   const int n = target_->num_joints();
   target_pose.rotations.resize(n);
   target_world_.resize(n);
@@ -146,13 +168,14 @@ void Retargeter::Apply(const Pose& source_pose, Pose& target_pose) const {
     // World rotation the source joint made relative to its rest, seen in the target's
     // facing frame, applied to the target's (bone-aligned) rest frame.
     const Eigen::Quaterniond delta =
-        facing_ * Eigen::Quaterniond(source_world_[s].linear() * source_rest[s].linear().transpose()) *
+        facing_ * unplace *
+        Eigen::Quaterniond(source_world_[s].linear() * source_rest[s].linear().transpose()) *
         facing_.conjugate();
     target_world_[j] = (delta * alignment_[j] * Eigen::Quaterniond(target_rest[j].linear())).normalized();
     target_pose.rotations[j] = ((parent_world * rest_local).conjugate() * target_world_[j]).normalized();
   }
   target_pose.root_translation = facing_ * source_pose.root_translation * translation_scale_;
-  target_pose.orientation = source_pose.orientation;
+  target_pose.orientation = (facing_ * source_pose.orientation * facing_.conjugate()).normalized();
 }
 
 }  // namespace costume::sim
