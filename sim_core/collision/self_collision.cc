@@ -27,19 +27,19 @@ constexpr int kMaxZonePasses = 64;
 constexpr double kCollisionToleranceFraction = 1e-2;
 /// Relative normal motions over a step smaller than this [m] are taken as no motion.
 constexpr double kMotionTolerance = 1e-12;
+/// The proximity sweeps stop once no pair moves by more than this fraction of the thickness
+/// over the step: 4 nm at 4 mm, far below anything visible, and it ends the sweeps early.
+constexpr double kProximityToleranceFraction = 1e-6;
 /// Pinned particles weigh this many cloths in an impact zone, so a zone holding a pin keeps
 /// the pin's velocity (to rounding).
 constexpr double kPinnedWeightFactor = 1e9;
+/// Gauss-Seidel sweeps of the proximity stage per settings.max_iterations: the sweeps are
+/// cheap (cached closest points) and neighbouring pairs need several to agree.
+constexpr int kProximitySweepsPerIteration = 4;
 
 Vec3 Row(const Points& p, int i) { return p.row(i).transpose(); }
 
-/// Four particles with weights α: Σ α_k x_k is the gap vector between the primitives'
-/// closest points (point minus triangle point, or edge A point minus edge B point).
-/// Σ α_k = 0, so an impulse α_k·I·n on each particle conserves momentum (Bridson §7.1).
-struct Stencil {
-  int index[4] = {0, 0, 0, 0};
-  double weight[4] = {0, 0, 0, 0};
-};
+using Stencil = SelfCollision::Stencil;
 
 Vec3 Combine(const Points& values, const Stencil& s) {
   Vec3 sum = Vec3::Zero();
@@ -290,36 +290,14 @@ struct PairCollector : btDbvt::ICollide {
   void Process(const btDbvtNode*) {}
 };
 
-struct Box {
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
-  void Add(const Vec3& p) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
+/// Whether box a of (lo_a, hi_a) and box b of (lo_b, hi_b) (rows of corners) come within
+/// `margin` of each other.
+bool RowsOverlap(const Points& lo_a, const Points& hi_a, int a, const Points& lo_b,
+                 const Points& hi_b, int b, double margin) {
+  for (int d = 0; d < 3; ++d) {
+    if (lo_a(a, d) > hi_b(b, d) + margin || lo_b(b, d) > hi_a(a, d) + margin) return false;
   }
-  bool Overlaps(const Box& o, double margin) const {
-    return (lo.array() <= o.hi.array() + margin).all() && (o.lo.array() <= hi.array() + margin).all();
-  }
-};
-
-/// The box of particles `index[0..count)` swept from start to start + h·velocity.
-Box SweptBox(const int* index, int count, const Points& start, const Points& velocity, double h) {
-  Box box;
-  for (int k = 0; k < count; ++k) {
-    const Vec3 x = Row(start, index[k]);
-    box.Add(x);
-    box.Add(x + h * Row(velocity, index[k]));
-  }
-  return box;
-}
-
-bool SharesParticle(const int* a, int na, const int* b, int nb) {
-  for (int i = 0; i < na; ++i) {
-    for (int j = 0; j < nb; ++j) {
-      if (a[i] == b[j]) return true;
-    }
-  }
-  return false;
+  return true;
 }
 
 int Find(std::vector<int>& parent, int i) {
@@ -442,6 +420,13 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
   // Typical peaks for a cloth: a few dozen overlapping pairs per triangle.
   triangle_pairs_.reserve(32 * static_cast<std::size_t>(num_triangles) + 64);
   pairs_.reserve(64 * static_cast<std::size_t>(num_triangles) + 64);
+  proximities_.reserve(16 * static_cast<std::size_t>(num_triangles) + 64);
+  box_lo_.resize(n, 3);
+  box_hi_.resize(n, 3);
+  edge_lo_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
+  edge_hi_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
+  triangle_lo_.resize(num_triangles, 3);
+  triangle_hi_.resize(num_triangles, 3);
   path_velocity_.resize(n, 3);
   zone_parent_.resize(n);
   zone_size_.resize(n);
@@ -453,20 +438,27 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
 SelfCollision::~SelfCollision() = default;
 
 void SelfCollision::Refit(const Points& start, double h, double margin) {
+  box_lo_ = start.cwiseMin(start + h * path_velocity_);
+  box_hi_ = start.cwiseMax(start + h * path_velocity_);
+  for (std::size_t e = 0; e < edges_.size(); ++e) {
+    edge_lo_.row(e) = box_lo_.row(edges_[e].first).cwiseMin(box_lo_.row(edges_[e].second));
+    edge_hi_.row(e) = box_hi_.row(edges_[e].first).cwiseMax(box_hi_.row(edges_[e].second));
+  }
   const auto& triangles = model_->triangles();
   for (std::size_t t = 0; t < leaves_.size(); ++t) {
-    const int index[3] = {triangles[t][0], triangles[t][1], triangles[t][2]};
-    const Box box = SweptBox(index, 3, start, path_velocity_, h);
+    const Eigen::Vector3i& tri = triangles[t];
+    triangle_lo_.row(t) = box_lo_.row(tri[0]).cwiseMin(box_lo_.row(tri[1])).cwiseMin(box_lo_.row(tri[2]));
+    triangle_hi_.row(t) = box_hi_.row(tri[0]).cwiseMax(box_hi_.row(tri[1])).cwiseMax(box_hi_.row(tri[2]));
     leaves_[t]->volume = btDbvtVolume::FromMM(
-        btVector3(box.lo.x() - margin, box.lo.y() - margin, box.lo.z() - margin),
-        btVector3(box.hi.x() + margin, box.hi.y() + margin, box.hi.z() + margin));
+        btVector3(triangle_lo_(t, 0) - margin, triangle_lo_(t, 1) - margin, triangle_lo_(t, 2) - margin),
+        btVector3(triangle_hi_(t, 0) + margin, triangle_hi_(t, 1) + margin, triangle_hi_(t, 2) + margin));
   }
   for (btDbvtNode* node : internal_nodes_) {
     Merge(node->childs[0]->volume, node->childs[1]->volume, node->volume);
   }
 }
 
-void SelfCollision::CollectPairs(const Points& start, double h, double margin) {
+void SelfCollision::CollectPairs(double margin) {
   triangle_pairs_.clear();
   pairs_.clear();
   PairCollector collector;
@@ -476,25 +468,25 @@ void SelfCollision::CollectPairs(const Points& start, double h, double margin) {
   for (const auto& [ta, tb] : triangle_pairs_) {
     for (int side = 0; side < 2; ++side) {
       const int own = side == 0 ? ta : tb, other = side == 0 ? tb : ta;
-      const int tri[3] = {triangles[other][0], triangles[other][1], triangles[other][2]};
-      const Box tri_box = SweptBox(tri, 3, start, path_velocity_, h);
+      const Eigen::Vector3i& tri = triangles[other];
       const Owned& o = owned_[own];
       for (int k = 0; k < o.num_vertices; ++k) {
         const int v = o.vertices[k];
-        if (SharesParticle(&v, 1, tri, 3)) continue;
-        if (!SweptBox(&v, 1, start, path_velocity_, h).Overlaps(tri_box, margin)) continue;
+        if (v == tri[0] || v == tri[1] || v == tri[2]) continue;
+        if (!RowsOverlap(box_lo_, box_hi_, v, triangle_lo_, triangle_hi_, other, margin)) continue;
         pairs_.push_back({PrimitivePair::kPointTriangle, v, other});
       }
     }
     const Owned& oa = owned_[ta];
     const Owned& ob = owned_[tb];
     for (int i = 0; i < oa.num_edges; ++i) {
-      const int ea[2] = {edges_[oa.edges[i]].first, edges_[oa.edges[i]].second};
-      const Box box_a = SweptBox(ea, 2, start, path_velocity_, h);
+      const auto& [a0, a1] = edges_[oa.edges[i]];
       for (int j = 0; j < ob.num_edges; ++j) {
-        const int eb[2] = {edges_[ob.edges[j]].first, edges_[ob.edges[j]].second};
-        if (SharesParticle(ea, 2, eb, 2)) continue;
-        if (!box_a.Overlaps(SweptBox(eb, 2, start, path_velocity_, h), margin)) continue;
+        const auto& [b0, b1] = edges_[ob.edges[j]];
+        if (a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1) continue;
+        if (!RowsOverlap(edge_lo_, edge_hi_, oa.edges[i], edge_lo_, edge_hi_, ob.edges[j], margin)) {
+          continue;
+        }
         pairs_.push_back({PrimitivePair::kEdgeEdge, oa.edges[i], ob.edges[j]});
       }
     }
@@ -504,53 +496,80 @@ void SelfCollision::CollectPairs(const Points& start, double h, double margin) {
 // Bridson §7.2, with two deviations (docs/collision.md): pairs are also taken when they end
 // the step closer than the thickness, and the repulsion aims at the thickness by the end of
 // the step (not 0.1·d/h) but moves positions only; the state velocity just loses its approach.
-int SelfCollision::ProximityStage(const Points& start, double h, ClothState& state,
-                                  SelfCollisionReport& report) {
+// Closest points and normals come from the start positions, which do not change, so they are
+// found once and the Gauss-Seidel sweeps only revisit the pairs within reach.
+void SelfCollision::ProximityStage(const Points& start, double h, ClothState& state,
+                                   SelfCollisionReport& report) {
   const double thickness = settings_.thickness;
-  int total = 0;
-  const int sweeps = std::max(settings_.max_iterations, 1);
+  proximities_.clear();
+  for (const PrimitivePair& pair : pairs_) {
+    int index[4];
+    PairIndices(pair, *model_, edges_, index);
+    Vec3 x0[4], x1[4];
+    for (int k = 0; k < 4; ++k) {
+      x0[k] = Row(start, index[k]);
+      x1[k] = x0[k] + h * Row(path_velocity_, index[k]);
+    }
+    ++report.pairs_tested;
+    const Proximity p0 = Closest(pair.kind, index, x0);
+    if (p0.distance >= thickness && Closest(pair.kind, index, x1).distance >= thickness) continue;
+    const Vec3 side = -Combine(path_velocity_, p0.stencil);  // approaching from the normal side
+    NearPair near;
+    near.stencil = p0.stencil;
+    near.normal = ContactNormal(p0, PlaneNormal(pair.kind, x0), side);
+    near.distance = p0.distance;
+    near.inverse_mass = InverseEffectiveMass(p0.stencil, inverse_mass_);
+    if (near.inverse_mass <= 0.0) continue;  // all four pinned
+    // Bridson's bound: stopping the approach is always allowed; pushing apart only as far
+    // as the repulsion spring's impulse h·k·d goes.
+    const double approach = std::max(-Combine(path_velocity_, p0.stencil).dot(near.normal), 0.0);
+    const double overlap = std::max(thickness - p0.distance, 0.0);
+    near.max_impulse = approach / near.inverse_mass + h * settings_.stiffness * overlap;
+    proximities_.push_back(near);
+  }
+  const int sweeps = std::max(settings_.max_iterations, 1) * kProximitySweepsPerIteration;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     int acted = 0;
-    for (const PrimitivePair& pair : pairs_) {
-      int index[4];
-      PairIndices(pair, *model_, edges_, index);
-      Vec3 x0[4], x1[4];
-      for (int k = 0; k < 4; ++k) {
-        x0[k] = Row(start, index[k]);
-        x1[k] = x0[k] + h * Row(path_velocity_, index[k]);
-      }
-      if (sweep == 0) ++report.pairs_tested;
-      const Proximity p0 = Closest(pair.kind, index, x0);
-      if (p0.distance >= thickness && Closest(pair.kind, index, x1).distance >= thickness) continue;
-      const Vec3 side = -Combine(path_velocity_, p0.stencil);  // approaching from the normal side
-      const Vec3 n = ContactNormal(p0, PlaneNormal(pair.kind, x0), side);
-      const double normal_velocity = Combine(path_velocity_, p0.stencil).dot(n);
-      const double target = (thickness - p0.distance) / h;
-      const double overlap = std::max(thickness - p0.distance, 0.0);
-      const double repulsion = h * settings_.stiffness * overlap *
-                               InverseEffectiveMass(p0.stencil, inverse_mass_);
-      const double change =
-          std::min(target - normal_velocity, std::max(-normal_velocity, 0.0) + repulsion);
-      const double state_approach = -Combine(state.velocities, p0.stencil).dot(n);
-      const bool path_acts = h * change > kMotionTolerance;
-      const bool state_acts = h * state_approach > kMotionTolerance;
-      if (!path_acts && !state_acts) continue;
-      if (path_acts) {
-        ApplyRelativeChange(path_velocity_, p0.stencil, inverse_mass_, n, change);
-        ApplyFriction(path_velocity_, p0.stencil, inverse_mass_, n, change, settings_.friction);
-      }
-      if (state_acts) {
-        ApplyRelativeChange(state.velocities, p0.stencil, inverse_mass_, n, state_approach);
-        ApplyFriction(state.velocities, p0.stencil, inverse_mass_, n, state_approach,
-                      settings_.friction);
-      }
-      ++acted;
-    }
-    total += acted;
+    for (NearPair& near : proximities_) acted += Repel(near, h, state) ? 1 : 0;
     if (acted == 0) break;
   }
-  report.proximity_impulses += total;
-  return total;
+  for (const NearPair& near : proximities_) {
+    report.proximity_impulses += near.path_impulse > 0.0 || near.state_impulse > 0.0 ? 1 : 0;
+  }
+}
+
+// Projected Gauss-Seidel: each pair keeps its accumulated impulse, which a later visit may
+// lower again (never below zero), so the sweeps converge to the non-negative impulses that
+// satisfy every pair at once instead of piling up whatever the first visits applied.
+bool SelfCollision::Repel(NearPair& near, double h, ClothState& state) {
+  const double thickness = settings_.thickness;
+  const double tolerance = kProximityToleranceFraction * thickness;
+  const Stencil& stencil = near.stencil;
+  const Vec3& n = near.normal;
+  // Aimed two tolerances beyond the thickness, so that a pair the sweeps leave within
+  // tolerance of its target still ends the step at least the thickness apart.
+  const double target = (thickness + 2.0 * tolerance - near.distance) / h;
+  const double path_change = target - Combine(path_velocity_, stencil).dot(n);
+  const double path_impulse =
+      std::clamp(near.path_impulse + path_change / near.inverse_mass, 0.0, near.max_impulse);
+  const double state_change = -Combine(state.velocities, stencil).dot(n);
+  const double state_impulse =
+      std::max(near.state_impulse + state_change / near.inverse_mass, 0.0);
+  const double path_delta = (path_impulse - near.path_impulse) * near.inverse_mass;
+  const double state_delta = (state_impulse - near.state_impulse) * near.inverse_mass;
+  const bool path_acts = h * std::abs(path_delta) > tolerance;
+  const bool state_acts = h * std::abs(state_delta) > tolerance;
+  if (path_acts) {
+    ApplyRelativeChange(path_velocity_, stencil, inverse_mass_, n, path_delta);
+    ApplyFriction(path_velocity_, stencil, inverse_mass_, n, path_delta, settings_.friction);
+    near.path_impulse = path_impulse;
+  }
+  if (state_acts) {
+    ApplyRelativeChange(state.velocities, stencil, inverse_mass_, n, state_delta);
+    ApplyFriction(state.velocities, stencil, inverse_mass_, n, state_delta, settings_.friction);
+    near.state_impulse = state_impulse;
+  }
+  return path_acts || state_acts;
 }
 
 // Bridson §6 and §7.3: the earliest coplanarity time in the step at which the primitives
@@ -558,10 +577,11 @@ int SelfCollision::ProximityStage(const Points& start, double h, ClothState& sta
 // approach. With merge_zones, collisions only join their particles' impact zones.
 int SelfCollision::CollisionPass(const Points& start, double h, ClothState& state,
                                  bool merge_zones, SelfCollisionReport& report) {
-  Refit(start, h, settings_.thickness);
-  CollectPairs(start, h, settings_.thickness);
-  ++report.collision_passes;
+  // Continuous detection needs no thickness: only boxes that touch along the path matter.
   const double tolerance = kCollisionToleranceFraction * settings_.thickness;
+  Refit(start, h, tolerance);
+  CollectPairs(tolerance);
+  ++report.collision_passes;
   int found = 0;
   for (const PrimitivePair& pair : pairs_) {
     int index[4];
@@ -674,7 +694,7 @@ SelfCollisionReport SelfCollision::Resolve(const Points& start_positions, double
   if (leaves_.empty()) return report;
   path_velocity_ = (state.positions - start_positions) / h;
   Refit(start_positions, h, settings_.thickness);
-  CollectPairs(start_positions, h, settings_.thickness);
+  CollectPairs(settings_.thickness);
   ProximityStage(start_positions, h, state, report);
   int found = 1;
   for (int pass = 0; found > 0 && pass < settings_.max_iterations; ++pass) {

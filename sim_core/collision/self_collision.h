@@ -101,6 +101,14 @@ class SelfCollision {
     int b = 0;
   };
 
+  /// Four particles with weights α_k such that Σ α_k x_k is the gap vector between a pair's
+  /// closest points (point minus triangle point, or edge A point minus edge B point).
+  /// Σ α_k = 0, so impulses α_k·I·n conserve momentum (Bridson §7.1).
+  struct Stencil {
+    int index[4] = {0, 0, 0, 0};
+    double weight[4] = {0, 0, 0, 0};
+  };
+
  private:
   /// Particles and edges of the mesh assigned to a triangle, so that each point–triangle and
   /// edge–edge pair is met exactly once per overlapping triangle pair.
@@ -111,10 +119,25 @@ class SelfCollision {
     int num_edges = 0;
   };
 
+  /// A pair within reach of the thickness: closest points and normal at the step's start.
+  struct NearPair {
+    Stencil stencil;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
+    double distance = 0.0;
+    /// Σ α_k²/m_k [1/kg] (> 0: pairs of four pinned particles are dropped).
+    double inverse_mass = 0.0;
+    /// Bounds and accumulated values of the pair's normal impulses [N·s] on the path and
+    /// on the state velocities (projected Gauss-Seidel).
+    double max_impulse = 0.0;
+    double path_impulse = 0.0;
+    double state_impulse = 0.0;
+  };
+
   void Refit(const Points& start, double h, double margin);
-  void CollectPairs(const Points& start, double h, double margin);
-  int ProximityStage(const Points& start, double h, ClothState& state,
-                     SelfCollisionReport& report);
+  void CollectPairs(double margin);
+  void ProximityStage(const Points& start, double h, ClothState& state,
+                      SelfCollisionReport& report);
+  bool Repel(NearPair& near, double h, ClothState& state);
   int CollisionPass(const Points& start, double h, ClothState& state, bool merge_zones,
                     SelfCollisionReport& report);
   void ImpactZones(const Points& start, double h, ClothState& state,
@@ -132,6 +155,9 @@ class SelfCollision {
   // Scratch, sized once.
   std::vector<std::pair<int, int>> triangle_pairs_;
   std::vector<PrimitivePair> pairs_;
+  std::vector<NearPair> proximities_;
+  /// Boxes swept over the step (corners, one row per particle, edge, triangle) [m].
+  Points box_lo_, box_hi_, edge_lo_, edge_hi_, triangle_lo_, triangle_hi_;
   Points path_velocity_;
   std::vector<int> zone_parent_;
   std::vector<int> zone_size_;
