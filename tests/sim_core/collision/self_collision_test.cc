@@ -9,12 +9,28 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <new>
 
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/material.h"
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/solver/implicit_stepper.h"
 #include "sim_core/solver/strain_limit.h"
+
+// Counts operator-new allocations (std::vector growth) so a test can check that a repeated
+// Resolve allocates nothing. Eigen and Bullet call malloc directly and are not counted; their
+// buffers (path velocities, boxes, the tree's stack) are sized once by construction.
+namespace {
+std::size_t g_allocations = 0;
+}  // namespace
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace costume::sim {
 namespace {
@@ -136,6 +152,44 @@ TEST(CountCrossingEdges, CountsAnEdgeThroughATriangleOnceAndIgnoresNeighbours) {
   EXPECT_EQ(CountCrossingEdges(*model, x), 2);
   x(3, 1) = 0.0;  // touching A's plane only: not a crossing
   EXPECT_EQ(CountCrossingEdges(*model, x), 0);
+}
+
+TEST(SelfCollision, ImpactZonesAloneStopTheFastParticleKeepingMomentum) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
+  SelfCollisionSettings settings;
+  settings.max_iterations = 0;  // no impulse passes: straight to the impact-zone fallback
+  SelfCollision self_collision(model, settings);
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities(3, 1) = -20.0;
+  state.positions = start + h * state.velocities;
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_EQ(report.collision_impulses, 0);
+  EXPECT_GE(report.zone_particles, 4);  // the falling particle and the triangle it hit
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  EXPECT_NEAR(Momentum(*model, state.velocities).y(), -0.02, 1e-14);
+}
+
+TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.003, 1e-3, 2e-3);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities.col(1) << 1, 1, 1, -1, -1, -1;
+  state.positions = start + h * state.velocities;
+  const ClothState input = state;
+  self_collision.Resolve(start, h, state);  // first call: buffers reach their size
+  state.positions = input.positions;
+  state.velocities = input.velocities;
+  const std::size_t before = g_allocations;
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+  EXPECT_EQ(g_allocations, before);
+  EXPECT_GT(report.proximity_impulses, 0);
 }
 
 TEST(SelfCollision, RefusesBadSettingsNamingTheField) {
