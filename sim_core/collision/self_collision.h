@@ -1,0 +1,176 @@
+#pragma once
+/// @file
+/// Cloth–cloth (self) collision after Bridson, Fedkiw & Anderson 2002, "Robust treatment of
+/// collisions, contact and friction for cloth animation" (§6 detection, §7.1–7.4 response),
+/// run after the implicit solve on the step's straight-line path from the start-of-step
+/// positions to the end-of-step positions. Broad phase: Bullet's btDbvt over the triangles'
+/// boxes swept along that path and fattened by the thickness; its topology is built once
+/// from the rest shape and only refitted afterwards. docs/collision.md "## Self-collision"
+/// gives the pipeline and the places where it deviates from the paper.
+///
+/// Costs nothing when off: a scene without self-collision simply makes no SelfCollision.
+
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/cloth/cloth_state.h"
+
+struct btDbvt;      // Bullet's dynamic AABB tree; kept out of this header (Bullet is private).
+struct btDbvtNode;
+
+namespace costume::sim {
+
+/// How self-collision is handled.
+struct SelfCollisionSettings {
+  /// Cloth thickness [m] > 0: the distance kept between parts of the cloth that share no
+  /// particle (Bridson's h).
+  double thickness = 0.004;
+  /// Coulomb friction coefficient between touching parts of the cloth [-] >= 0.
+  double friction = 0.3;
+  /// Repulsion spring stiffness [N/m] >= 0: a pair closer than the thickness by d is pushed
+  /// apart by at most the impulse h·stiffness·d (Bridson §7.2); 0 disables the push-out (only
+  /// the approach is stopped).
+  double stiffness = 1000.0;
+  /// Passes of continuous collision detection with inelastic impulses (Bridson §7.3) before
+  /// the impact-zone fallback [-] >= 0; also the number of Gauss-Seidel sweeps of the
+  /// proximity stage.
+  int max_iterations = 4;
+};
+
+/// Checks every field; throws InputError naming `context`.field, its value and range.
+void ValidateSelfCollisionSettings(const SelfCollisionSettings& settings,
+                                   const std::string& context);
+
+/// What one Resolve did. Flags and counters instead of exceptions.
+struct SelfCollisionReport {
+  /// The call was refused (positions of the wrong size, h not finite and > 0, non-finite
+  /// input) and left the state untouched. Remedy: the caller's bug or a rolled-back step.
+  bool skipped = false;
+  /// Primitive pairs (point–triangle and edge–edge sharing no particle) examined by the
+  /// narrow phase, summed over the proximity stage and every collision pass.
+  int pairs_tested = 0;
+  /// Proximity pairs that received a repulsion / inelastic impulse (§7.2).
+  int proximity_impulses = 0;
+  /// Inelastic impulses for collisions found by continuous detection (§7.3).
+  int collision_impulses = 0;
+  /// Continuous-detection passes run (at most settings.max_iterations, plus the zone passes).
+  int collision_passes = 0;
+  /// Particles merged into impact zones that move without relative motion (the fallback).
+  int zone_particles = 0;
+  /// Collisions continuous detection still found after the last pass; 0 means the path from
+  /// the start to the end positions crosses nothing. Remedy when > 0: a smaller step.
+  int remaining_collisions = 0;
+};
+
+/// Resolves cloth–cloth contacts and collisions of one cloth model. Holds the broad-phase
+/// tree and all scratch memory; not thread-safe; one instance per simulated cloth.
+class SelfCollision {
+ public:
+  /// Builds the broad phase over `model`'s triangles at its rest positions. Throws
+  /// InputError for bad settings (ValidateSelfCollisionSettings) or a triangle that repeats
+  /// a particle.
+  SelfCollision(std::shared_ptr<const ClothModel> model, const SelfCollisionSettings& settings);
+  ~SelfCollision();
+  SelfCollision(const SelfCollision&) = delete;
+  SelfCollision& operator=(const SelfCollision&) = delete;
+
+  /// Makes the step from `start_positions` (n×3) [m] to `state.positions` (n×3) [m]
+  /// collision-free, for a step of length h [s] > 0. The path velocity v̄ = (end − start)/h
+  /// is changed by the impulses and the end positions become start + h·v̄; `state.velocities`
+  /// (n×3) [m/s] receive the same inelastic and friction impulses but not the push-out that
+  /// restores the thickness (position only, so no energy is added; as in strain_limit.h).
+  /// Pinned particles have infinite mass. Linear momentum is conserved by every impulse.
+  /// Precondition for the guarantee: `start_positions` themselves cross nothing.
+  /// Never throws; allocation-free once its buffers have grown to the largest step's needs
+  /// (they are reserved for a typical cloth at construction).
+  SelfCollisionReport Resolve(const Points& start_positions, double h, ClothState& state);
+
+  const SelfCollisionSettings& settings() const { return settings_; }
+  /// The cloth's unique edges (each particle pair of a triangle side once).
+  const std::vector<std::pair<int, int>>& edges() const { return edges_; }
+
+  /// One narrow-phase candidate: kind kPointTriangle (a = particle, b = triangle) or
+  /// kEdgeEdge (a, b = edges).
+  struct PrimitivePair {
+    enum Kind : int { kPointTriangle = 0, kEdgeEdge = 1 };
+    Kind kind = kPointTriangle;
+    int a = 0;
+    int b = 0;
+  };
+
+  /// Four particles with weights α_k such that Σ α_k x_k is the gap vector between a pair's
+  /// closest points (point minus triangle point, or edge A point minus edge B point).
+  /// Σ α_k = 0, so impulses α_k·I·n conserve momentum (Bridson §7.1).
+  struct Stencil {
+    int index[4] = {0, 0, 0, 0};
+    double weight[4] = {0, 0, 0, 0};
+  };
+
+ private:
+  /// Particles and edges of the mesh assigned to a triangle, so that each point–triangle and
+  /// edge–edge pair is met exactly once per overlapping triangle pair.
+  struct Owned {
+    int vertices[3] = {0, 0, 0};
+    int num_vertices = 0;
+    int edges[3] = {0, 0, 0};
+    int num_edges = 0;
+  };
+
+  /// A pair within reach of the thickness: closest points and normal at the step's start.
+  struct NearPair {
+    Stencil stencil;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
+    double distance = 0.0;
+    /// Σ α_k²/m_k [1/kg] (> 0: pairs of four pinned particles are dropped).
+    double inverse_mass = 0.0;
+    /// Bounds and accumulated values of the pair's normal impulses [N·s] on the path and
+    /// on the state velocities (projected Gauss-Seidel).
+    double max_impulse = 0.0;
+    double path_impulse = 0.0;
+    double state_impulse = 0.0;
+  };
+
+  void Refit(const Points& start, double h, double margin);
+  void CollectPairs(double margin);
+  void ProximityStage(const Points& start, double h, ClothState& state,
+                      SelfCollisionReport& report);
+  bool Repel(NearPair& near, double h, ClothState& state);
+  int CollisionPass(const Points& start, double h, ClothState& state, bool merge_zones,
+                    SelfCollisionReport& report);
+  void ImpactZones(const Points& start, double h, ClothState& state,
+                   SelfCollisionReport& report);
+
+  std::shared_ptr<const ClothModel> model_;
+  SelfCollisionSettings settings_;
+  Eigen::VectorXd inverse_mass_;
+  std::vector<std::pair<int, int>> edges_;
+  std::vector<Owned> owned_;
+  std::unique_ptr<btDbvt> tree_;
+  /// One leaf per triangle, and the internal nodes children first (the refit order).
+  std::vector<btDbvtNode*> leaves_;
+  std::vector<btDbvtNode*> internal_nodes_;
+  // Scratch, sized once.
+  std::vector<std::pair<int, int>> triangle_pairs_;
+  std::vector<PrimitivePair> pairs_;
+  std::vector<NearPair> proximities_;
+  /// Boxes swept over the step (corners, one row per particle, edge, triangle) [m].
+  Points box_lo_, box_hi_, edge_lo_, edge_hi_, triangle_lo_, triangle_hi_;
+  Points path_velocity_;
+  std::vector<int> zone_parent_;
+  std::vector<int> zone_size_;
+  Eigen::VectorXd zone_mass_;
+  Points zone_momentum_, zone_state_momentum_;
+};
+
+/// Counts the cloth edges (each unique triangle side once) that pass through a triangle of
+/// the same cloth sharing none of its particles, at `positions` (n×3) [m]: the test oracle
+/// for self-intersection. Brute force over all edge–triangle pairs with orientation
+/// (signed-volume) tests: an edge counts when its ends lie strictly on opposite sides of the
+/// triangle's plane and the line through it passes strictly inside the triangle; touching
+/// and coplanar configurations do not count. O(edges × triangles); for tests and tools.
+int CountCrossingEdges(const ClothModel& model, const Points& positions);
+
+}  // namespace costume::sim

@@ -1,0 +1,307 @@
+// Self-collision: proximity repulsion keeps the thickness and conserves momentum, continuous
+// detection stops what proximity alone misses, and a folded napkin dropped on a sphere ends
+// without one edge through the cloth (and does not without self-collision).
+#include "sim_core/collision/self_collision.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <new>
+
+#include "sim_core/cloth/lattice_panel.h"
+#include "sim_core/cloth/material.h"
+#include "sim_core/collision/sphere_contacts.h"
+#include "sim_core/solver/implicit_stepper.h"
+#include "sim_core/solver/strain_limit.h"
+
+// Counts operator-new allocations (std::vector growth) so a test can check that a repeated
+// Resolve allocates nothing. Eigen and Bullet call malloc directly and are not counted; their
+// buffers (path velocities, boxes, the tree's stack) are sized once by construction.
+namespace {
+std::size_t g_allocations = 0;
+}  // namespace
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+// GCC cannot see that the replaced operator new above returns malloc'd memory.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#pragma GCC diagnostic pop
+
+namespace costume::sim {
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+/// Two equilateral triangles without a shared particle, centred on the y axis: A = particles
+/// 0–2 in the plane y = 0, circumradius 0.2 m (mass `mass_a` each); B = particles 3–5, the same
+/// shape scaled to 0.03 m at height `gap` (mass `mass_b` each), so B lies well inside A's
+/// outline and, by symmetry, anything B does to A pushes A's three particles alike.
+std::shared_ptr<const ClothModel> TwoTriangles(double gap, double mass_a, double mass_b) {
+  ClothModelData data;
+  data.name = "two triangles";
+  data.rest_positions.resize(6, 3);
+  for (int k = 0; k < 3; ++k) {
+    const double angle = 2.0 * M_PI * k / 3.0;
+    data.rest_positions.row(k) << 0.2 * std::sin(angle), 0.0, 0.2 * std::cos(angle);
+    data.rest_positions.row(3 + k) << 0.03 * std::sin(angle), gap, 0.03 * std::cos(angle);
+  }
+  data.masses.resize(6);
+  data.masses << mass_a, mass_a, mass_a, mass_b, mass_b, mass_b;
+  data.areas = Eigen::VectorXd::Zero(6);
+  data.triangles = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(3, 4, 5)};
+  return ClothModel::Create(data);
+}
+
+Vec3 Momentum(const ClothModel& model, const Points& velocities) {
+  return (velocities.transpose() * model.masses());
+}
+
+/// Height of B's particles above A's plane at `x` (A's normal taken upwards).
+double LowestHeightOfBAboveA(const Points& x) {
+  const Vec3 a = x.row(0), b = x.row(1), c = x.row(2);
+  Vec3 n = (b - a).cross(c - a).normalized();
+  if (n.y() < 0.0) n = -n;
+  double lowest = 1e9;
+  for (int i = 3; i < 6; ++i) lowest = std::min(lowest, (Vec3(x.row(i)) - a).dot(n));
+  return lowest;
+}
+
+TEST(SelfCollision, HeadOnTrianglesEndAtLeastTheThicknessApartKeepingMomentum) {
+  const double gap = 0.003, h = 1.0 / 240.0, mass_a = 1e-3, mass_b = 2e-3;
+  const auto model = TwoTriangles(gap, mass_a, mass_b);
+  SelfCollisionSettings settings;  // thickness 4 mm > gap
+  SelfCollision self_collision(model, settings);
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  // A rises at 1 m/s, B falls at 1 m/s: unresolved they pass through each other this step.
+  state.velocities.col(1) << 1, 1, 1, -1, -1, -1;
+  state.positions = start + h * state.velocities;
+  ASSERT_LT(LowestHeightOfBAboveA(state.positions), 0.0);
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_FALSE(report.skipped);
+  EXPECT_GT(report.proximity_impulses, 0);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_GE(LowestHeightOfBAboveA(state.positions), settings.thickness);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  // Momentum by hand: 3·1 g·(+1 m/s) + 3·2 g·(−1 m/s) = −3e-3 kg·m/s along y, none across.
+  const Vec3 momentum = Momentum(*model, state.velocities);
+  EXPECT_NEAR(momentum.y(), -3e-3, 1e-15);
+  EXPECT_NEAR(momentum.x(), 0.0, 1e-15);
+  EXPECT_NEAR(momentum.z(), 0.0, 1e-15);
+  // The push-out moves positions only, mass-weighted about the centre of mass: the centre
+  // moves as the momentum says, h·(−3e-3 kg·m/s)/(9e-3 kg) = −h/3 along y.
+  const double total_mass = 3 * mass_a + 3 * mass_b;
+  const Vec3 centre_shift =
+      ((state.positions - start).transpose() * model->masses()) / total_mass;
+  EXPECT_NEAR(centre_shift.y(), -h / 3.0, 1e-13);
+  EXPECT_NEAR(centre_shift.x(), 0.0, 1e-13);
+  // Fully inelastic and symmetric: every particle ends with the common velocity p/M =
+  // −3e-3 / 9e-3 = −1/3 m/s along y (to the sweeps' tolerance).
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(state.velocities(i, 1), -1.0 / 3.0, 1e-5) << "particle " << i;
+  }
+  const double kinetic_before = 0.5 * total_mass * 1.0;  // every particle at 1 m/s
+  const double kinetic_after =
+      0.5 * (state.velocities.rowwise().squaredNorm().transpose() * model->masses())(0);
+  EXPECT_LT(kinetic_after, kinetic_before);
+}
+
+TEST(SelfCollision, ContinuousDetectionStopsAFastParticleProximityMisses) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  // Particle 3 falls at 20 m/s: 83 mm in one step, from 50 mm above A to 33 mm below it,
+  // farther than the 4 mm thickness from A at both ends of the step.
+  state.velocities(3, 1) = -20.0;
+  state.positions = start + h * state.velocities;
+  ASSERT_EQ(CountCrossingEdges(*model, state.positions), 2);  // edges 3–4 and 3–5
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_EQ(report.proximity_impulses, 0);  // proximity alone saw nothing
+  EXPECT_GE(report.collision_impulses, 1);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  EXPECT_GT(LowestHeightOfBAboveA(state.positions), 0.0);
+  // Momentum by hand: 1 g at −20 m/s.
+  const Vec3 momentum = Momentum(*model, state.velocities);
+  EXPECT_NEAR(momentum.y(), -0.02, 1e-14);
+  EXPECT_NEAR(momentum.x(), 0.0, 1e-14);
+  EXPECT_NEAR(momentum.z(), 0.0, 1e-14);
+}
+
+TEST(CountCrossingEdges, CountsAnEdgeThroughATriangleOnceAndIgnoresNeighbours) {
+  // A flat lattice has no crossings (neighbours share particles or lie beside each other).
+  LatticePanel panel;
+  panel.cols = panel.rows = 5;
+  const auto flat = ClothModel::Create(BuildLatticePanel(panel, Material{}, "flat"));
+  EXPECT_EQ(CountCrossingEdges(*flat, flat->rest_positions()), 0);
+  // One particle of B pushed straight through A's interior: its two edges cross A.
+  const auto model = TwoTriangles(0.01, 1e-3, 1e-3);
+  Points x = model->rest_positions();
+  x(3, 1) = -0.01;
+  EXPECT_EQ(CountCrossingEdges(*model, x), 2);
+  x(3, 1) = 0.0;  // touching A's plane only: not a crossing
+  EXPECT_EQ(CountCrossingEdges(*model, x), 0);
+}
+
+TEST(SelfCollision, ImpactZonesAloneStopTheFastParticleKeepingMomentum) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
+  SelfCollisionSettings settings;
+  settings.max_iterations = 0;  // no impulse passes: straight to the impact-zone fallback
+  SelfCollision self_collision(model, settings);
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities(3, 1) = -20.0;
+  state.positions = start + h * state.velocities;
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_EQ(report.collision_impulses, 0);
+  EXPECT_GE(report.zone_particles, 4);  // the falling particle and the triangle it hit
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  EXPECT_NEAR(Momentum(*model, state.velocities).y(), -0.02, 1e-14);
+}
+
+TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.003, 1e-3, 2e-3);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities.col(1) << 1, 1, 1, -1, -1, -1;
+  state.positions = start + h * state.velocities;
+  const ClothState input = state;
+  self_collision.Resolve(start, h, state);  // first call: buffers reach their size
+  state.positions = input.positions;
+  state.velocities = input.velocities;
+  const std::size_t before = g_allocations;
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+  EXPECT_EQ(g_allocations, before);
+  EXPECT_GT(report.proximity_impulses, 0);
+}
+
+TEST(SelfCollision, RefusesBadSettingsNamingTheField) {
+  const auto model = TwoTriangles(0.01, 1e-3, 1e-3);
+  SelfCollisionSettings settings;
+  settings.thickness = -1.0;
+  try {
+    SelfCollision self_collision(model, settings);
+    FAIL() << "expected InputError";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("thickness"), std::string::npos) << e.what();
+  }
+}
+
+// ---- the test: a folded napkin dropped on a sphere -------------------------------
+
+constexpr int kNapkinSize = 21;      // particles per side
+constexpr double kNapkinWidth = 0.5;  // m
+constexpr double kFoldGap = 0.02;     // m between the halves
+
+/// A 21×21, 0.5 m lattice of stiff cotton folded like a napkin: rows 0–10 flat at y = 0.05,
+/// rows 11–20 laid back over rows 10–1, 2 cm higher.
+std::shared_ptr<const ClothModel> FoldedNapkin() {
+  LatticePanel panel;
+  panel.origin = Vec3(-0.25, 0.05, -0.25);
+  panel.width = panel.height = kNapkinWidth;
+  panel.cols = panel.rows = kNapkinSize;
+  ClothModelData data = BuildLatticePanel(panel, Material{}, "napkin");
+  const Points flat = data.rest_positions;
+  for (int i = kNapkinSize / 2 + 1; i < kNapkinSize; ++i) {
+    for (int j = 0; j < kNapkinSize; ++j) {
+      data.rest_positions.row(i * kNapkinSize + j) =
+          flat.row((kNapkinSize - i) * kNapkinSize + j) + Eigen::RowVector3d(0, kFoldGap, 0);
+    }
+  }
+  return ClothModel::Create(std::move(data));
+}
+
+struct DropOutcome {
+  int crossing_edges = 0;
+  int steps_with_remaining_collisions = 0;
+  double worst_self_collision_ms = 0.0;
+  double mean_self_collision_ms = 0.0;
+  bool rolled_back = false;
+};
+
+/// Drops the folded napkin onto a sphere under its folded part and simulates 1.5 s in steps
+/// of 1/240 s the way sim_core/scene/simulation.cc does (sphere contacts in the solve, strain
+/// limit, projection out of the sphere), then, when asked, self-collision on the step's path.
+DropOutcome DropFoldedNapkin(bool with_self_collision) {
+  const auto model = FoldedNapkin();
+  const double h = 1.0 / 240.0;
+  ImplicitStepper stepper(model, StepperSettings{});
+  SphereObstacle sphere;
+  sphere.radius = 0.12;
+  sphere.center = Vec3(0.0, -sphere.radius - sphere.thickness, -0.12);
+  std::unique_ptr<SelfCollision> self_collision;
+  if (with_self_collision) {
+    self_collision = std::make_unique<SelfCollision>(model, SelfCollisionSettings{});
+  }
+  ClothState state = ClothState::AtRest(*model);
+  Points start = state.positions;
+  std::vector<Contact> contacts;
+  contacts.reserve(model->num_particles());
+  DropOutcome outcome;
+  double total_ms = 0.0;
+  const int steps = static_cast<int>(std::lround(1.5 / h));
+  for (int step = 0; step < steps; ++step) {
+    start = state.positions;
+    contacts.clear();
+    FindSphereContacts(sphere, state.positions, state.velocities, h, 0.5 * sphere.thickness,
+                       contacts);
+    const StepReport report = stepper.Step(state, h, contacts);
+    outcome.rolled_back = outcome.rolled_back || report.rolled_back;
+    LimitStrain(*model, 0.1, 4, state);
+    ProjectOutOfSphere(sphere, state.positions, state.velocities);
+    if (self_collision) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const SelfCollisionReport sc = self_collision->Resolve(start, h, state);
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      total_ms += ms;
+      outcome.worst_self_collision_ms = std::max(outcome.worst_self_collision_ms, ms);
+      outcome.steps_with_remaining_collisions += sc.remaining_collisions > 0 ? 1 : 0;
+    }
+  }
+  outcome.mean_self_collision_ms = total_ms / steps;
+  outcome.crossing_edges = CountCrossingEdges(*model, state.positions);
+  return outcome;
+}
+
+TEST(SelfCollision, FoldedNapkinDroppedOnASphereEndsWithoutCrossingEdges) {
+  const auto model = FoldedNapkin();
+  ASSERT_EQ(CountCrossingEdges(*model, model->rest_positions()), 0);  // starts clean
+
+  const DropOutcome without = DropFoldedNapkin(false);
+  const DropOutcome with = DropFoldedNapkin(true);
+
+  EXPECT_FALSE(without.rolled_back);
+  EXPECT_FALSE(with.rolled_back);
+  EXPECT_GT(without.crossing_edges, 0) << "the scene must be able to fail";
+  EXPECT_EQ(with.crossing_edges, 0);
+  EXPECT_EQ(with.steps_with_remaining_collisions, 0);
+  std::printf("folded napkin: %d crossing edges without self-collision, %d with; "
+              "self-collision %.3f ms mean, %.3f ms worst per step\n",
+              without.crossing_edges, with.crossing_edges, with.mean_self_collision_ms,
+              with.worst_self_collision_ms);
+}
+
+}  // namespace
+}  // namespace costume::sim
