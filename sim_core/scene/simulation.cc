@@ -147,10 +147,6 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene) {
 
 std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene) {
   ValidateScene(scene);
-  if (scene.effects.self_collision) {
-    throw InputError(scene.source + ": effects.self_collision = true is not available in " +
-                     "this version (it arrives with avatar collision); set it to false");
-  }
   std::vector<GarmentRange> garments;
   std::vector<BodyAttachment> attachments;
   auto model = BuildSceneModel(scene, &garments, &attachments);
@@ -182,6 +178,12 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     body_ = MakeBodyCollider(spec.collision, spec.avatar, contact);
     body_->Update(avatar_->joint_world(), avatar_->vertices(), step());
     attachments_ = std::move(attachments);
+  }
+  if (scene_.effects.self_collision) {
+    SelfCollisionSettings settings;
+    if (scene_.avatar) settings.thickness = scene_.avatar->thickness;
+    self_collision_ = std::make_unique<SelfCollision>(model_, settings);
+    start_positions_ = state_.positions;
   }
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
@@ -242,6 +244,7 @@ void Simulation::StepOnce(FrameReport& report) {
   if (avatar_) MoveAvatar(state_.time + h, h);
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
+  if (self_collision_) start_positions_ = state_.positions;
   const StepReport step_report = stepper_.Step(state_, h, contacts_);
   std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
   for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
@@ -262,6 +265,13 @@ void Simulation::StepOnce(FrameReport& report) {
     report.max_penetration =
         std::max(report.max_penetration, body_->ProjectOut(state_.positions, state_.velocities));
     report.collision_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  }
+  if (self_collision_) {
+    const auto start = std::chrono::steady_clock::now();
+    const SelfCollisionReport self = self_collision_->Resolve(start_positions_, h, state_);
+    report.unresolved_self_collisions += self.remaining_collisions;
+    report.self_collision_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
 }

@@ -12,6 +12,7 @@
 #include "sim_core/cloth/cloth_state.h"
 #include "sim_core/collision/body_collider.h"
 #include "sim_core/collision/contact.h"
+#include "sim_core/collision/self_collision.h"
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
 #include "sim_core/scene/scene_description.h"
@@ -57,6 +58,10 @@ struct FrameReport {
   double max_penetration = 0.0;
   /// Time spent finding contacts with the avatar and correcting positions [ms].
   double collision_ms = 0.0;
+  /// Time spent on self-collision [ms] (0 when the scene switches it off).
+  double self_collision_ms = 0.0;
+  /// Cloth–cloth collisions self-collision could not resolve, summed over the steps.
+  int unresolved_self_collisions = 0;
   /// Wall-clock time of the frame [ms].
   double wall_ms = 0.0;
 };
@@ -104,6 +109,10 @@ class Simulation {
   std::unique_ptr<AvatarMotion> avatar_;
   std::unique_ptr<BodyCollider> body_;
   std::vector<BodyAttachment> attachments_;
+  /// Built only when the scene switches self-collision on (off costs nothing).
+  std::unique_ptr<SelfCollision> self_collision_;
+  /// Positions at the start of the step, for self-collision's continuous tests.
+  Points start_positions_;
   std::vector<Contact> contacts_;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
