@@ -192,7 +192,11 @@ std::shared_ptr<const sim::Avatar> LoadAvatar(const std::string& path,
   } else {
     MapToHAnim(joints);
   }
-  data.skeleton = sim::Skeleton::Create(data.name, std::move(joints));
+  try {
+    data.skeleton = sim::Skeleton::Create(data.name, std::move(joints));
+  } catch (const InputError& e) {
+    throw InputError(path + ": " + e.what());
+  }
   data.rest_vertices.resize(static_cast<Eigen::Index>(surface.vertices.size()), 3);
   for (std::size_t v = 0; v < surface.vertices.size(); ++v) {
     data.rest_vertices.row(static_cast<Eigen::Index>(v)) = surface.vertices[v].transpose();

@@ -23,6 +23,8 @@ using sim::InputError;
 /// Tolerances of the loop test: a clip whose end pose is this close to its start pose loops.
 constexpr double kLoopAngle = 10.0 * M_PI / 180.0;
 constexpr double kLoopDistance = 0.05;
+/// More frames than this is a damaged file or a wrong time unit, not a clip.
+constexpr double kMaxFrames = 1e6;
 
 std::string LowerExtension(const std::string& path) {
   std::string extension = std::filesystem::path(path).extension().string();
@@ -176,6 +178,11 @@ sim::Clip LoadAssimpClip(const std::string& path, const ClipImportOptions& optio
   if (!std::isfinite(duration) || duration < 0.0 || duration > 1e6) {
     throw InputError(path + ": animation duration " + sim::FormatValue(duration) +
                      " s (allowed: 0..1e6)");
+  }
+  if (duration * options.sample_rate > kMaxFrames) {
+    throw InputError(path + ": animation of " + sim::FormatValue(duration) + " s at " +
+                     sim::FormatValue(options.sample_rate) + " Hz exceeds " +
+                     sim::FormatValue(kMaxFrames) + " frames");
   }
   const AnimationSampler sampler(animation, skeleton, file_to_world);
   const int intervals = std::max(1, static_cast<int>(std::lround(duration * options.sample_rate)));

@@ -15,9 +15,9 @@ namespace costume::assets {
 /// How a clip file is read. The defaults suit the files in ../shared/data.
 struct ClipImportOptions {
   /// Metres per file unit, 0 to detect: glTF metres; Collada its <unit> (applied by
-  /// assimp); FBX its UnitScaleFactor (cm × factor); BVH and DeepMimic say nothing, so the
-  /// unit is guessed from the skeleton's rest height (GuessMetresPerUnit: CMU 02_02 is in
-  /// cm, CMU 10_01 in inches, MakeHuman's BVH in dm, DeepMimic in m). Else finite and > 0.
+  /// assimp); FBX its UnitScaleFactor (cm × factor); DeepMimic metres; BVH says nothing,
+  /// so the unit is guessed from the skeleton's rest height (GuessMetresPerUnit: CMU 02_02
+  /// comes out in cm, CMU 10_01 in inches, MakeHuman's BVH in dm). Else finite and > 0.
   double scale = 0.0;
   /// Which file axis is up (see UpAxis).
   UpAxis up = UpAxis::kAuto;
