@@ -1,0 +1,180 @@
+#include "assets/assimp_skeleton.h"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <assimp/Importer.hpp>
+#include <assimp/scene.h>
+#include <cctype>
+#include <exception>
+#include <filesystem>
+#include <unordered_set>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::assets {
+namespace {
+
+std::string LowerExtension(const std::string& path) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
+}
+
+/// A numeric metadata entry of the scene, if present.
+std::optional<double> MetadataNumber(const aiScene& scene, const char* key) {
+  const aiMetadata* metadata = scene.mMetaData;
+  if (metadata == nullptr) return std::nullopt;
+  for (unsigned i = 0; i < metadata->mNumProperties; ++i) {
+    if (std::string(metadata->mKeys[i].C_Str()) != key) continue;
+    const aiMetadataEntry& entry = metadata->mValues[i];
+    switch (entry.mType) {
+      case AI_INT32: return *static_cast<const int32_t*>(entry.mData);
+      case AI_FLOAT: return *static_cast<const float*>(entry.mData);
+      case AI_DOUBLE: return *static_cast<const double*>(entry.mData);
+      default: return std::nullopt;
+    }
+  }
+  return std::nullopt;
+}
+
+void CollectNames(const aiScene& scene, int animation, std::unordered_set<std::string>& names) {
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh& mesh = *scene.mMeshes[m];
+    for (unsigned b = 0; b < mesh.mNumBones; ++b) names.insert(mesh.mBones[b]->mName.C_Str());
+  }
+  if (animation >= 0 && animation < static_cast<int>(scene.mNumAnimations)) {
+    const aiAnimation& anim = *scene.mAnimations[animation];
+    for (unsigned c = 0; c < anim.mNumChannels; ++c) {
+      names.insert(anim.mChannels[c]->mNodeName.C_Str());
+    }
+  }
+}
+
+/// Marks the named nodes, then every node on the path between two marked nodes.
+void MarkJointNodes(const aiNode* node, const std::unordered_set<std::string>& names,
+                    std::unordered_set<const aiNode*>& marked) {
+  if (names.count(node->mName.C_Str())) {
+    marked.insert(node);
+    std::vector<const aiNode*> between;
+    for (const aiNode* up = node->mParent; up != nullptr; up = up->mParent) {
+      if (marked.count(up)) {
+        marked.insert(between.begin(), between.end());
+        break;
+      }
+      between.push_back(up);
+    }
+  }
+  for (unsigned c = 0; c < node->mNumChildren; ++c) MarkJointNodes(node->mChildren[c], names, marked);
+}
+
+}  // namespace
+
+const aiScene* ReadAssimpScene(Assimp::Importer& importer, const std::string& path,
+                               unsigned steps, const std::string& what) {
+  RequireReadableFile(path, what);
+  const aiScene* scene = nullptr;
+  try {
+    scene = importer.ReadFile(path, steps);
+  } catch (const std::exception& e) {
+    throw sim::InputError(path + ": cannot read the " + what + ": " + e.what());
+  }
+  if (scene == nullptr) {
+    throw sim::InputError(path + ": cannot read the " + what + ": " + importer.GetErrorString());
+  }
+  if (scene->mRootNode == nullptr) {
+    throw sim::InputError(path + ": cannot read the " + what + ": the scene has no nodes");
+  }
+  return scene;
+}
+
+Eigen::Matrix4d ToEigen(const aiMatrix4x4& m) {
+  Eigen::Matrix4d result;
+  result << m.a1, m.a2, m.a3, m.a4, m.b1, m.b2, m.b3, m.b4, m.c1, m.c2, m.c3, m.c4, m.d1, m.d2,
+      m.d3, m.d4;
+  return result;
+}
+
+Eigen::Matrix4d GlobalTransform(const aiNode* node) {
+  Eigen::Matrix4d global = Eigen::Matrix4d::Identity();
+  for (; node != nullptr; node = node->mParent) global = ToEigen(node->mTransformation) * global;
+  return global;
+}
+
+Eigen::Isometry3d RigidPart(const Eigen::Matrix4d& transform) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(transform.topLeftCorner<3, 3>(),
+                                        Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d u = svd.matrixU();
+  if ((u * svd.matrixV().transpose()).determinant() < 0.0) u.col(2) = -u.col(2);
+  Eigen::Isometry3d rigid = Eigen::Isometry3d::Identity();
+  rigid.linear() = u * svd.matrixV().transpose();
+  rigid.translation() = transform.topRightCorner<3, 1>();
+  return rigid;
+}
+
+double DeclaredMetresPerUnit(const aiScene& scene, const std::string& path) {
+  const std::string extension = LowerExtension(path);
+  if (extension == ".gltf" || extension == ".glb" || extension == ".dae") return 1.0;
+  if (extension == ".fbx") {
+    // FBX: UnitScaleFactor is centimetres per unit (1 when absent, FBX's default cm).
+    const double factor = MetadataNumber(scene, "UnitScaleFactor").value_or(1.0);
+    return factor > 0.0 && std::isfinite(factor) ? 0.01 * factor : 0.01;
+  }
+  return 0.0;
+}
+
+UpAxis DeclaredUp(const aiScene& scene, const std::string& path) {
+  const std::string extension = LowerExtension(path);
+  if (extension == ".gltf" || extension == ".glb" || extension == ".dae") return UpAxis::kY;
+  if (extension == ".fbx") {
+    return MetadataNumber(scene, "UpAxis").value_or(1.0) == 2.0 ? UpAxis::kZ : UpAxis::kY;
+  }
+  return UpAxis::kAuto;
+}
+
+Eigen::Matrix4d FileToWorld(double metres_per_unit, UpAxis up) {
+  Eigen::Matrix4d transform = Eigen::Matrix4d::Identity();
+  transform.topLeftCorner<3, 3>() = metres_per_unit * UpRotation(up);
+  return transform;
+}
+
+int AssimpSkeleton::JointAtOrAbove(const aiNode* node) const {
+  for (; node != nullptr; node = node->mParent) {
+    const auto found = std::find(nodes.begin(), nodes.end(), node);
+    if (found != nodes.end()) return static_cast<int>(found - nodes.begin());
+  }
+  return -1;
+}
+
+AssimpSkeleton CollectSkeleton(const aiScene& scene, const Eigen::Matrix4d& file_to_world,
+                               int animation) {
+  std::unordered_set<std::string> names;
+  CollectNames(scene, animation, names);
+  std::unordered_set<const aiNode*> marked;
+  MarkJointNodes(scene.mRootNode, names, marked);
+
+  AssimpSkeleton skeleton;
+  // Depth first, so that parents come before children.
+  std::vector<std::pair<const aiNode*, int>> stack = {{scene.mRootNode, -1}};
+  while (!stack.empty()) {
+    auto [node, parent] = stack.back();
+    stack.pop_back();
+    if (marked.count(node)) {
+      const int index = static_cast<int>(skeleton.joints.size());
+      sim::Joint joint;
+      joint.name = node->mName.length > 0 ? node->mName.C_Str() : "joint" + std::to_string(index);
+      if (skeleton.index_of_name.count(joint.name)) joint.name += "#" + std::to_string(index);
+      joint.parent = parent;
+      const Eigen::Isometry3d world = RigidPart(file_to_world * GlobalTransform(node));
+      joint.rest_local = parent < 0 ? world : skeleton.rest_world[parent].inverse() * world;
+      skeleton.index_of_name[node->mName.C_Str()] = index;
+      skeleton.joints.push_back(std::move(joint));
+      skeleton.nodes.push_back(node);
+      skeleton.rest_world.push_back(world);
+      parent = index;
+    }
+    for (unsigned c = node->mNumChildren; c-- > 0;) stack.emplace_back(node->mChildren[c], parent);
+  }
+  return skeleton;
+}
+
+}  // namespace costume::assets

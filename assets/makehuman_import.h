@@ -1,0 +1,58 @@
+#pragma once
+/// @file
+/// MakeHuman's avatar triple: the base mesh (base.obj), a skeleton (.mhskel, JSON) whose
+/// joints are defined by base-mesh vertices, and skin weights (.mhw, JSON) indexed by
+/// base-mesh vertex. assimp reads none of the JSON files and reorders OBJ vertices, so the
+/// OBJ is read here too, keeping the file's vertex order.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sim_core/avatar/avatar.h"
+
+namespace costume::assets {
+
+struct MakeHumanImportOptions {
+  /// Metres per file unit, finite and > 0: MakeHuman's files are in decimetres.
+  double scale = 0.1;
+  /// The OBJ groups ("g" lines) whose faces make the avatar's surface; empty: all faces.
+  /// base.obj's "body" is the closed skin; its helper-* and joint-* groups are fitting aids.
+  std::vector<std::string> groups = {"body"};
+  /// The avatar's name.
+  std::string name = "makehuman";
+};
+
+/// The vertices of an OBJ file in file order (n×3, file units), and its faces by group.
+struct ObjMesh {
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> vertices;
+  /// Faces as 0-based vertex indices (any number of corners ≥ 3), and each face's group.
+  std::vector<std::vector<int>> faces;
+  std::vector<std::string> face_groups;
+};
+
+/// Reads the `v`, `g` and `f` lines of an OBJ file (others are skipped; negative indices
+/// count from the end). Throws sim::InputError naming `path` and the line for a malformed
+/// number, a face index out of range, a face of fewer than 3 corners, no vertices.
+ObjMesh ReadObj(const std::string& path);
+
+/// The skeleton of a .mhskel file on the mesh `obj` (whose vertex positions define the
+/// joints): one sim::Joint per bone at the bone's head, y axis towards its tail, x axis
+/// from the bone's rotation plane (MakeHuman's own convention), positions × `scale`.
+/// Joints mapped onto H-Anim. Throws sim::InputError naming `path` and the bone or joint
+/// for: malformed JSON, a missing field, an unknown parent or a cycle, a vertex index
+/// outside the mesh, a bone of zero length.
+std::shared_ptr<const sim::Skeleton> LoadMakeHumanSkeleton(const std::string& path,
+                                                           const ObjMesh& obj, double scale);
+
+/// The avatar of `obj_path` + `skeleton_path` + `weights_path`: surface = the faces of
+/// options.groups (quads split into two triangles), vertices kept in file order minus
+/// those in no kept face, in metres; skin from the .mhw weights (4 largest per vertex,
+/// renormalised; a vertex with none follows the root). Throws sim::InputError naming the
+/// offending file and field.
+std::shared_ptr<const sim::Avatar> LoadMakeHumanAvatar(const std::string& obj_path,
+                                                       const std::string& skeleton_path,
+                                                       const std::string& weights_path,
+                                                       const MakeHumanImportOptions& options = {});
+
+}  // namespace costume::assets

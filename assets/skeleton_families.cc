@@ -1,0 +1,301 @@
+#include "assets/skeleton_families.h"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <optional>
+
+namespace costume::assets {
+namespace {
+
+using sim::HAnimJoint;
+using J = sim::HAnimJoint;
+
+/// The joints sim::Retargeter needs on both skeletons: a family that cannot map these is
+/// no use for retargeting, so detection does not settle for it.
+constexpr int kRetargetingMinimum = 9;
+
+bool EqualIgnoringCase(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) ==
+                  std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
+/// "mixamorig:LeftArm" → "LeftArm"; names without a namespace are returned unchanged.
+std::string_view StripNamespace(std::string_view name) {
+  const std::size_t colon = name.rfind(':');
+  return colon == std::string_view::npos ? name : name.substr(colon + 1);
+}
+
+// The tables. Left and right are the character's own (checked against the files' rest
+// positions: the left side lies at +x for a character facing +z, y up).
+
+/// cgspeed's CMU conversion and Mixamo share these names; "LeftShoulder" is the clavicle.
+const std::vector<FamilyMapping> kCmuCgspeedTable = {
+    {J::kHumanoidRoot, {"Hips"}},
+    {J::kLHip, {"LeftUpLeg"}},
+    {J::kLKnee, {"LeftLeg"}},
+    {J::kLTalocrural, {"LeftFoot"}},
+    {J::kRHip, {"RightUpLeg"}},
+    {J::kRKnee, {"RightLeg"}},
+    {J::kRTalocrural, {"RightFoot"}},
+    {J::kVl5, {"LowerBack", "Spine"}},
+    {J::kVc7, {"Neck"}},
+    {J::kSkullbase, {"Head"}},
+    {J::kLShoulder, {"LeftArm"}},
+    {J::kLElbow, {"LeftForeArm"}},
+    {J::kLRadiocarpal, {"LeftHand"}},
+    {J::kRShoulder, {"RightArm"}},
+    {J::kRElbow, {"RightForeArm"}},
+    {J::kRRadiocarpal, {"RightHand"}},
+};
+
+/// CMU 02_02.bvh: lButtock/rButtock sit between the hip and the thighs and are not mapped.
+const std::vector<FamilyMapping> kPoserBvhTable = {
+    {J::kHumanoidRoot, {"hip"}},
+    {J::kLHip, {"lThigh"}},
+    {J::kLKnee, {"lShin"}},
+    {J::kLTalocrural, {"lFoot"}},
+    {J::kRHip, {"rThigh"}},
+    {J::kRKnee, {"rShin"}},
+    {J::kRTalocrural, {"rFoot"}},
+    {J::kVl5, {"abdomen"}},
+    {J::kVc7, {"neck"}},
+    {J::kSkullbase, {"head"}},
+    {J::kLShoulder, {"lShldr"}},
+    {J::kLElbow, {"lForeArm"}},
+    {J::kLRadiocarpal, {"lHand"}},
+    {J::kRShoulder, {"rShldr"}},
+    {J::kRElbow, {"rForeArm"}},
+    {J::kRRadiocarpal, {"rHand"}},
+};
+
+/// CMU 10_01.bvh: "LeftShoulder" is the upper arm here, "LeftCollar" the clavicle.
+const std::vector<FamilyMapping> kBiovisionBvhTable = {
+    {J::kHumanoidRoot, {"Hips"}},
+    {J::kLHip, {"LeftHip"}},
+    {J::kLKnee, {"LeftKnee"}},
+    {J::kLTalocrural, {"LeftAnkle"}},
+    {J::kRHip, {"RightHip"}},
+    {J::kRKnee, {"RightKnee"}},
+    {J::kRTalocrural, {"RightAnkle"}},
+    {J::kVl5, {"Chest"}},
+    {J::kVc7, {"Neck"}},
+    {J::kSkullbase, {"Head"}},
+    {J::kLShoulder, {"LeftShoulder"}},
+    {J::kLElbow, {"LeftElbow"}},
+    {J::kLRadiocarpal, {"LeftWrist"}},
+    {J::kRShoulder, {"RightShoulder"}},
+    {J::kRElbow, {"RightElbow"}},
+    {J::kRRadiocarpal, {"RightWrist"}},
+};
+
+/// default.mhskel: the thigh, arm and forearm are split in two (…01 bends, …02 twists);
+/// the …01 bone is the joint. pelvis.L/R are two bones, so no single sacroiliac.
+const std::vector<FamilyMapping> kMakeHumanDefaultTable = {
+    {J::kHumanoidRoot, {"root"}},
+    {J::kLHip, {"upperleg01.L"}},
+    {J::kLKnee, {"lowerleg01.L"}},
+    {J::kLTalocrural, {"foot.L"}},
+    {J::kRHip, {"upperleg01.R"}},
+    {J::kRKnee, {"lowerleg01.R"}},
+    {J::kRTalocrural, {"foot.R"}},
+    {J::kVl5, {"spine04"}},
+    {J::kVc7, {"neck01"}},
+    {J::kSkullbase, {"head"}},
+    {J::kLShoulder, {"upperarm01.L"}},
+    {J::kLElbow, {"lowerarm01.L"}},
+    {J::kLRadiocarpal, {"wrist.L"}},
+    {J::kRShoulder, {"upperarm01.R"}},
+    {J::kRElbow, {"lowerarm01.R"}},
+    {J::kRRadiocarpal, {"wrist.R"}},
+};
+
+/// walk1_mhskel.bvh: "__UpLeg_L" and the like are offset helpers without a bone.
+const std::vector<FamilyMapping> kMakeHumanBvhTable = {
+    {J::kHumanoidRoot, {"Root"}},
+    {J::kSacroiliac, {"Hips"}},
+    {J::kLHip, {"UpLeg_L"}},
+    {J::kLKnee, {"LoLeg_L"}},
+    {J::kLTalocrural, {"Foot_L"}},
+    {J::kRHip, {"UpLeg_R"}},
+    {J::kRKnee, {"LoLeg_R"}},
+    {J::kRTalocrural, {"Foot_R"}},
+    {J::kVl5, {"Spine1"}},
+    {J::kVc7, {"Neck"}},
+    {J::kSkullbase, {"Head"}},
+    {J::kLShoulder, {"UpArm_L"}},
+    {J::kLElbow, {"LoArm_L"}},
+    {J::kLRadiocarpal, {"Hand_L"}},
+    {J::kRShoulder, {"UpArm_R"}},
+    {J::kRElbow, {"LoArm_R"}},
+    {J::kRRadiocarpal, {"Hand_R"}},
+};
+
+/// CesiumMan.glb: the left arm chain counts down (__4_ shoulder, __3_ elbow, __2_ wrist),
+/// the right one up (R shoulder, R__2_ elbow, R__3_ wrist); leg_joint_*_5 is the toe.
+const std::vector<FamilyMapping> kCesiumManTable = {
+    {J::kHumanoidRoot, {"Skeleton_torso_joint_1"}},
+    {J::kLHip, {"leg_joint_L_1"}},
+    {J::kLKnee, {"leg_joint_L_2"}},
+    {J::kLTalocrural, {"leg_joint_L_3"}},
+    {J::kRHip, {"leg_joint_R_1"}},
+    {J::kRKnee, {"leg_joint_R_2"}},
+    {J::kRTalocrural, {"leg_joint_R_3"}},
+    {J::kVl5, {"Skeleton_torso_joint_2"}},
+    {J::kVc7, {"Skeleton_neck_joint_1"}},
+    {J::kSkullbase, {"Skeleton_neck_joint_2"}},
+    {J::kLShoulder, {"Skeleton_arm_joint_L__4_"}},
+    {J::kLElbow, {"Skeleton_arm_joint_L__3_"}},
+    {J::kLRadiocarpal, {"Skeleton_arm_joint_L__2_"}},
+    {J::kRShoulder, {"Skeleton_arm_joint_R"}},
+    {J::kRElbow, {"Skeleton_arm_joint_R__2_"}},
+    {J::kRRadiocarpal, {"Skeleton_arm_joint_R__3_"}},
+};
+
+/// humanoid3d.txt: the "neck" joint sits at shoulder height and carries the head.
+const std::vector<FamilyMapping> kDeepMimicTable = {
+    {J::kHumanoidRoot, {"root"}},
+    {J::kLHip, {"left_hip"}},
+    {J::kLKnee, {"left_knee"}},
+    {J::kLTalocrural, {"left_ankle"}},
+    {J::kRHip, {"right_hip"}},
+    {J::kRKnee, {"right_knee"}},
+    {J::kRTalocrural, {"right_ankle"}},
+    {J::kVl5, {"chest"}},
+    {J::kVc7, {"neck"}},
+    {J::kLShoulder, {"left_shoulder"}},
+    {J::kLElbow, {"left_elbow"}},
+    {J::kLRadiocarpal, {"left_wrist"}},
+    {J::kRShoulder, {"right_shoulder"}},
+    {J::kRElbow, {"right_elbow"}},
+    {J::kRRadiocarpal, {"right_wrist"}},
+};
+
+const std::vector<FamilyMapping> kEmptyTable;
+
+/// Every family in detection order.
+constexpr std::array<SkeletonFamily, 9> kFamilies = {
+    SkeletonFamily::kHAnim,           SkeletonFamily::kCmuCgspeed, SkeletonFamily::kPoserBvh,
+    SkeletonFamily::kBiovisionBvh,    SkeletonFamily::kMakeHumanDefault,
+    SkeletonFamily::kMakeHumanBvh,    SkeletonFamily::kCesiumMan,  SkeletonFamily::kDeepMimic,
+    SkeletonFamily::kMixamo};
+
+/// The name as the family's table spells it (namespace stripped for Mixamo).
+std::string_view TableName(SkeletonFamily family, std::string_view name) {
+  return family == SkeletonFamily::kMixamo ? StripNamespace(name) : name;
+}
+
+/// For each H-Anim joint, the index in `names` of the joint `family` maps onto it (-1).
+std::array<int, sim::kNumHAnimJoints> Assign(SkeletonFamily family,
+                                             const std::vector<std::string>& names) {
+  std::array<int, sim::kNumHAnimJoints> assigned;
+  assigned.fill(-1);
+  if (family == SkeletonFamily::kHAnim) {
+    for (int i = 0; i < static_cast<int>(names.size()); ++i) {
+      const std::optional<HAnimJoint> joint = sim::ParseHAnimName(names[i]);
+      if (joint && assigned[static_cast<int>(*joint)] < 0) assigned[static_cast<int>(*joint)] = i;
+    }
+    return assigned;
+  }
+  for (const FamilyMapping& row : MappingTable(family)) {
+    for (std::string_view candidate : row.names) {
+      const auto found = std::find_if(names.begin(), names.end(), [&](const std::string& n) {
+        return EqualIgnoringCase(TableName(family, n), candidate);
+      });
+      if (found != names.end()) {
+        assigned[static_cast<int>(row.hanim)] = static_cast<int>(found - names.begin());
+        break;
+      }
+    }
+  }
+  return assigned;
+}
+
+int CountAssigned(const std::array<int, sim::kNumHAnimJoints>& assigned) {
+  return static_cast<int>(std::count_if(assigned.begin(), assigned.end(), [](int i) { return i >= 0; }));
+}
+
+std::vector<std::string> NamesOf(const std::vector<sim::Joint>& joints) {
+  std::vector<std::string> names;
+  names.reserve(joints.size());
+  for (const sim::Joint& joint : joints) names.push_back(joint.name);
+  return names;
+}
+
+}  // namespace
+
+std::string_view FamilyName(SkeletonFamily family) {
+  switch (family) {
+    case SkeletonFamily::kUnknown: return "unknown";
+    case SkeletonFamily::kHAnim: return "H-Anim";
+    case SkeletonFamily::kCmuCgspeed: return "CMU BVH (cgspeed) / Mixamo without prefix";
+    case SkeletonFamily::kPoserBvh: return "CMU BVH (Poser / Second Life)";
+    case SkeletonFamily::kBiovisionBvh: return "CMU BVH (Biovision)";
+    case SkeletonFamily::kMakeHumanDefault: return "MakeHuman default skeleton";
+    case SkeletonFamily::kMakeHumanBvh: return "MakeHuman BVH rig";
+    case SkeletonFamily::kCesiumMan: return "glTF CesiumMan";
+    case SkeletonFamily::kDeepMimic: return "DeepMimic humanoid3d";
+    case SkeletonFamily::kMixamo: return "Mixamo";
+  }
+  return "unknown";
+}
+
+const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family) {
+  switch (family) {
+    case SkeletonFamily::kCmuCgspeed:
+    case SkeletonFamily::kMixamo: return kCmuCgspeedTable;
+    case SkeletonFamily::kPoserBvh: return kPoserBvhTable;
+    case SkeletonFamily::kBiovisionBvh: return kBiovisionBvhTable;
+    case SkeletonFamily::kMakeHumanDefault: return kMakeHumanDefaultTable;
+    case SkeletonFamily::kMakeHumanBvh: return kMakeHumanBvhTable;
+    case SkeletonFamily::kCesiumMan: return kCesiumManTable;
+    case SkeletonFamily::kDeepMimic: return kDeepMimicTable;
+    case SkeletonFamily::kUnknown:
+    case SkeletonFamily::kHAnim: return kEmptyTable;
+  }
+  return kEmptyTable;
+}
+
+std::optional<sim::HAnimJoint> LookUpJoint(SkeletonFamily family, std::string_view joint_name) {
+  if (family == SkeletonFamily::kHAnim) return sim::ParseHAnimName(joint_name);
+  const std::string_view name = TableName(family, joint_name);
+  for (const FamilyMapping& row : MappingTable(family)) {
+    for (std::string_view candidate : row.names) {
+      if (EqualIgnoringCase(name, candidate)) return row.hanim;
+    }
+  }
+  return std::nullopt;
+}
+
+SkeletonFamily DetectFamily(const std::vector<std::string>& joint_names) {
+  SkeletonFamily best = SkeletonFamily::kUnknown;
+  int best_count = kRetargetingMinimum - 1;
+  for (SkeletonFamily family : kFamilies) {
+    const int count = CountAssigned(Assign(family, joint_names));
+    if (count > best_count) {
+      best = family;
+      best_count = count;
+    }
+  }
+  return best;
+}
+
+int ApplyFamily(SkeletonFamily family, std::vector<sim::Joint>& joints) {
+  for (sim::Joint& joint : joints) joint.hanim.reset();
+  if (family == SkeletonFamily::kUnknown) return 0;
+  const std::array<int, sim::kNumHAnimJoints> assigned = Assign(family, NamesOf(joints));
+  for (int h = 0; h < sim::kNumHAnimJoints; ++h) {
+    if (assigned[h] >= 0) joints[assigned[h]].hanim = static_cast<HAnimJoint>(h);
+  }
+  return CountAssigned(assigned);
+}
+
+SkeletonFamily MapToHAnim(std::vector<sim::Joint>& joints) {
+  const SkeletonFamily family = DetectFamily(NamesOf(joints));
+  ApplyFamily(family, joints);
+  return family;
+}
+
+}  // namespace costume::assets

@@ -1,0 +1,145 @@
+#include "assets/avatar_import.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "assets/skeleton_families.h"
+#include "sim_core/avatar/clip.h"
+#include "sim_core/common/input_error.h"
+#include "tests/assets/import_test_support.h"
+
+namespace costume::assets {
+namespace {
+
+using namespace costume::assets::testing;
+using sim::HAnimJoint;
+using sim::InputError;
+
+const fs::path kCesiumMan = kData / "khronos-cesiumman/CesiumMan.glb";
+
+double Height(const sim::Avatar& avatar) {
+  return avatar.rest_vertices().col(1).maxCoeff() - avatar.rest_vertices().col(1).minCoeff();
+}
+
+void ExpectValidWeights(const sim::Avatar& avatar) {
+  const auto& data = avatar.data();
+  for (int i = 0; i < avatar.num_vertices(); ++i) {
+    double sum = 0.0;
+    for (int k = 0; k < sim::kMaxInfluences; ++k) {
+      ASSERT_GE(data.influence_weights(i, k), 0.0);
+      if (data.influence_joints(i, k) >= 0) sum += data.influence_weights(i, k);
+    }
+    ASSERT_NEAR(sum, 1.0, 1e-9) << "vertex " << i;
+  }
+}
+
+TEST(AvatarImport, CesiumManLoadsSkinnedInMetres) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const auto avatar = LoadAvatar(kCesiumMan.string());
+  // SOURCE.md: 19 joints, 2,612 vertices before joining seams, height ~1.5 m.
+  EXPECT_EQ(avatar->skeleton().num_joints(), 19);
+  EXPECT_GT(avatar->num_vertices(), 1500);
+  EXPECT_LE(avatar->num_vertices(), 2612);
+  EXPECT_EQ(avatar->triangles().size(), 4672u);
+  EXPECT_NEAR(Height(*avatar), 1.5, 0.1);
+  EXPECT_NEAR(avatar->rest_vertices().col(1).minCoeff(), 0.0, 0.05);  // feet on the floor
+  ExpectValidWeights(*avatar);
+  // Several joints do carry vertices.
+  std::set<int> used;
+  for (int i = 0; i < avatar->num_vertices(); ++i) used.insert(avatar->data().influence_joints(i, 0));
+  EXPECT_GE(used.size(), 15u);
+}
+
+TEST(AvatarImport, CesiumManJointsMapOntoHAnim) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const auto avatar = LoadAvatar(kCesiumMan.string());
+  const sim::Skeleton& s = avatar->skeleton();
+  for (HAnimJoint joint : {HAnimJoint::kHumanoidRoot, HAnimJoint::kLHip, HAnimJoint::kRHip,
+                           HAnimJoint::kLKnee, HAnimJoint::kRKnee, HAnimJoint::kLShoulder,
+                           HAnimJoint::kRShoulder, HAnimJoint::kLElbow, HAnimJoint::kRElbow}) {
+    ASSERT_GE(s.Find(joint), 0) << sim::HAnimName(joint);
+  }
+  // Anatomy: knees between hips and ankles, elbows further out than shoulders.
+  EXPECT_LT(RestOf(s, HAnimJoint::kLKnee).y(), RestOf(s, HAnimJoint::kLHip).y() - 0.15);
+  EXPECT_LT(RestOf(s, HAnimJoint::kLTalocrural).y(), RestOf(s, HAnimJoint::kLKnee).y() - 0.15);
+  EXPECT_GT(std::abs(RestOf(s, HAnimJoint::kLElbow).x()), std::abs(RestOf(s, HAnimJoint::kLShoulder).x()));
+  // Left really is left: the toes (leg_joint_L_5, child of the ankle) point the way the
+  // body faces, which is left-minus-right hip turned a quarter about +y.
+  const int toe = s.FindByName("leg_joint_L_5");
+  ASSERT_GE(toe, 0);
+  Eigen::Vector3d left = RestOf(s, HAnimJoint::kLHip) - RestOf(s, HAnimJoint::kRHip);
+  left.y() = 0;
+  const Eigen::Vector3d forward = left.cross(Eigen::Vector3d::UnitY());
+  EXPECT_GT((s.rest_world()[toe].translation() - RestOf(s, HAnimJoint::kLTalocrural)).dot(forward), 0.0);
+  EXPECT_NO_THROW(sim::Retargeter(avatar->shared_skeleton(), avatar->shared_skeleton()));
+}
+
+TEST(AvatarImport, SkinningTheRestPoseGivesTheRestSurface) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const auto avatar = LoadAvatar(kCesiumMan.string());
+  std::vector<Eigen::Isometry3d> world, scratch;
+  sim::ComputeJointWorld(avatar->skeleton(), sim::RestPose(avatar->skeleton()), world);
+  sim::Points skinned;
+  sim::SkinVertices(*avatar, world, scratch, skinned);
+  EXPECT_LT((skinned - avatar->rest_vertices()).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+const char* kBoxObj =
+    "v -20 0 -10\nv 20 0 -10\nv 20 0 10\nv -20 0 10\n"
+    "v -20 170 -10\nv 20 170 -10\nv 20 170 10\nv -20 170 10\n"
+    "f 1 2 3 4\nf 8 7 6 5\nf 1 5 6 2\nf 2 6 7 3\nf 3 7 8 4\nf 4 8 5 1\n";
+
+TEST(AvatarImport, ObjIsAStaticAvatarOnOneRootJoint) {
+  ScratchDir dir;
+  AvatarImportOptions options;
+  options.scale = 0.01;
+  const auto avatar = LoadAvatar(dir.Write("box.obj", kBoxObj), options);
+  ASSERT_EQ(avatar->skeleton().num_joints(), 1);
+  EXPECT_EQ(avatar->skeleton().joint(0).hanim, HAnimJoint::kHumanoidRoot);
+  EXPECT_EQ(avatar->num_vertices(), 8);
+  EXPECT_EQ(avatar->triangles().size(), 12u);
+  EXPECT_NEAR(Height(*avatar), 1.7, 1e-9);
+  for (int i = 0; i < avatar->num_vertices(); ++i) {
+    EXPECT_EQ(avatar->data().influence_joints(i, 0), 0);
+    EXPECT_EQ(avatar->data().influence_weights(i, 0), 1.0);
+  }
+}
+
+TEST(AvatarImport, UndeclaredUnitsAreGuessedFromTheHeight) {
+  ScratchDir dir;
+  // 170 units tall: centimetres.
+  EXPECT_NEAR(Height(*LoadAvatar(dir.Write("box.obj", kBoxObj))), 1.7, 1e-9);
+  // A declared z up: the 170 units along file y lie along −z afterwards.
+  AvatarImportOptions options;
+  options.scale = 0.01;
+  options.up = UpAxis::kZ;
+  const auto lying = LoadAvatar(dir.Write("box2.obj", kBoxObj), options);
+  EXPECT_NEAR(Height(*lying), 0.2, 1e-9);
+  EXPECT_NEAR(lying->rest_vertices().col(2).minCoeff(), -1.7, 1e-9);
+}
+
+TEST(AvatarImport, DamagedFilesThrowNamingTheFile) {
+  ScratchDir dir;
+  std::vector<std::string> files = {dir.WriteGarbage("junk.glb", 4000), dir.WriteGarbage("junk.fbx", 4000),
+                                    dir.WriteGarbage("junk.dae", 4000), dir.WriteGarbage("junk.obj", 4000),
+                                    dir.Write("empty.obj", ""), (dir.path() / "absent.glb").string()};
+  if (HaveData("khronos-cesiumman/CesiumMan.glb")) {
+    files.push_back(dir.WriteTruncated("cut.glb", kCesiumMan));
+  }
+  for (const std::string& file : files) {
+    try {
+      LoadAvatar(file);
+      ADD_FAILURE() << "no error for " << file;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(fs::path(file).filename().string()), std::string::npos)
+          << e.what();
+    }
+  }
+  AvatarImportOptions bad;
+  bad.scale = -1;
+  EXPECT_THROW(LoadAvatar(dir.Write("box.obj", kBoxObj), bad), InputError);
+}
+
+}  // namespace
+}  // namespace costume::assets

@@ -1,0 +1,307 @@
+#include "assets/clip_import.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "assets/makehuman_import.h"
+#include "assets/skeleton_families.h"
+#include "sim_core/common/input_error.h"
+#include "tests/assets/import_test_support.h"
+
+namespace costume::assets {
+namespace {
+
+using namespace costume::assets::testing;
+using sim::HAnimJoint;
+using sim::InputError;
+
+std::string DataPath(const std::string& relative) { return (kData / relative).string(); }
+
+/// A two-joint BVH: root at the origin with the given rotation channels and values, one
+/// child 10 units up. With scale 0.01, the child is 0.1 m from the root.
+std::string TwoJointBvh(const std::string& channels, const std::string& values) {
+  return "HIERARCHY\nROOT a\n{\n  OFFSET 0 0 0\n  CHANNELS 5 Xposition Yposition Zposition " + channels +
+         "\n  JOINT b\n  {\n    OFFSET 0 10 0\n    CHANNELS 0\n    End Site\n    {\n      OFFSET 0 5 0\n"
+         "    }\n  }\n}\nMOTION\nFrames: 1\nFrame Time: 0.5\n0 0 0 " + values + "\n";
+}
+
+Eigen::Vector3d ChildOffset(const sim::Clip& clip) {
+  std::vector<Eigen::Isometry3d> world;
+  sim::ComputeJointWorld(*clip.skeleton, clip.frames[0], world);
+  return world[1].translation() - world[0].translation();
+}
+
+TEST(BvhImport, RotationChannelsApplyInTheOrderListed) {
+  ScratchDir dir;
+  ClipImportOptions options;
+  options.scale = 0.01;
+  options.up = UpAxis::kY;
+  // Rx(90)·Rz(90)·(0, 1, 0) = Rx(90)·(−1, 0, 0) = (−1, 0, 0);
+  // Rz(90)·Rx(90)·(0, 1, 0) = Rz(90)·(0, 0, 1) = (0, 0, 1).
+  const sim::Clip xz = LoadClip(dir.Write("xz.bvh", TwoJointBvh("Xrotation Zrotation", "90 90")), options);
+  const sim::Clip zx = LoadClip(dir.Write("zx.bvh", TwoJointBvh("Zrotation Xrotation", "90 90")), options);
+  EXPECT_TRUE(ChildOffset(xz).isApprox(Eigen::Vector3d(-0.1, 0, 0), 1e-9)) << ChildOffset(xz).transpose();
+  EXPECT_TRUE(ChildOffset(zx).isApprox(Eigen::Vector3d(0, 0, 0.1), 1e-9)) << ChildOffset(zx).transpose();
+  EXPECT_EQ(xz.frame_time, 0.5);
+}
+
+TEST(BvhImport, ZUpFilesBecomeYUp) {
+  ScratchDir dir;
+  ClipImportOptions options;
+  options.scale = 0.01;
+  options.up = UpAxis::kZ;
+  // No rotation: the child is 10 units along file +y, which is −z after the turn.
+  const sim::Clip clip = LoadClip(dir.Write("z.bvh", TwoJointBvh("Xrotation Zrotation", "0 0")), options);
+  EXPECT_TRUE(ChildOffset(clip).isApprox(Eigen::Vector3d(0, 0, -0.1), 1e-9)) << ChildOffset(clip).transpose();
+  // A file rotation about its z (up) axis is a rotation about y after the turn:
+  // Rz(90)·(0, 10, 0) = (−10, 0, 0) in the file, (−0.1, 0, 0) in y-up metres.
+  const sim::Clip turned = LoadClip(dir.Write("t.bvh", TwoJointBvh("Xrotation Zrotation", "0 90")), options);
+  EXPECT_TRUE(ChildOffset(turned).isApprox(Eigen::Vector3d(-0.1, 0, 0), 1e-9)) << ChildOffset(turned).transpose();
+}
+
+TEST(BvhImport, RootStandsOnTheFloorAndMovesByItsPositionChannels) {
+  ScratchDir dir;
+  ClipImportOptions options;
+  options.scale = 0.01;
+  options.up = UpAxis::kY;
+  options.start_at_origin = false;
+  // A hanging chain: root, child 10 below, end 5 below that: the rest root stands 0.15 m up.
+  const std::string text =
+      "HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n"
+      " JOINT b\n {\n  OFFSET 0 -10 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n  End Site\n  {\n   OFFSET 0 -5 0\n  }\n }\n}\n"
+      "MOTION\nFrames: 2\nFrame Time: 0.1\n1 15 2 0 0 0 0 0 0\n3 15 2 0 0 0 0 0 0\n";
+  const sim::Clip clip = LoadClip(dir.Write("walk.bvh", text), options);
+  EXPECT_NEAR(clip.skeleton->rest_world()[0].translation().y(), 0.15, 1e-12);
+  EXPECT_TRUE(clip.frames[0].root_translation.isApprox(Eigen::Vector3d(0.01, 0.0, 0.02), 1e-12));
+  EXPECT_TRUE(clip.frames[1].root_translation.isApprox(Eigen::Vector3d(0.03, 0.0, 0.02), 1e-12));
+  options.start_at_origin = true;
+  const sim::Clip moved = LoadClip(dir.Write("walk2.bvh", text), options);
+  EXPECT_TRUE(moved.frames[1].root_translation.isApprox(Eigen::Vector3d(0.02, 0.0, 0.0), 1e-12));
+}
+
+TEST(BvhImport, MalformedTextNamesFileAndLine) {
+  ScratchDir dir;
+  const std::string good = TwoJointBvh("Xrotation Zrotation", "1 2");
+  struct Case {
+    std::string text, expected;
+  };
+  for (const Case& c :
+       {Case{"HIERARCHY\nROOT a\n{\n OFFSET 0 x 0\n", "bad.bvh:4"},
+        Case{"HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 2 Xrotation Wrotation\n", "Wrotation"},
+        Case{good.substr(0, good.size() - 4), "ends in frame 0 of 1"},
+        Case{good + "7\n", "does not match"},
+        Case{"HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 9\n", "0..6"},
+        Case{"MOTION\n", "expected 'HIERARCHY'"}}) {
+    try {
+      LoadClip(dir.Write("bad.bvh", c.text));
+      ADD_FAILURE() << "no error for: " << c.text;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.bvh"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+    }
+  }
+  try {
+    LoadClip(dir.Write("time.bvh", TwoJointBvh("Xrotation Zrotation", "1 2").replace(
+                                        good.find("0.5"), 3, "-1.")));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(0, 10]"), std::string::npos) << e.what();
+  }
+}
+
+struct RealClip {
+  const char* file;
+  int frames;
+  double frame_time;
+};
+
+TEST(ClipImport, RealBvhFilesMatchTheirHeaders) {
+  SKIP_WITHOUT("cmu-mocap-bvh/02_02.bvh");
+  SKIP_WITHOUT("makehuman/bvh/walk1_mhskel.bvh");
+  // Frames and Frame Time as the files' headers state them.
+  for (const RealClip& c : {RealClip{"cmu-mocap-bvh/02_02.bvh", 299, 0.00833333},
+                            RealClip{"cmu-mocap-bvh/10_01.bvh", 201, 0.0333333},
+                            RealClip{"makehuman/bvh/walk1_mhskel.bvh", 14, 0.0416667}}) {
+    const sim::Clip clip = LoadClip(DataPath(c.file));
+    EXPECT_EQ(static_cast<int>(clip.frames.size()), c.frames) << c.file;
+    EXPECT_NEAR(clip.frame_time, c.frame_time, 1e-6) << c.file;
+    // A standing adult: 1.3–2.0 m from the toes to the top joint of the head.
+    EXPECT_GT(RestHeight(*clip.skeleton), 1.3) << c.file;
+    EXPECT_LT(RestHeight(*clip.skeleton), 2.0) << c.file;
+    // The head is above the hips: y is up.
+    EXPECT_GT(RestOf(*clip.skeleton, HAnimJoint::kSkullbase).y(),
+              RestOf(*clip.skeleton, HAnimJoint::kHumanoidRoot).y() + 0.4) << c.file;
+  }
+}
+
+TEST(ClipImport, DeepMimicClipsLoad) {
+  SKIP_WITHOUT("deepmimic-motions/motions/humanoid3d_walk.txt");
+  // SOURCE.md: frames and dt; a "wrap" clip drops its last frame (a copy of the first pose).
+  struct Case {
+    const char* name;
+    int file_frames;
+    double dt;
+    bool loops;
+  };
+  for (const Case& c : {Case{"walk", 39, 1 / 30.0, true}, Case{"run", 25, 1 / 30.0, true},
+                        Case{"jump", 107, 1 / 60.0, true}, Case{"kick", 47, 1 / 30.0, false},
+                        Case{"dance_a", 98, 1 / 60.0, true}}) {
+    const sim::Clip clip =
+        LoadClip(DataPath(std::string("deepmimic-motions/motions/humanoid3d_") + c.name + ".txt"));
+    EXPECT_EQ(static_cast<int>(clip.frames.size()), c.loops ? c.file_frames - 1 : c.file_frames) << c.name;
+    EXPECT_NEAR(clip.frame_time, c.dt, 1e-4) << c.name;
+    EXPECT_EQ(clip.loops, c.loops) << c.name;
+    EXPECT_EQ(clip.skeleton->num_joints(), 15);
+  }
+}
+
+TEST(ClipImport, CesiumManWalkIsTwoSeconds) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const sim::Clip clip = LoadClip(DataPath("khronos-cesiumman/CesiumMan.glb"));
+  EXPECT_NEAR(clip.duration(), 2.0, 0.05);
+  EXPECT_EQ(clip.skeleton->num_joints(), 19);
+  EXPECT_TRUE(clip.loops);
+}
+
+/// Peak-to-peak, over the clip retargeted onto the MakeHuman skeleton, of each ankle's
+/// position relative to the hips along the body's facing direction [m]; also the least
+/// height of the hips above the ankles.
+struct Swing {
+  double left = 0, right = 0, least_leg_height = 1e9, greatest_leg_height = -1e9;
+};
+
+Swing MeasureSwing(const sim::Clip& clip, const std::shared_ptr<const sim::Skeleton>& target) {
+  const sim::Retargeter retargeter(clip.skeleton, target);
+  const int root = target->Find(HAnimJoint::kHumanoidRoot);
+  const int l_hip = target->Find(HAnimJoint::kLHip), r_hip = target->Find(HAnimJoint::kRHip);
+  const int l_ankle = target->Find(HAnimJoint::kLTalocrural);
+  const int r_ankle = target->Find(HAnimJoint::kRTalocrural);
+  double l_lo = 1e9, l_hi = -1e9, r_lo = 1e9, r_hi = -1e9;
+  Swing swing;
+  sim::Pose pose;
+  std::vector<Eigen::Isometry3d> world;
+  for (const sim::Pose& frame : clip.frames) {
+    retargeter.Apply(frame, pose);
+    sim::ComputeJointWorld(*target, pose, world);
+    // The body's own forward: left minus right hip, turned a quarter about +y.
+    Eigen::Vector3d left = world[l_hip].translation() - world[r_hip].translation();
+    left.y() = 0;
+    const Eigen::Vector3d forward = left.cross(Eigen::Vector3d::UnitY()).normalized();
+    const Eigen::Vector3d hips = world[root].translation();
+    const double l = (world[l_ankle].translation() - hips).dot(forward);
+    const double r = (world[r_ankle].translation() - hips).dot(forward);
+    l_lo = std::min(l_lo, l), l_hi = std::max(l_hi, l);
+    r_lo = std::min(r_lo, r), r_hi = std::max(r_hi, r);
+    const double l_height = hips.y() - world[l_ankle].translation().y();
+    const double r_height = hips.y() - world[r_ankle].translation().y();
+    swing.least_leg_height = std::min({swing.least_leg_height, l_height, r_height});
+    swing.greatest_leg_height = std::max({swing.greatest_leg_height, l_height, r_height});
+  }
+  swing.left = l_hi - l_lo;
+  swing.right = r_hi - r_lo;
+  return swing;
+}
+
+std::shared_ptr<const sim::Skeleton> MakeHumanSkeleton() {
+  const std::string body = DataPath("makehuman/body/");
+  return LoadMakeHumanSkeleton(body + "default.mhskel", ReadObj(body + "base.obj"), 0.1);
+}
+
+TEST(ClipImport, WalksRetargetedOntoMakeHumanSwingTheFeet) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  SKIP_WITHOUT("cmu-mocap-bvh/02_02.bvh");
+  SKIP_WITHOUT("deepmimic-motions/motions/humanoid3d_walk.txt");
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const auto target = MakeHumanSkeleton();
+  for (const char* file : {"cmu-mocap-bvh/02_02.bvh", "makehuman/bvh/walk1_mhskel.bvh",
+                           "deepmimic-motions/motions/humanoid3d_walk.txt",
+                           "khronos-cesiumman/CesiumMan.glb"}) {
+    const Swing swing = MeasureSwing(LoadClip(DataPath(file)), target);
+    // A walking stride swings each foot 0.2–1.1 m fore and aft of the hips on MakeHuman's
+    // 0.8 m legs (CesiumMan's stylised walk is the longest: 0.6 m on its own 0.53 m legs);
+    // the feet stay below the hips, the stance leg nearly straight, the swing leg bent
+    // (a wrong up axis or unit fails one or the other).
+    EXPECT_GT(swing.left, 0.2) << file;
+    EXPECT_LT(swing.left, 1.1) << file;
+    EXPECT_GT(swing.right, 0.2) << file;
+    EXPECT_LT(swing.right, 1.1) << file;
+    EXPECT_GT(swing.least_leg_height, 0.3) << file;
+    EXPECT_GT(swing.greatest_leg_height, 0.7) << file;
+    EXPECT_LT(swing.greatest_leg_height, 0.9) << file;
+  }
+}
+
+TEST(ClipImport, KicksRetargetOntoMakeHuman) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  SKIP_WITHOUT("cmu-mocap-bvh/10_01.bvh");
+  SKIP_WITHOUT("deepmimic-motions/motions/humanoid3d_kick.txt");
+  const auto target = MakeHumanSkeleton();
+  for (const char* file : {"cmu-mocap-bvh/10_01.bvh", "deepmimic-motions/motions/humanoid3d_kick.txt"}) {
+    const Swing swing = MeasureSwing(LoadClip(DataPath(file)), target);
+    // A kick throws one foot well forward of the hips: a bigger swing than walking's least.
+    EXPECT_GT(std::max(swing.left, swing.right), 0.4) << file;
+    EXPECT_LT(std::max(swing.left, swing.right), 2.0) << file;
+  }
+}
+
+TEST(ClipImport, DamagedFilesThrowNamingTheFile) {
+  SKIP_WITHOUT("cmu-mocap-bvh/02_02.bvh");
+  SKIP_WITHOUT("deepmimic-motions/motions/humanoid3d_walk.txt");
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  fs::create_directories(dir.path() / "motions");
+  fs::create_directories(dir.path() / "characters");
+  fs::copy_file(kData / "deepmimic-motions/characters/humanoid3d.txt",
+                dir.path() / "characters/humanoid3d.txt");
+  std::vector<std::string> files = {
+      dir.WriteTruncated("cut.bvh", kData / "cmu-mocap-bvh/02_02.bvh"),
+      dir.WriteGarbage("junk.bvh", 4000),
+      dir.WriteTruncated("motions/cut_walk.txt", kData / "deepmimic-motions/motions/humanoid3d_walk.txt"),
+      dir.WriteGarbage("motions/junk_walk.txt", 4000),
+      dir.WriteTruncated("cut_man.glb", kData / "khronos-cesiumman/CesiumMan.glb"),
+      dir.WriteGarbage("junk_man.glb", 4000),
+      dir.WriteGarbage("junk_man.fbx", 4000),
+      dir.WriteGarbage("junk_man.dae", 4000),
+      (dir.path() / "absent.bvh").string()};
+  // A damaged character file under a good motion.
+  dir.WriteTruncated("characters/humanoid3d.txt.cut", kData / "deepmimic-motions/characters/humanoid3d.txt");
+  for (const std::string& file : files) {
+    try {
+      LoadClip(file);
+      ADD_FAILURE() << "no error for " << file;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(fs::path(file).filename().string()), std::string::npos)
+          << e.what();
+    }
+  }
+  ClipImportOptions options;
+  options.deepmimic_character = (dir.path() / "characters/humanoid3d.txt.cut").string();
+  try {
+    LoadClip(DataPath("deepmimic-motions/motions/humanoid3d_walk.txt"), options);
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("humanoid3d.txt.cut"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SkeletonFamilies, DetectsEachFamilyFromRealNames) {
+  EXPECT_EQ(DetectFamily({"hip", "abdomen", "chest", "neck", "head", "lShldr", "lForeArm", "lHand", "rShldr",
+                          "rForeArm", "rHand", "lThigh", "lShin", "lFoot", "rThigh", "rShin", "rFoot"}),
+            SkeletonFamily::kPoserBvh);
+  EXPECT_EQ(DetectFamily({"mixamorig:Hips", "mixamorig:Spine", "mixamorig:LeftUpLeg", "mixamorig:LeftLeg",
+                          "mixamorig:RightUpLeg", "mixamorig:RightLeg", "mixamorig:LeftArm",
+                          "mixamorig:LeftForeArm", "mixamorig:RightArm", "mixamorig:RightForeArm"}),
+            SkeletonFamily::kMixamo);
+  EXPECT_EQ(DetectFamily({"HumanoidRoot", "l_hip", "r_hip", "l_knee", "r_knee", "l_shoulder", "r_shoulder",
+                          "l_elbow", "r_elbow"}),
+            SkeletonFamily::kHAnim);
+  EXPECT_EQ(DetectFamily({"a", "b", "Hips"}), SkeletonFamily::kUnknown);
+  // The same name means different joints in different families.
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kBiovisionBvh, "LeftShoulder"), HAnimJoint::kLShoulder);
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kCmuCgspeed, "LeftShoulder"), std::nullopt);
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kMixamo, "mixamorig1:LeftArm"), HAnimJoint::kLShoulder);
+}
+
+}  // namespace
+}  // namespace costume::assets

@@ -1,0 +1,153 @@
+#include "assets/makehuman_import.h"
+
+#include <gtest/gtest.h>
+
+#include "assets/skeleton_families.h"
+#include "sim_core/avatar/clip.h"
+#include "sim_core/common/input_error.h"
+#include "tests/assets/import_test_support.h"
+
+namespace costume::assets {
+namespace {
+
+using namespace costume::assets::testing;
+using sim::HAnimJoint;
+using sim::InputError;
+
+const fs::path kBody = kData / "makehuman/body";
+
+std::shared_ptr<const sim::Avatar> LoadBody() {
+  return LoadMakeHumanAvatar((kBody / "base.obj").string(), (kBody / "default.mhskel").string(),
+                             (kBody / "default_weights.mhw").string());
+}
+
+TEST(MakeHumanImport, BodyIsInMetresWithItsBones) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  const auto avatar = LoadBody();
+  // SOURCE.md: the body group has 13,380 vertices; the skeleton 163 bones.
+  EXPECT_EQ(avatar->num_vertices(), 13380);
+  EXPECT_EQ(avatar->skeleton().num_joints(), 163);
+  const auto& v = avatar->rest_vertices();
+  const double height = v.col(1).maxCoeff() - v.col(1).minCoeff();
+  EXPECT_GT(height, 1.6);
+  EXPECT_LT(height, 1.9);
+  // Quads split in two: 13,378 quads → 26,756 triangles.
+  EXPECT_EQ(avatar->triangles().size(), 2u * 13378u);
+}
+
+TEST(MakeHumanImport, WeightsAreValid) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  const auto avatar = LoadBody();
+  const auto& data = avatar->data();
+  for (int i = 0; i < avatar->num_vertices(); ++i) {
+    double sum = 0.0;
+    for (int k = 0; k < sim::kMaxInfluences; ++k) {
+      const int joint = data.influence_joints(i, k);
+      const double weight = data.influence_weights(i, k);
+      ASSERT_GE(weight, 0.0);
+      if (joint < 0) {
+        ASSERT_EQ(weight, 0.0);
+        continue;
+      }
+      ASSERT_LT(joint, avatar->skeleton().num_joints());
+      sum += weight;
+    }
+    ASSERT_NEAR(sum, 1.0, 1e-9) << "vertex " << i;
+  }
+}
+
+TEST(MakeHumanImport, WeightsKeepTheObjVertexOrder) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  // The vertices weighted mostly to the left foot must lie near the left foot joint:
+  // a shuffled vertex order would scatter them over the body.
+  const auto avatar = LoadBody();
+  const sim::Skeleton& skeleton = avatar->skeleton();
+  const int foot = skeleton.Find(HAnimJoint::kLTalocrural);
+  ASSERT_GE(foot, 0);
+  const Eigen::Vector3d ankle = skeleton.rest_world()[foot].translation();
+  int count = 0;
+  for (int i = 0; i < avatar->num_vertices(); ++i) {
+    if (avatar->data().influence_joints(i, 0) != foot) continue;
+    ++count;
+    EXPECT_LT((avatar->rest_vertices().row(i).transpose() - ankle).norm(), 0.3) << "vertex " << i;
+  }
+  EXPECT_GT(count, 50);
+}
+
+TEST(MakeHumanImport, MappingCoversTheRetargetingMinimum) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  const auto avatar = LoadBody();
+  const sim::Skeleton& skeleton = avatar->skeleton();
+  for (HAnimJoint joint : {HAnimJoint::kHumanoidRoot, HAnimJoint::kLHip, HAnimJoint::kRHip,
+                           HAnimJoint::kLKnee, HAnimJoint::kRKnee, HAnimJoint::kLShoulder,
+                           HAnimJoint::kRShoulder, HAnimJoint::kLElbow, HAnimJoint::kRElbow,
+                           HAnimJoint::kLTalocrural, HAnimJoint::kRTalocrural,
+                           HAnimJoint::kSkullbase}) {
+    EXPECT_GE(skeleton.Find(joint), 0) << sim::HAnimName(joint);
+  }
+  EXPECT_NO_THROW(sim::Retargeter(avatar->shared_skeleton(), avatar->shared_skeleton()));
+}
+
+TEST(MakeHumanImport, JointsSitWhereTheAnatomySays) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  const auto avatar = LoadBody();
+  const sim::Skeleton& s = avatar->skeleton();
+  const double floor = avatar->rest_vertices().col(1).minCoeff();
+  // Knees at about a quarter to a third of the height, hips near half, the skull base
+  // near the top; the character's left at +x (MakeHuman faces +z).
+  EXPECT_NEAR(RestOf(s, HAnimJoint::kLKnee).y() - floor, 0.5, 0.1);
+  EXPECT_NEAR(RestOf(s, HAnimJoint::kLHip).y() - floor, 0.9, 0.15);
+  EXPECT_NEAR(RestOf(s, HAnimJoint::kSkullbase).y() - floor, 1.55, 0.15);
+  EXPECT_GT(RestOf(s, HAnimJoint::kLHip).x(), RestOf(s, HAnimJoint::kRHip).x());
+  EXPECT_GT(RestOf(s, HAnimJoint::kLShoulder).x(), RestOf(s, HAnimJoint::kRShoulder).x());
+  EXPECT_GT(RestOf(s, HAnimJoint::kLElbow).x(), RestOf(s, HAnimJoint::kLShoulder).x());
+}
+
+TEST(MakeHumanImport, DamagedFilesThrowNamingTheFile) {
+  SKIP_WITHOUT("makehuman/body/default.mhskel");
+  ScratchDir dir;
+  const std::string obj = (kBody / "base.obj").string();
+  const std::string skel = (kBody / "default.mhskel").string();
+  const std::string weights = (kBody / "default_weights.mhw").string();
+  const std::string cut_skel = dir.WriteTruncated("cut.mhskel", skel);
+  const std::string cut_weights = dir.WriteTruncated("cut.mhw", weights);
+  const std::string junk_skel = dir.WriteGarbage("junk.mhskel", 5000);
+  const std::string junk_obj = dir.WriteGarbage("junk.obj", 5000);
+  const std::string cut_obj = dir.WriteTruncated("cut.obj", obj);
+  struct Case {
+    std::string obj, skel, weights, named;
+  };
+  for (const Case& c : {Case{obj, cut_skel, weights, "cut.mhskel"},
+                        Case{obj, skel, cut_weights, "cut.mhw"},
+                        Case{obj, junk_skel, weights, "junk.mhskel"},
+                        Case{junk_obj, skel, weights, "junk.obj"},
+                        Case{cut_obj, skel, weights, "cut"},
+                        Case{obj, skel, dir.path().string() + "/missing.mhw", "missing.mhw"}}) {
+    try {
+      LoadMakeHumanAvatar(c.obj, c.skel, c.weights);
+      ADD_FAILURE() << "no error for " << c.named;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.named), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(MakeHumanImport, ObjReaderKeepsOrderAndRefusesBadIndices) {
+  ScratchDir dir;
+  const ObjMesh mesh = ReadObj(dir.Write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng a\nf 1/1 2/2 3/3 -1\n"));
+  ASSERT_EQ(mesh.vertices.rows(), 4);
+  EXPECT_EQ(mesh.vertices(2, 0), 1.0);
+  EXPECT_EQ(mesh.vertices(2, 1), 1.0);
+  ASSERT_EQ(mesh.faces.size(), 1u);
+  EXPECT_EQ(mesh.faces[0], (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(mesh.face_groups[0], "a");
+  try {
+    ReadObj(dir.Write("bad.obj", "v 0 0 0\nv 1 0 0\nf 1 2 7\n"));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.obj:3"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace costume::assets
