@@ -81,6 +81,11 @@ class Simulation {
   const ClothState& state() const { return state_; }
   ClothState& mutable_state() { return state_; }
   const std::vector<GarmentRange>& garments() const { return garments_; }
+  /// The avatar as it moves (null when the scene has none).
+  const AvatarMotion* avatar() const { return avatar_.get(); }
+  /// The avatar's collider (null when the scene has no avatar).
+  const BodyCollider* body_collider() const { return body_.get(); }
+  const std::vector<BodyAttachment>& attachments() const { return attachments_; }
   /// The pyramid the hierarchical and multigrid solvers use; null for the others.
   const QuincunxPyramid* pyramid() const { return pyramid_.get(); }
   /// Step length [s].
