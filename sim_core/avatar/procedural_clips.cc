@@ -115,10 +115,20 @@ double GroundContactOffset(const Skeleton& skeleton, const Pose& pose,
   return any ? -lowest : 0.0;
 }
 
+/// How the root's height follows the feet.
+enum class Ground {
+  /// Every frame puts the lower foot on the ground (standing, walking, dancing).
+  kLowerFootDown,
+  /// The first frame puts the lower foot on the ground and the others keep its offset,
+  /// so the root's own height function shapes the flight (running): following the lower
+  /// foot would make the root jump where the feet trade places.
+  kFirstFrame,
+};
+
 /// Samples `angles_at(phase)` (phase in [0, 1), one period) at 60 frames per second over
 /// `period` seconds, rounded to whole frames so the last frame leads back into the first.
 Clip SampleAngles(const std::string& name, ClipCategory category,
-                  std::shared_ptr<const Skeleton> skeleton, double period,
+                  std::shared_ptr<const Skeleton> skeleton, double period, Ground ground_mode,
                   const std::function<BodyAngles(double)>& angles_at) {
   Clip clip;
   clip.name = name;
@@ -128,10 +138,13 @@ Clip SampleAngles(const std::string& name, ClipCategory category,
   clip.provenance = "procedural (sim_core/avatar/procedural_clips.cc), no external asset";
   const int num_frames = static_cast<int>(std::lround(period * kFramesPerSecond));
   std::vector<Eigen::Isometry3d> world;
+  double ground = 0.0;
   for (int f = 0; f < num_frames; ++f) {
     const BodyAngles angles = angles_at(static_cast<double>(f) / num_frames);
     Pose pose = AnglesToPose(*skeleton, angles);
-    const double ground = GroundContactOffset(*skeleton, pose, world);
+    if (f == 0 || ground_mode == Ground::kLowerFootDown) {
+      ground = GroundContactOffset(*skeleton, pose, world);
+    }
     pose.root_translation = angles.root + ground * Vector3d::UnitY();
     clip.frames.push_back(std::move(pose));
   }
@@ -191,7 +204,8 @@ BodyAngles Run(double phase) {
   BodyAngles a;
   Gait(a.hip_flexion, phi, [](double p) { return 15.0 + 35.0 * std::sin(p); });
   Gait(a.knee_flexion, phi, [](double p) { return 25.0 + 75.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.3)), 2); });
-  Gait(a.ankle_dorsiflexion, phi, [](double p) { return 10.0 * std::sin(p + 0.5); });
+  // Near flat at mid-stance (dorsiflexion ≈ knee − hip there), pointed at toe-off.
+  Gait(a.ankle_dorsiflexion, phi, [](double p) { return 10.0 + 8.0 * std::sin(p + 0.5); });
   Gait(a.shoulder_flexion, phi, [](double p) { return -35.0 * std::sin(p); });
   Gait(a.elbow_flexion, phi, [](double p) { return 85.0 - 10.0 * std::sin(p); });
   a.pelvis_yaw = -8.0 * std::sin(phi);
@@ -199,7 +213,8 @@ BodyAngles Run(double phase) {
   a.spine_yaw = 11.0 * std::sin(phi);
   a.spine_pitch = 8.0;
   a.head_pitch = -7.0;
-  // Airborne while the legs are spread (both feet off the ground), lowest at mid-stance.
+  // Lowest at mid-stance (phi = 0: the right foot under the body, which the first frame
+  // puts on the ground), airborne while the legs are spread.
   const double flight = std::sin(phi);
   a.root = Vector3d(-0.015 * std::cos(phi), 0.07 * flight * flight, 0.0);
   return a;
@@ -339,16 +354,17 @@ struct ClipRecipe {
   const char* name;
   ClipCategory category;
   double period;  // [s]
+  Ground ground;
   BodyAngles (*angles)(double phase);
 };
 
 constexpr ClipRecipe kRecipes[] = {
-    {"stand", ClipCategory::kBasic, 4.0, Stand},
-    {"walk", ClipCategory::kBasic, 1.1, Walk},
-    {"run", ClipCategory::kBasic, 0.7, Run},
-    {"jump", ClipCategory::kBasic, 1.6, Jump},
-    {"kick", ClipCategory::kBasic, 1.5, Kick},
-    {"dance", ClipCategory::kChoreography, 4.0, Dance},
+    {"stand", ClipCategory::kBasic, 4.0, Ground::kLowerFootDown, Stand},
+    {"walk", ClipCategory::kBasic, 1.1, Ground::kLowerFootDown, Walk},
+    {"run", ClipCategory::kBasic, 0.7, Ground::kFirstFrame, Run},
+    {"jump", ClipCategory::kBasic, 1.6, Ground::kLowerFootDown, Jump},
+    {"kick", ClipCategory::kBasic, 1.5, Ground::kLowerFootDown, Kick},
+    {"dance", ClipCategory::kChoreography, 4.0, Ground::kLowerFootDown, Dance},
 };
 
 }  // namespace
@@ -367,7 +383,7 @@ Clip MakeBuiltInClip(const std::string& name, std::shared_ptr<const Skeleton> sk
   for (const ClipRecipe& recipe : kRecipes) {
     if (name == recipe.name) {
       return SampleAngles(name, recipe.category, std::move(skeleton), recipe.period,
-                          recipe.angles);
+                          recipe.ground, recipe.angles);
     }
   }
   std::string valid;

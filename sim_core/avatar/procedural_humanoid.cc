@@ -145,14 +145,14 @@ Station CatmullRom(const Station& s0, const Station& s1, const Station& s2, cons
   const double w1 = 1.5 * t3 - 2.5 * t2 + 1.0;
   const double w2 = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
   const double w3 = 0.5 * t3 - 0.5 * t2;
-  auto mix = [&](auto field) {
-    return w0 * field(s0) + w1 * field(s1) + w2 * field(s2) + w3 * field(s3);
+  auto mix = [&](double Station::*field) {
+    return w0 * s0.*field + w1 * s1.*field + w2 * s2.*field + w3 * s3.*field;
   };
   Station out;
-  out.axial = mix([](const Station& s) { return s.axial; });
-  out.half_width = mix([](const Station& s) { return s.half_width; });
-  out.half_depth = mix([](const Station& s) { return s.half_depth; });
-  out.offset = mix([](const Station& s) -> Vector3d { return s.offset; });
+  out.axial = mix(&Station::axial);
+  out.half_width = mix(&Station::half_width);
+  out.half_depth = mix(&Station::half_depth);
+  out.offset = w0 * s0.offset + w1 * s1.offset + w2 * s2.offset + w3 * s3.offset;
   return out;
 }
 
@@ -267,7 +267,8 @@ std::vector<SegmentShape> MakeShapes(const HumanoidMeasures& m, const Layout& p)
         {0.5 * chest, 0.5 * (m.waist_half_width + m.chest_half_width),
          0.5 * (m.waist_half_depth + m.chest_half_depth), 0.005 * s * forward},
         {chest, m.chest_half_width, m.chest_half_depth, 0.01 * s * forward},
-        {top - 0.03 * s, m.chest_half_width + 0.01 * s, 0.8 * m.chest_half_depth}};
+        // The shoulder girdle, reaching just past the shoulder joints.
+        {top - 0.03 * s, m.chest_half_width + 0.025 * s, 0.8 * m.chest_half_depth}};
     shapes.push_back(torso);
   }
   // Neck and head.
