@@ -119,10 +119,10 @@ double GroundContactOffset(const Skeleton& skeleton, const Pose& pose,
 enum class Ground {
   /// Every frame puts the lower foot on the ground (standing, walking, dancing).
   kLowerFootDown,
-  /// The first frame puts the lower foot on the ground and the others keep its offset,
-  /// so the root's own height function shapes the flight (running): following the lower
-  /// foot would make the root jump where the feet trade places.
-  kFirstFrame,
+  /// One offset for all frames, the least that keeps both feet above the ground in every
+  /// frame, so the root's own height function shapes the flight (running): following the
+  /// lower foot would make the root jump where the feet trade places.
+  kLowestOverClip,
 };
 
 /// Samples `angles_at(phase)` (phase in [0, 1), one period) at 60 frames per second over
@@ -138,15 +138,19 @@ Clip SampleAngles(const std::string& name, ClipCategory category,
   clip.provenance = "procedural (sim_core/avatar/procedural_clips.cc), no external asset";
   const int num_frames = static_cast<int>(std::lround(period * kFramesPerSecond));
   std::vector<Eigen::Isometry3d> world;
-  double ground = 0.0;
+  std::vector<double> ground(num_frames);
+  double ground_for_all = -1e9;
   for (int f = 0; f < num_frames; ++f) {
     const BodyAngles angles = angles_at(static_cast<double>(f) / num_frames);
     Pose pose = AnglesToPose(*skeleton, angles);
-    if (f == 0 || ground_mode == Ground::kLowerFootDown) {
-      ground = GroundContactOffset(*skeleton, pose, world);
-    }
-    pose.root_translation = angles.root + ground * Vector3d::UnitY();
+    ground[f] = GroundContactOffset(*skeleton, pose, world);
+    ground_for_all = std::max(ground_for_all, ground[f] - angles.root.y());
+    pose.root_translation = angles.root;
     clip.frames.push_back(std::move(pose));
+  }
+  for (int f = 0; f < num_frames; ++f) {
+    clip.frames[f].root_translation.y() +=
+        ground_mode == Ground::kLowerFootDown ? ground[f] : ground_for_all;
   }
   clip.skeleton = std::move(skeleton);
   return clip;
@@ -213,8 +217,8 @@ BodyAngles Run(double phase) {
   a.spine_yaw = 11.0 * std::sin(phi);
   a.spine_pitch = 8.0;
   a.head_pitch = -7.0;
-  // Lowest at mid-stance (phi = 0: the right foot under the body, which the first frame
-  // puts on the ground), airborne while the legs are spread.
+  // Lowest at mid-stance (phi = 0, pi: a foot under the body), airborne while the legs
+  // are spread.
   const double flight = std::sin(phi);
   a.root = Vector3d(-0.015 * std::cos(phi), 0.07 * flight * flight, 0.0);
   return a;
@@ -361,7 +365,7 @@ struct ClipRecipe {
 constexpr ClipRecipe kRecipes[] = {
     {"stand", ClipCategory::kBasic, 4.0, Ground::kLowerFootDown, Stand},
     {"walk", ClipCategory::kBasic, 1.1, Ground::kLowerFootDown, Walk},
-    {"run", ClipCategory::kBasic, 0.7, Ground::kFirstFrame, Run},
+    {"run", ClipCategory::kBasic, 0.7, Ground::kLowestOverClip, Run},
     {"jump", ClipCategory::kBasic, 1.6, Ground::kLowerFootDown, Jump},
     {"kick", ClipCategory::kBasic, 1.5, Ground::kLowerFootDown, Kick},
     {"dance", ClipCategory::kChoreography, 4.0, Ground::kLowerFootDown, Dance},

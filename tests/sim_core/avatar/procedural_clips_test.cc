@@ -102,6 +102,10 @@ TEST(MakeBuiltInClip, LastFrameLeadsIntoTheFirstLikeAnyOtherStep) {
     EXPECT_LE(wrap, 2.0 * Median(steps) + 0.2 / kDegrees) << name << ": median step "
                                                           << Median(steps) * kDegrees << "°";
     EXPECT_LE(wrap_move, 2.0 * Median(moves) + 1e-3) << name;
+    if (name != "jump" && name != "kick") {
+      // These never come to rest, so a repeated frame at the seam (a stutter) shows too.
+      EXPECT_GE(wrap, 0.5 * Median(steps)) << name;
+    }
     EXPECT_GT(*std::max_element(steps.begin(), steps.end()), 0.0) << name << " does not move";
   }
 }
