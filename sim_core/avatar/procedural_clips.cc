@@ -74,13 +74,12 @@ Pose AnglesToPose(const Skeleton& skeleton, const BodyAngles& a) {
     SetRotation(skeleton, left ? J::kLTalocrural : J::kRTalocrural,
                 Pitch(-a.ankle_dorsiflexion[side]), pose);
     SetRotation(skeleton, left ? J::kLShoulder : J::kRShoulder,
-                Roll(mirror * a.shoulder_abduction[side]) * Pitch(-a.shoulder_flexion[side]),
-                pose);
+                Roll(mirror * a.shoulder_abduction[side]) * Pitch(-a.shoulder_flexion[side]), pose);
     SetRotation(skeleton, left ? J::kLElbow : J::kRElbow, Pitch(-a.elbow_flexion[side]), pose);
   }
   SetRotation(skeleton, J::kSacroiliac, Yaw(a.pelvis_yaw) * Roll(a.pelvis_roll), pose);
-  SetRotation(skeleton, J::kVl5,
-              Yaw(a.spine_yaw) * Roll(a.spine_roll) * Pitch(a.spine_pitch), pose);
+  SetRotation(skeleton, J::kVl5, Yaw(a.spine_yaw) * Roll(a.spine_roll) * Pitch(a.spine_pitch),
+              pose);
   SetRotation(skeleton, J::kSkullbase, Yaw(a.head_yaw) * Pitch(a.head_pitch), pose);
   return pose;
 }
@@ -188,7 +187,8 @@ BodyAngles Walk(double phase) {
   BodyAngles a;
   Gait(a.hip_flexion, phi, [](double p) { return 25.0 * std::sin(p); });
   // Knee flexion peaks (60°) early in the swing and is nearly straight at heel strike.
-  Gait(a.knee_flexion, phi, [](double p) { return 60.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.35)), 3); });
+  Gait(a.knee_flexion, phi,
+       [](double p) { return 60.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.35)), 3); });
   Gait(a.ankle_dorsiflexion, phi, [](double p) { return 6.0 * std::sin(p + 0.5); });
   // Each arm swings opposite to its leg.
   Gait(a.shoulder_flexion, phi, [](double p) { return -20.0 * std::sin(p); });
@@ -207,7 +207,8 @@ BodyAngles Run(double phase) {
   const double phi = 2.0 * kPi * phase;
   BodyAngles a;
   Gait(a.hip_flexion, phi, [](double p) { return 15.0 + 35.0 * std::sin(p); });
-  Gait(a.knee_flexion, phi, [](double p) { return 25.0 + 75.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.3)), 2); });
+  Gait(a.knee_flexion, phi,
+       [](double p) { return 25.0 + 75.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.3)), 2); });
   // Near flat at mid-stance (dorsiflexion ≈ knee − hip there), pointed at toe-off.
   Gait(a.ankle_dorsiflexion, phi, [](double p) { return 10.0 + 8.0 * std::sin(p + 0.5); });
   Gait(a.shoulder_flexion, phi, [](double p) { return -35.0 * std::sin(p); });
@@ -285,7 +286,7 @@ BodyAngles Jump(double phase) {
   static const std::vector<Key> keys = {
       {0.00, Symmetric(0, 0, 0, 0, 10, 0, {0, 0, 0})},
       {0.10, Symmetric(0, 0, 0, 0, 10, 0, {0, 0, 0})},
-      {0.30, Symmetric(60, 100, 40, -45, 20, 30, {0, 0, -0.08})},   // crouch, arms back
+      {0.30, Symmetric(60, 100, 40, -45, 20, 30, {0, 0, -0.08})},  // crouch, arms back
       {0.42, Symmetric(-5, 5, -25, 160, 20, 0, {0, 0, 0})},        // push off on the toes
       {0.55, Symmetric(10, 30, 0, 150, 20, 0, {0, 0.32, 0})},      // top of the flight
       {0.68, Symmetric(0, 10, -20, 100, 20, 0, {0, 0, 0})},        // touch down, toes first
@@ -314,14 +315,12 @@ BodyAngles KickKey(double hip, double knee, double ankle, double support_knee, d
 
 BodyAngles Kick(double phase) {
   static const std::vector<Key> keys = {
-      {0.00, KickKey(0, 0, 0, 0, 0, 0)},
-      {0.12, KickKey(0, 0, 0, 6, 0, 0)},
+      {0.00, KickKey(0, 0, 0, 0, 0, 0)},          {0.12, KickKey(0, 0, 0, 6, 0, 0)},
       {0.28, KickKey(-15, 55, -10, 12, -15, -3)},  // wind up
       {0.42, KickKey(70, 5, -25, 12, 35, 10)},     // the kick
       {0.55, KickKey(55, 45, -15, 12, 25, 6)},     // retract
       {0.72, KickKey(10, 30, 0, 10, 5, 0)},        // put the foot down
-      {0.88, KickKey(0, 0, 0, 2, 0, 0)},
-      {1.00, KickKey(0, 0, 0, 0, 0, 0)}};
+      {0.88, KickKey(0, 0, 0, 2, 0, 0)},          {1.00, KickKey(0, 0, 0, 0, 0, 0)}};
   return Interpolate(keys, phase);
 }
 
@@ -386,8 +385,8 @@ Clip MakeBuiltInClip(const std::string& name, std::shared_ptr<const Skeleton> sk
   if (!skeleton) throw InputError("built-in clip '" + name + "': no skeleton given");
   for (const ClipRecipe& recipe : kRecipes) {
     if (name == recipe.name) {
-      return SampleAngles(name, recipe.category, std::move(skeleton), recipe.period,
-                          recipe.ground, recipe.angles);
+      return SampleAngles(name, recipe.category, std::move(skeleton), recipe.period, recipe.ground,
+                          recipe.angles);
     }
   }
   std::string valid;
