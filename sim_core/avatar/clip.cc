@@ -171,8 +171,10 @@ void Retargeter::Apply(const Pose& source_pose, Pose& target_pose) const {
         facing_ * unplace *
         Eigen::Quaterniond(source_world_[s].linear() * source_rest[s].linear().transpose()) *
         facing_.conjugate();
-    target_world_[j] = (delta * alignment_[j] * Eigen::Quaterniond(target_rest[j].linear())).normalized();
-    target_pose.rotations[j] = ((parent_world * rest_local).conjugate() * target_world_[j]).normalized();
+    target_world_[j] =
+        (delta * alignment_[j] * Eigen::Quaterniond(target_rest[j].linear())).normalized();
+    target_pose.rotations[j] =
+        ((parent_world * rest_local).conjugate() * target_world_[j]).normalized();
   }
   target_pose.root_translation = facing_ * source_pose.root_translation * translation_scale_;
   target_pose.orientation = (facing_ * source_pose.orientation * facing_.conjugate()).normalized();

@@ -74,13 +74,12 @@ Pose AnglesToPose(const Skeleton& skeleton, const BodyAngles& a) {
     SetRotation(skeleton, left ? J::kLTalocrural : J::kRTalocrural,
                 Pitch(-a.ankle_dorsiflexion[side]), pose);
     SetRotation(skeleton, left ? J::kLShoulder : J::kRShoulder,
-                Roll(mirror * a.shoulder_abduction[side]) * Pitch(-a.shoulder_flexion[side]),
-                pose);
+                Roll(mirror * a.shoulder_abduction[side]) * Pitch(-a.shoulder_flexion[side]), pose);
     SetRotation(skeleton, left ? J::kLElbow : J::kRElbow, Pitch(-a.elbow_flexion[side]), pose);
   }
   SetRotation(skeleton, J::kSacroiliac, Yaw(a.pelvis_yaw) * Roll(a.pelvis_roll), pose);
-  SetRotation(skeleton, J::kVl5,
-              Yaw(a.spine_yaw) * Roll(a.spine_roll) * Pitch(a.spine_pitch), pose);
+  SetRotation(skeleton, J::kVl5, Yaw(a.spine_yaw) * Roll(a.spine_roll) * Pitch(a.spine_pitch),
+              pose);
   SetRotation(skeleton, J::kSkullbase, Yaw(a.head_yaw) * Pitch(a.head_pitch), pose);
   return pose;
 }
@@ -115,10 +114,20 @@ double GroundContactOffset(const Skeleton& skeleton, const Pose& pose,
   return any ? -lowest : 0.0;
 }
 
+/// How the root's height follows the feet.
+enum class Ground {
+  /// Every frame puts the lower foot on the ground (standing, walking, dancing).
+  kLowerFootDown,
+  /// One offset for all frames, the least that keeps both feet above the ground in every
+  /// frame, so the root's own height function shapes the flight (running): following the
+  /// lower foot would make the root jump where the feet trade places.
+  kLowestOverClip,
+};
+
 /// Samples `angles_at(phase)` (phase in [0, 1), one period) at 60 frames per second over
 /// `period` seconds, rounded to whole frames so the last frame leads back into the first.
 Clip SampleAngles(const std::string& name, ClipCategory category,
-                  std::shared_ptr<const Skeleton> skeleton, double period,
+                  std::shared_ptr<const Skeleton> skeleton, double period, Ground ground_mode,
                   const std::function<BodyAngles(double)>& angles_at) {
   Clip clip;
   clip.name = name;
@@ -128,12 +137,19 @@ Clip SampleAngles(const std::string& name, ClipCategory category,
   clip.provenance = "procedural (sim_core/avatar/procedural_clips.cc), no external asset";
   const int num_frames = static_cast<int>(std::lround(period * kFramesPerSecond));
   std::vector<Eigen::Isometry3d> world;
+  std::vector<double> ground(num_frames);
+  double ground_for_all = -1e9;
   for (int f = 0; f < num_frames; ++f) {
     const BodyAngles angles = angles_at(static_cast<double>(f) / num_frames);
     Pose pose = AnglesToPose(*skeleton, angles);
-    const double ground = GroundContactOffset(*skeleton, pose, world);
-    pose.root_translation = angles.root + ground * Vector3d::UnitY();
+    ground[f] = GroundContactOffset(*skeleton, pose, world);
+    ground_for_all = std::max(ground_for_all, ground[f] - angles.root.y());
+    pose.root_translation = angles.root;
     clip.frames.push_back(std::move(pose));
+  }
+  for (int f = 0; f < num_frames; ++f) {
+    clip.frames[f].root_translation.y() +=
+        ground_mode == Ground::kLowerFootDown ? ground[f] : ground_for_all;
   }
   clip.skeleton = std::move(skeleton);
   return clip;
@@ -171,7 +187,8 @@ BodyAngles Walk(double phase) {
   BodyAngles a;
   Gait(a.hip_flexion, phi, [](double p) { return 25.0 * std::sin(p); });
   // Knee flexion peaks (60°) early in the swing and is nearly straight at heel strike.
-  Gait(a.knee_flexion, phi, [](double p) { return 60.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.35)), 3); });
+  Gait(a.knee_flexion, phi,
+       [](double p) { return 60.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.35)), 3); });
   Gait(a.ankle_dorsiflexion, phi, [](double p) { return 6.0 * std::sin(p + 0.5); });
   // Each arm swings opposite to its leg.
   Gait(a.shoulder_flexion, phi, [](double p) { return -20.0 * std::sin(p); });
@@ -190,8 +207,10 @@ BodyAngles Run(double phase) {
   const double phi = 2.0 * kPi * phase;
   BodyAngles a;
   Gait(a.hip_flexion, phi, [](double p) { return 15.0 + 35.0 * std::sin(p); });
-  Gait(a.knee_flexion, phi, [](double p) { return 25.0 + 75.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.3)), 2); });
-  Gait(a.ankle_dorsiflexion, phi, [](double p) { return 10.0 * std::sin(p + 0.5); });
+  Gait(a.knee_flexion, phi,
+       [](double p) { return 25.0 + 75.0 * std::pow(0.5 * (1.0 + std::cos(p + 0.3)), 2); });
+  // Near flat at mid-stance (dorsiflexion ≈ knee − hip there), pointed at toe-off.
+  Gait(a.ankle_dorsiflexion, phi, [](double p) { return 10.0 + 8.0 * std::sin(p + 0.5); });
   Gait(a.shoulder_flexion, phi, [](double p) { return -35.0 * std::sin(p); });
   Gait(a.elbow_flexion, phi, [](double p) { return 85.0 - 10.0 * std::sin(p); });
   a.pelvis_yaw = -8.0 * std::sin(phi);
@@ -199,7 +218,8 @@ BodyAngles Run(double phase) {
   a.spine_yaw = 11.0 * std::sin(phi);
   a.spine_pitch = 8.0;
   a.head_pitch = -7.0;
-  // Airborne while the legs are spread (both feet off the ground), lowest at mid-stance.
+  // Lowest at mid-stance (phi = 0, pi: a foot under the body), airborne while the legs
+  // are spread.
   const double flight = std::sin(phi);
   a.root = Vector3d(-0.015 * std::cos(phi), 0.07 * flight * flight, 0.0);
   return a;
@@ -266,7 +286,7 @@ BodyAngles Jump(double phase) {
   static const std::vector<Key> keys = {
       {0.00, Symmetric(0, 0, 0, 0, 10, 0, {0, 0, 0})},
       {0.10, Symmetric(0, 0, 0, 0, 10, 0, {0, 0, 0})},
-      {0.30, Symmetric(60, 100, 40, -45, 20, 30, {0, 0, -0.08})},   // crouch, arms back
+      {0.30, Symmetric(60, 100, 40, -45, 20, 30, {0, 0, -0.08})},  // crouch, arms back
       {0.42, Symmetric(-5, 5, -25, 160, 20, 0, {0, 0, 0})},        // push off on the toes
       {0.55, Symmetric(10, 30, 0, 150, 20, 0, {0, 0.32, 0})},      // top of the flight
       {0.68, Symmetric(0, 10, -20, 100, 20, 0, {0, 0, 0})},        // touch down, toes first
@@ -295,14 +315,12 @@ BodyAngles KickKey(double hip, double knee, double ankle, double support_knee, d
 
 BodyAngles Kick(double phase) {
   static const std::vector<Key> keys = {
-      {0.00, KickKey(0, 0, 0, 0, 0, 0)},
-      {0.12, KickKey(0, 0, 0, 6, 0, 0)},
+      {0.00, KickKey(0, 0, 0, 0, 0, 0)},          {0.12, KickKey(0, 0, 0, 6, 0, 0)},
       {0.28, KickKey(-15, 55, -10, 12, -15, -3)},  // wind up
       {0.42, KickKey(70, 5, -25, 12, 35, 10)},     // the kick
       {0.55, KickKey(55, 45, -15, 12, 25, 6)},     // retract
       {0.72, KickKey(10, 30, 0, 10, 5, 0)},        // put the foot down
-      {0.88, KickKey(0, 0, 0, 2, 0, 0)},
-      {1.00, KickKey(0, 0, 0, 0, 0, 0)}};
+      {0.88, KickKey(0, 0, 0, 2, 0, 0)},          {1.00, KickKey(0, 0, 0, 0, 0, 0)}};
   return Interpolate(keys, phase);
 }
 
@@ -339,16 +357,17 @@ struct ClipRecipe {
   const char* name;
   ClipCategory category;
   double period;  // [s]
+  Ground ground;
   BodyAngles (*angles)(double phase);
 };
 
 constexpr ClipRecipe kRecipes[] = {
-    {"stand", ClipCategory::kBasic, 4.0, Stand},
-    {"walk", ClipCategory::kBasic, 1.1, Walk},
-    {"run", ClipCategory::kBasic, 0.7, Run},
-    {"jump", ClipCategory::kBasic, 1.6, Jump},
-    {"kick", ClipCategory::kBasic, 1.5, Kick},
-    {"dance", ClipCategory::kChoreography, 4.0, Dance},
+    {"stand", ClipCategory::kBasic, 4.0, Ground::kLowerFootDown, Stand},
+    {"walk", ClipCategory::kBasic, 1.1, Ground::kLowerFootDown, Walk},
+    {"run", ClipCategory::kBasic, 0.7, Ground::kLowestOverClip, Run},
+    {"jump", ClipCategory::kBasic, 1.6, Ground::kLowerFootDown, Jump},
+    {"kick", ClipCategory::kBasic, 1.5, Ground::kLowerFootDown, Kick},
+    {"dance", ClipCategory::kChoreography, 4.0, Ground::kLowerFootDown, Dance},
 };
 
 }  // namespace
@@ -366,7 +385,7 @@ Clip MakeBuiltInClip(const std::string& name, std::shared_ptr<const Skeleton> sk
   if (!skeleton) throw InputError("built-in clip '" + name + "': no skeleton given");
   for (const ClipRecipe& recipe : kRecipes) {
     if (name == recipe.name) {
-      return SampleAngles(name, recipe.category, std::move(skeleton), recipe.period,
+      return SampleAngles(name, recipe.category, std::move(skeleton), recipe.period, recipe.ground,
                           recipe.angles);
     }
   }

@@ -93,8 +93,8 @@ std::shared_ptr<const Skeleton> BuildSkeleton(const Layout& p) {
     const std::optional<J> parent = HAnimParent(joint);
     // AllHAnimJoints() lists parents first and in enum order, so the H-Anim id is the index.
     entry.parent = parent ? Index(*parent) : -1;
-    entry.rest_local.translation() = parent ? Vector3d(p[Index(joint)] - p[Index(*parent)])
-                                            : p[Index(joint)];
+    entry.rest_local.translation() =
+        parent ? Vector3d(p[Index(joint)] - p[Index(*parent)]) : p[Index(joint)];
     joints.push_back(std::move(entry));
   }
   return Skeleton::Create("built-in humanoid", std::move(joints));
@@ -145,14 +145,14 @@ Station CatmullRom(const Station& s0, const Station& s1, const Station& s2, cons
   const double w1 = 1.5 * t3 - 2.5 * t2 + 1.0;
   const double w2 = -1.5 * t3 + 2.0 * t2 + 0.5 * t;
   const double w3 = 0.5 * t3 - 0.5 * t2;
-  auto mix = [&](auto field) {
-    return w0 * field(s0) + w1 * field(s1) + w2 * field(s2) + w3 * field(s3);
+  auto mix = [&](double Station::*field) {
+    return w0 * s0.*field + w1 * s1.*field + w2 * s2.*field + w3 * s3.*field;
   };
   Station out;
-  out.axial = mix([](const Station& s) { return s.axial; });
-  out.half_width = mix([](const Station& s) { return s.half_width; });
-  out.half_depth = mix([](const Station& s) { return s.half_depth; });
-  out.offset = mix([](const Station& s) -> Vector3d { return s.offset; });
+  out.axial = mix(&Station::axial);
+  out.half_width = mix(&Station::half_width);
+  out.half_depth = mix(&Station::half_depth);
+  out.offset = w0 * s0.offset + w1 * s1.offset + w2 * s2.offset + w3 * s3.offset;
   return out;
 }
 
@@ -171,11 +171,13 @@ std::vector<Ring> MakeRings(const SegmentShape& shape, double spacing) {
   }
   rings.push_back({st.front(), 1.0});
   for (int i = 0; i + 1 < n; ++i) {
-    const int m = std::max(1, static_cast<int>(std::ceil((st[i + 1].axial - st[i].axial) / spacing)));
+    const int m =
+        std::max(1, static_cast<int>(std::ceil((st[i + 1].axial - st[i].axial) / spacing)));
     const Station& before = st[std::max(i - 1, 0)];
     const Station& after = st[std::min(i + 2, n - 1)];
     for (int j = 1; j <= m; ++j) {
-      rings.push_back({CatmullRom(before, st[i], st[i + 1], after, static_cast<double>(j) / m), 1.0});
+      rings.push_back(
+          {CatmullRom(before, st[i], st[i + 1], after, static_cast<double>(j) / m), 1.0});
     }
   }
   for (int k = nc - 1; k >= 1; --k) {
@@ -201,8 +203,8 @@ void AppendTube(const SegmentShape& shape, double spacing, std::vector<Vector3d>
   const Vector3d side = (shape.side_hint - shape.side_hint.dot(d) * d).normalized();
   const Vector3d depth = d.cross(side);
   auto point = [&](const Station& s, double scale, double x, double y) -> Vector3d {
-    return shape.origin + s.axial * d + s.offset + scale * (x * s.half_width * side +
-                                                             y * s.half_depth * depth);
+    return shape.origin + s.axial * d + s.offset +
+           scale * (x * s.half_width * side + y * s.half_depth * depth);
   };
   const std::vector<Ring> rings = MakeRings(shape, spacing);
   const int m = shape.num_around;
@@ -261,13 +263,13 @@ std::vector<SegmentShape> MakeShapes(const HumanoidMeasures& m, const Layout& p)
     const double top = p[Index(J::kVc7)].y() - origin.y();
     const double chest = 0.72 * m.height - origin.y();
     SegmentShape torso{J::kVl5, origin, up, x, {}, 0.04 * s, 0.05 * s, 2.5, 32};
-    torso.stations = {
-        {-0.03 * s, m.waist_half_width, m.waist_half_depth},
-        {0.02 * s, m.waist_half_width, m.waist_half_depth},
-        {0.5 * chest, 0.5 * (m.waist_half_width + m.chest_half_width),
-         0.5 * (m.waist_half_depth + m.chest_half_depth), 0.005 * s * forward},
-        {chest, m.chest_half_width, m.chest_half_depth, 0.01 * s * forward},
-        {top - 0.03 * s, m.chest_half_width + 0.01 * s, 0.8 * m.chest_half_depth}};
+    torso.stations = {{-0.03 * s, m.waist_half_width, m.waist_half_depth},
+                      {0.02 * s, m.waist_half_width, m.waist_half_depth},
+                      {0.5 * chest, 0.5 * (m.waist_half_width + m.chest_half_width),
+                       0.5 * (m.waist_half_depth + m.chest_half_depth), 0.005 * s * forward},
+                      {chest, m.chest_half_width, m.chest_half_depth, 0.01 * s * forward},
+                      // The shoulder girdle, reaching just past the shoulder joints.
+                      {top - 0.03 * s, m.chest_half_width + 0.025 * s, 0.8 * m.chest_half_depth}};
     shapes.push_back(torso);
   }
   // Neck and head.
@@ -279,7 +281,8 @@ std::vector<SegmentShape> MakeShapes(const HumanoidMeasures& m, const Layout& p)
                      {length, m.neck_radius, m.neck_radius, 0.01 * s * forward}};
     shapes.push_back(neck);
     const double r = m.head_radius;
-    SegmentShape head{J::kSkullbase, p[Index(J::kSkullbase)], up, x, {}, 1.0 * r, 1.2 * r, 2.0, 32, 9};
+    SegmentShape head{
+        J::kSkullbase, p[Index(J::kSkullbase)], up, x, {}, 1.0 * r, 1.2 * r, 2.0, 32, 9};
     head.stations = {{0.6 * r, 0.78 * r, 0.98 * r, 0.02 * s * forward}};
     shapes.push_back(head);
   }
@@ -307,7 +310,14 @@ std::vector<SegmentShape> MakeShapes(const HumanoidMeasures& m, const Layout& p)
     shapes.push_back(calf);
     // Foot: along +z from the heel; the sole (centre − half depth) is at y = 0 everywhere.
     SegmentShape foot{left ? J::kLTalocrural : J::kRTalocrural,
-                      {ankle.x(), 0.0, -0.045 * s}, forward, x, {}, 0.025 * s, 0.03 * s, 3.0, 20};
+                      {ankle.x(), 0.0, -0.045 * s},
+                      forward,
+                      x,
+                      {},
+                      0.025 * s,
+                      0.03 * s,
+                      3.0,
+                      20};
     auto sole = [&](double axial, double half_width, double half_height) {
       return Station{axial * s, half_width * s, half_height * s, half_height * s * up};
     };
@@ -318,19 +328,29 @@ std::vector<SegmentShape> MakeShapes(const HumanoidMeasures& m, const Layout& p)
     const Vector3d arm = (elbow - shoulder).normalized();
     const double ua = m.upper_arm_radius;
     const double fa = m.forearm_radius;
-    SegmentShape upper{left ? J::kLShoulder : J::kRShoulder, shoulder, arm, x, {}, 0.06 * s, 0.035 * s, 2.0, 16};
-    upper.stations = {{0.0, 1.15 * ua, 1.1 * ua},
-                      {0.1 * s, ua, ua},
-                      {(elbow - shoulder).norm(), 1.05 * fa, fa}};
+    SegmentShape upper{
+        left ? J::kLShoulder : J::kRShoulder, shoulder, arm, x, {}, 0.06 * s, 0.035 * s, 2.0, 16};
+    upper.stations = {
+        {0.0, 1.15 * ua, 1.1 * ua}, {0.1 * s, ua, ua}, {(elbow - shoulder).norm(), 1.05 * fa, fa}};
     shapes.push_back(upper);
-    SegmentShape fore{left ? J::kLElbow : J::kRElbow, elbow, arm, x, {}, 0.035 * s, 0.02 * s, 2.0, 16};
+    SegmentShape fore{
+        left ? J::kLElbow : J::kRElbow, elbow, arm, x, {}, 0.035 * s, 0.02 * s, 2.0, 16};
     fore.stations = {{0.0, fa, fa},
                      {0.08 * s, 1.1 * fa, 1.05 * fa},
                      {(wrist - elbow).norm(), 0.55 * fa, 0.8 * fa}};
     shapes.push_back(fore);
     // Hand: flat, the palm facing the thigh (thin along the side direction).
-    SegmentShape hand{left ? J::kLRadiocarpal : J::kRRadiocarpal, wrist, arm, x, {}, 0.015 * s, 0.05 * s, 2.5, 16};
-    hand.stations = {{0.0, 0.018 * s, 0.03 * s}, {0.07 * s, 0.016 * s, 0.042 * s},
+    SegmentShape hand{left ? J::kLRadiocarpal : J::kRRadiocarpal,
+                      wrist,
+                      arm,
+                      x,
+                      {},
+                      0.015 * s,
+                      0.05 * s,
+                      2.5,
+                      16};
+    hand.stations = {{0.0, 0.018 * s, 0.03 * s},
+                     {0.07 * s, 0.016 * s, 0.042 * s},
                      {0.13 * s, 0.012 * s, 0.038 * s}};
     shapes.push_back(hand);
   }
@@ -366,20 +386,20 @@ double OuterShare(const BlendZone& zone, const Vector3d& v, double& radial_facto
   const Vector3d rel = v - zone.center;
   const double along = rel.dot(zone.axis);
   const double across = (rel - along * zone.axis).norm();
-  radial_factor = 1.0 - SmoothStep(2.0 * (across - zone.radial_start) /
-                                       (zone.radial_end - zone.radial_start) - 1.0);
+  radial_factor =
+      1.0 -
+      SmoothStep(2.0 * (across - zone.radial_start) / (zone.radial_end - zone.radial_start) - 1.0);
   return SmoothStep(along / zone.half_width);
 }
 
 std::vector<BlendZone> MakeBlendZones(const HumanoidMeasures& m, const Layout& p) {
   const double s = m.height / 1.75;
   const Vector3d up = Vector3d::UnitY();
-  std::vector<BlendZone> zones = {
-      {J::kSacroiliac, J::kVl5, p[Index(J::kVl5)], up, 0.07 * s},
-      {J::kVl5, J::kVc7, p[Index(J::kVc7)], up, 0.04 * s, 1.3 * m.neck_radius,
-       1.3 * m.neck_radius + 0.05 * s},
-      {J::kVc7, J::kSkullbase, p[Index(J::kSkullbase)], up, 0.035 * s, m.neck_radius,
-       m.neck_radius + 0.035 * s}};
+  std::vector<BlendZone> zones = {{J::kSacroiliac, J::kVl5, p[Index(J::kVl5)], up, 0.07 * s},
+                                  {J::kVl5, J::kVc7, p[Index(J::kVc7)], up, 0.04 * s,
+                                   1.3 * m.neck_radius, 1.3 * m.neck_radius + 0.05 * s},
+                                  {J::kVc7, J::kSkullbase, p[Index(J::kSkullbase)], up, 0.035 * s,
+                                   m.neck_radius, m.neck_radius + 0.035 * s}};
   for (const bool left : {true, false}) {
     auto at = [&](J l, J r) { return left ? l : r; };
     const Vector3d hip = p[Index(at(J::kLHip, J::kRHip))];
@@ -396,12 +416,12 @@ std::vector<BlendZone> MakeBlendZones(const HumanoidMeasures& m, const Layout& p
                      (ankle - knee).normalized(), 0.06 * s});
     zones.push_back({at(J::kLKnee, J::kRKnee), at(J::kLTalocrural, J::kRTalocrural), ankle,
                      (ankle - knee).normalized(), 0.035 * s, 0.06 * s, 0.1 * s});
-    zones.push_back({J::kVc7, at(J::kLShoulder, J::kRShoulder), shoulder, arm, 0.05 * s,
-                     0.07 * s, 0.12 * s});
-    zones.push_back({at(J::kLShoulder, J::kRShoulder), at(J::kLElbow, J::kRElbow), elbow, arm,
-                     0.045 * s});
-    zones.push_back({at(J::kLElbow, J::kRElbow), at(J::kLRadiocarpal, J::kRRadiocarpal), wrist,
-                     arm, 0.03 * s});
+    zones.push_back(
+        {J::kVc7, at(J::kLShoulder, J::kRShoulder), shoulder, arm, 0.05 * s, 0.07 * s, 0.12 * s});
+    zones.push_back(
+        {at(J::kLShoulder, J::kRShoulder), at(J::kLElbow, J::kRElbow), elbow, arm, 0.045 * s});
+    zones.push_back(
+        {at(J::kLElbow, J::kRElbow), at(J::kLRadiocarpal, J::kRRadiocarpal), wrist, arm, 0.03 * s});
   }
   return zones;
 }
@@ -417,7 +437,8 @@ void AssignWeights(J owner, int first, int end, const std::vector<Vector3d>& ver
       double radial = 0.0;
       const double outer = OuterShare(zone, vertices[v], radial);
       const double share = radial * (zone.outer == owner ? 1.0 - outer : outer);
-      if (share > 1e-9) shares.emplace_back(share, Index(zone.outer == owner ? zone.inner : zone.outer));
+      if (share > 1e-9)
+        shares.emplace_back(share, Index(zone.outer == owner ? zone.inner : zone.outer));
     }
     // Keep the largest shares the influence slots hold (the owner takes one).
     std::sort(shares.rbegin(), shares.rend());

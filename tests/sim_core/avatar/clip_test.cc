@@ -140,15 +140,15 @@ struct Variant {
 std::shared_ptr<const Skeleton> TestHumanoid(const Variant& variant = {}) {
   using J = HAnimJoint;
   std::map<J, Eigen::Vector3d> at = {
-      {J::kHumanoidRoot, {0, 1, 0}},    {J::kSacroiliac, {0, 1, 0}},
-      {J::kLHip, {0.1, 0.95, 0}},       {J::kLKnee, {0.1, 0.5, 0}},
-      {J::kLTalocrural, {0.1, 0.08, 0}}, {J::kVl5, {0, 1.1, 0}},
-      {J::kVc7, {0, 1.45, 0}},          {J::kSkullbase, {0, 1.6, 0}}};
+      {J::kHumanoidRoot, {0, 1, 0}}, {J::kSacroiliac, {0, 1, 0}},       {J::kLHip, {0.1, 0.95, 0}},
+      {J::kLKnee, {0.1, 0.5, 0}},    {J::kLTalocrural, {0.1, 0.08, 0}}, {J::kVl5, {0, 1.1, 0}},
+      {J::kVc7, {0, 1.45, 0}},       {J::kSkullbase, {0, 1.6, 0}}};
   const double a = 20.0 * kPi / 180.0;
   at[J::kLShoulder] = {0.2, 1.42, 0};
   at[J::kLElbow] = at[J::kLShoulder] + 0.3 * Eigen::Vector3d(std::sin(a), -std::cos(a), 0);
   at[J::kLRadiocarpal] = at[J::kLElbow] + 0.25 * Eigen::Vector3d(std::sin(a), -std::cos(a), 0);
-  for (J left : {J::kLHip, J::kLKnee, J::kLTalocrural, J::kLShoulder, J::kLElbow, J::kLRadiocarpal}) {
+  for (J left :
+       {J::kLHip, J::kLKnee, J::kLTalocrural, J::kLShoulder, J::kLElbow, J::kLRadiocarpal}) {
     at[HAnimMirror(left)] = at[left].cwiseProduct(Eigen::Vector3d(-1, 1, 1));
   }
   std::vector<std::string> names;
@@ -173,7 +173,8 @@ std::shared_ptr<const Skeleton> TestHumanoid(const Variant& variant = {}) {
                           (HAnimParent(joint) && HAnimParent(*HAnimParent(joint)) == shoulder);
       if (!in_arm) continue;
       const double sign = shoulder == J::kLShoulder ? 1.0 : -1.0;
-      const Eigen::Matrix3d raise = About(Eigen::Vector3d::UnitZ(), sign * variant.arm_raise).toRotationMatrix();
+      const Eigen::Matrix3d raise =
+          About(Eigen::Vector3d::UnitZ(), sign * variant.arm_raise).toRotationMatrix();
       position = at[shoulder] + raise * (position - at[shoulder]);
       rotation = raise;
     }
@@ -181,7 +182,9 @@ std::shared_ptr<const Skeleton> TestHumanoid(const Variant& variant = {}) {
   }
   for (J wrist : {J::kLRadiocarpal, J::kRRadiocarpal}) {
     const int index = static_cast<int>(wrist);
-    const Eigen::Vector3d along = (world[index].translation() - world[static_cast<int>(*HAnimParent(wrist))].translation()).normalized();
+    const Eigen::Vector3d along =
+        (world[index].translation() - world[static_cast<int>(*HAnimParent(wrist))].translation())
+            .normalized();
     add(wrist == J::kLRadiocarpal ? "l_fingertip" : "r_fingertip", index,
         world[index].translation() + 0.15 * along, world[index].linear());
   }
@@ -241,8 +244,11 @@ TEST(Retargeter, TPoseTargetPointsItsArmsWhereTheSourceDoes) {
   const auto target = TestHumanoid(t_pose);
   const Retargeter retargeter(source, target);
   Pose raised = RestPose(*source);
-  auto set = [&](HAnimJoint joint, const Eigen::Quaterniond& q) { raised.rotations[source->Find(joint)] = q; };
-  set(HAnimJoint::kLShoulder, About(Eigen::Vector3d::UnitZ(), 60) * About(Eigen::Vector3d::UnitX(), -30));
+  auto set = [&](HAnimJoint joint, const Eigen::Quaterniond& q) {
+    raised.rotations[source->Find(joint)] = q;
+  };
+  set(HAnimJoint::kLShoulder,
+      About(Eigen::Vector3d::UnitZ(), 60) * About(Eigen::Vector3d::UnitX(), -30));
   set(HAnimJoint::kLElbow, About(Eigen::Vector3d::UnitX(), -40));
   set(HAnimJoint::kLRadiocarpal, About(Eigen::Vector3d::UnitZ(), 15));
   set(HAnimJoint::kRShoulder, About(Eigen::Vector3d::UnitZ(), -80));
@@ -254,7 +260,8 @@ TEST(Retargeter, TPoseTargetPointsItsArmsWhereTheSourceDoes) {
     const auto t = Positions(*target, target_pose);
     for (const char* side : {"l_", "r_"}) {
       const std::string chain[] = {std::string(side) + "shoulder", std::string(side) + "elbow",
-                                   std::string(side) + "radiocarpal", std::string(side) + "fingertip"};
+                                   std::string(side) + "radiocarpal",
+                                   std::string(side) + "fingertip"};
       for (int k = 0; k + 1 < 4; ++k) {
         const int a = source->FindByName(chain[k]);
         const int b = source->FindByName(chain[k + 1]);
@@ -294,7 +301,8 @@ TEST(Retargeter, TurnedTargetMovesInItsOwnFacing) {
   source_pose.orientation.setIdentity();
   Pose target_pose;
   retargeter.Apply(source_pose, target_pose);
-  EXPECT_LT((target_pose.root_translation - turned.turn * source_pose.root_translation).norm(), 1e-12);
+  EXPECT_LT((target_pose.root_translation - turned.turn * source_pose.root_translation).norm(),
+            1e-12);
   const auto s = Positions(*source, source_pose);
   const auto t = Positions(*target, target_pose);
   for (std::size_t j = 1; j < s.size(); ++j) {

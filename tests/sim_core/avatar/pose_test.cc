@@ -17,9 +17,9 @@ Eigen::Quaterniond About(const Eigen::Vector3d& axis, double angle) {
 }
 
 /// root at `root` → a 1 m along x → b 1 m along x (identity rest rotations unless given).
-std::shared_ptr<const Skeleton> Chain(const Eigen::Vector3d& root,
-                                      const Eigen::Quaterniond& a_rest = Eigen::Quaterniond::Identity(),
-                                      const Eigen::Vector3d& b_offset = Eigen::Vector3d::UnitX()) {
+std::shared_ptr<const Skeleton> Chain(
+    const Eigen::Vector3d& root, const Eigen::Quaterniond& a_rest = Eigen::Quaterniond::Identity(),
+    const Eigen::Vector3d& b_offset = Eigen::Vector3d::UnitX()) {
   std::vector<Joint> joints(3);
   joints[0].name = "root";
   joints[0].rest_local.translation() = root;
@@ -33,7 +33,8 @@ std::shared_ptr<const Skeleton> Chain(const Eigen::Vector3d& root,
   return Skeleton::Create("chain", joints);
 }
 
-void ExpectAt(const std::vector<Eigen::Isometry3d>& world, int joint, const Eigen::Vector3d& expected) {
+void ExpectAt(const std::vector<Eigen::Isometry3d>& world, int joint,
+              const Eigen::Vector3d& expected) {
   EXPECT_LT((world[joint].translation() - expected).norm(), 1e-12)
       << "joint " << joint << " at " << world[joint].translation().transpose() << ", expected "
       << expected.transpose();
@@ -103,7 +104,8 @@ TEST(InterpolatePoses, HalfwayIsHalfTheAngleAndTheMeanTranslation) {
   b.root_translation = {0, 2, 4};
   Pose mid;
   InterpolatePoses(a, b, 0.5, mid);
-  EXPECT_NEAR(mid.rotations[1].angularDistance(About(Eigen::Vector3d::UnitZ(), kHalfPi / 2)), 0.0, 1e-12);
+  EXPECT_NEAR(mid.rotations[1].angularDistance(About(Eigen::Vector3d::UnitZ(), kHalfPi / 2)), 0.0,
+              1e-12);
   EXPECT_TRUE(mid.root_translation.isApprox(Eigen::Vector3d(0, 1, 2), 1e-12));
 }
 

@@ -94,14 +94,20 @@ TEST(MakeBuiltInClip, LastFrameLeadsIntoTheFirstLikeAnyOtherStep) {
     std::vector<double> moves;
     for (int f = 0; f + 1 < n; ++f) {
       steps.push_back(AngularStep(clip.frames[f], clip.frames[f + 1]));
-      moves.push_back((clip.frames[f + 1].root_translation - clip.frames[f].root_translation).norm());
+      moves.push_back(
+          (clip.frames[f + 1].root_translation - clip.frames[f].root_translation).norm());
     }
     const double wrap = AngularStep(clip.frames[n - 1], clip.frames[0]);
-    const double wrap_move = (clip.frames[0].root_translation - clip.frames[n - 1].root_translation).norm();
+    const double wrap_move =
+        (clip.frames[0].root_translation - clip.frames[n - 1].root_translation).norm();
     // A loop closed one frame late or early (or not at all) steps far more than a frame.
-    EXPECT_LE(wrap, 2.0 * Median(steps) + 0.2 / kDegrees) << name << ": median step "
-                                                          << Median(steps) * kDegrees << "°";
+    EXPECT_LE(wrap, 2.0 * Median(steps) + 0.2 / kDegrees)
+        << name << ": median step " << Median(steps) * kDegrees << "°";
     EXPECT_LE(wrap_move, 2.0 * Median(moves) + 1e-3) << name;
+    if (name != "jump" && name != "kick") {
+      // These never come to rest, so a repeated frame at the seam (a stutter) shows too.
+      EXPECT_GE(wrap, 0.5 * Median(steps)) << name;
+    }
     EXPECT_GT(*std::max_element(steps.begin(), steps.end()), 0.0) << name << " does not move";
   }
 }

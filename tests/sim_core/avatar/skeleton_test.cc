@@ -74,8 +74,8 @@ TEST(SkeletonCreate, RefusesParentNotBeforeChild) {
 
 TEST(SkeletonCreate, RefusesNonRigidOrNonFiniteRestTransforms) {
   std::vector<Eigen::Matrix3d> bad_linear;
-  bad_linear.push_back(2.0 * Eigen::Matrix3d::Identity());                    // scale
-  bad_linear.push_back(Eigen::Vector3d(1.0, 1.0, -1.0).asDiagonal());        // mirror
+  bad_linear.push_back(2.0 * Eigen::Matrix3d::Identity());             // scale
+  bad_linear.push_back(Eigen::Vector3d(1.0, 1.0, -1.0).asDiagonal());  // mirror
   Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
   shear(0, 1) = 0.3;
   bad_linear.push_back(shear);
@@ -109,15 +109,18 @@ TEST(Skeleton, RestWorldComposesParentThenChild) {
   // (1, 1, 0); Rz90·Rx90·y = Rz90·z = z, so the grandchild sits at (1, 1, 1).
   std::vector<Joint> joints = {MakeJoint("a", -1, {1, 0, 0}), MakeJoint("b", 0, {1, 0, 0}),
                                MakeJoint("c", 1, {0, 1, 0})};
-  joints[0].rest_local.linear() = Eigen::AngleAxisd(kHalfPi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  joints[1].rest_local.linear() = Eigen::AngleAxisd(kHalfPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  joints[0].rest_local.linear() =
+      Eigen::AngleAxisd(kHalfPi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  joints[1].rest_local.linear() =
+      Eigen::AngleAxisd(kHalfPi, Eigen::Vector3d::UnitX()).toRotationMatrix();
   const auto skeleton = Skeleton::Create("rig", joints);
   const auto& world = skeleton->rest_world();
   EXPECT_TRUE(world[0].translation().isApprox(Eigen::Vector3d(1, 0, 0), 1e-12));
   EXPECT_TRUE(world[1].translation().isApprox(Eigen::Vector3d(1, 1, 0), 1e-12));
   EXPECT_TRUE(world[2].translation().isApprox(Eigen::Vector3d(1, 1, 1), 1e-12));
   // The grandchild's x axis: Rz90·Rx90·x = Rz90·x = y.
-  EXPECT_TRUE((world[2].linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY(), 1e-12));
+  EXPECT_TRUE(
+      (world[2].linear() * Eigen::Vector3d::UnitX()).isApprox(Eigen::Vector3d::UnitY(), 1e-12));
 }
 
 TEST(Skeleton, FindsJointsByNameAndHAnim) {
