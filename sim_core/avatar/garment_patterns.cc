@@ -73,6 +73,24 @@ Ring RingAt(const std::vector<Ring>& rings, double y) {
   return rings.back();
 }
 
+/// The ring widened (keeping its aspect) until it encloses the body slice nearest to its
+/// height, `gap` included, around the centre (cx, cz).
+Ring Enclosing(Ring ring, const BodyMeasures& m, double cx, double cz, double gap) {
+  const BodySlice* nearest = nullptr;
+  for (const BodySlice& slice : m.slices) {
+    if (!nearest || std::abs(slice.height - ring.height) < std::abs(nearest->height - ring.height)) {
+      nearest = &slice;
+    }
+  }
+  if (!nearest) return ring;
+  double scale = 1.0;
+  const double a = ring.half_width - gap, b = ring.half_depth - gap;
+  for (const Eigen::Vector2d& p : nearest->points) {
+    scale = std::max(scale, std::hypot((p.x() - cx) / a, (p.y() - cz) / b));
+  }
+  return {ring.height, scale * a + gap, scale * b + gap};
+}
+
 /// A panel covering angles [theta0, theta1] (0 = front, increasing towards +x) of the
 /// surface through `rings`, rows from the top ring to the bottom one.
 struct PanelSpec {
@@ -83,8 +101,9 @@ struct PanelSpec {
 /// Model data of one placed panel: the 12-neighbour lattice of BuildLatticePanel moved onto
 /// the surface, with rest lengths, bending constants (k = B/(ℓ/2)²) and lumped masses taken
 /// from the placed shape.
-ClothModelData PlacePanel(const PanelSpec& spec, const std::vector<Ring>& rings, double cx,
-                          double cz, const Material& material, const std::string& name) {
+ClothModelData PlacePanel(const PanelSpec& spec, const std::vector<Ring>& rings,
+                          const BodyMeasures& m, double cx, double cz, double gap,
+                          const Material& material, const std::string& name) {
   LatticePanel flat;
   flat.cols = spec.cols;
   flat.rows = spec.rows;
@@ -92,7 +111,7 @@ ClothModelData PlacePanel(const PanelSpec& spec, const std::vector<Ring>& rings,
   const double top = rings.front().height, bottom = rings.back().height;
   for (int i = 0; i < spec.rows; ++i) {
     const double y = top - (top - bottom) * i / (spec.rows - 1);
-    const Ring ring = RingAt(rings, y);
+    const Ring ring = Enclosing(RingAt(rings, y), m, cx, cz, gap);
     for (int j = 0; j < spec.cols; ++j) {
       const double theta = spec.theta0 + (spec.theta1 - spec.theta0) * j / (spec.cols - 1);
       data.rest_positions.row(i * spec.cols + j) << cx + ring.half_width * std::sin(theta), y,
@@ -178,14 +197,15 @@ int RowsFor(const std::vector<Ring>& rings, int resolution) {
   return std::max(3, static_cast<int>(std::lround((rings.front().height - rings.back().height) / spacing)) + 1);
 }
 
-GarmentPattern Tube(const std::vector<Ring>& rings, const BodyMeasures& m, const Material& material,
-                    int resolution, const std::string& name, HAnimJoint attached_to) {
+GarmentPattern Tube(const std::vector<Ring>& rings, const BodyMeasures& m, double gap,
+                    const Material& material, int resolution, const std::string& name,
+                    HAnimJoint attached_to) {
   const int cols = resolution / 2 + 1, rows = RowsFor(rings, resolution);
   const double cx = m.hips.centre_x, cz = m.hips.centre_z;
-  const ClothModelData front =
-      PlacePanel({-kPi / 2, kPi / 2, cols, rows}, rings, cx, cz, material, name + " front");
-  const ClothModelData back =
-      PlacePanel({kPi / 2, 3 * kPi / 2, cols, rows}, rings, cx, cz, material, name + " back");
+  const ClothModelData front = PlacePanel({-kPi / 2, kPi / 2, cols, rows}, rings, m, cx, cz,
+                                          gap, material, name + " front");
+  const ClothModelData back = PlacePanel({kPi / 2, 3 * kPi / 2, cols, rows}, rings, m, cx, cz,
+                                         gap, material, name + " back");
   GarmentPattern pattern;
   pattern.data = Sew({front, back}, name);
   pattern.attached_to = attached_to;
@@ -205,8 +225,8 @@ GarmentPattern Cape(const BodyMeasures& m, const Material& material, int resolut
                                     m.hips.half_depth + gap + 0.2}};
   const int cols = resolution / 2 + 1, rows = RowsFor(rings, resolution);
   GarmentPattern pattern;
-  pattern.data = PlacePanel({kPi - 0.9, kPi + 0.9, cols, rows}, rings, m.chest.centre_x,
-                            m.chest.centre_z, material, "cape");
+  pattern.data = PlacePanel({kPi - 0.9, kPi + 0.9, cols, rows}, rings, m, m.chest.centre_x,
+                            m.chest.centre_z, gap, material, "cape");
   pattern.attached_to = HAnimJoint::kVc7;
   for (int j = 0; j < cols; ++j) pattern.attached.push_back(j);
   return pattern;
@@ -232,6 +252,22 @@ BodyMeasures MeasureBody(const Avatar& avatar) {
   m.hips = RequireSection(avatar, JointHeight(avatar, J::kLHip, J::kRHip),
                           {J::kSacroiliac, J::kHumanoidRoot, J::kLHip, J::kRHip, J::kVl5}, "hips");
   m.knee_height = JointHeight(avatar, J::kLKnee, J::kRKnee);
+  const std::initializer_list<HAnimJoint> trunk_and_legs = {
+      J::kHumanoidRoot, J::kSacroiliac, J::kVl5, J::kLHip, J::kRHip, J::kLKnee, J::kRKnee};
+  constexpr double kSpacing = 0.02;
+  for (double y = m.shoulders.height + 0.06; y > m.knee_height - 0.25; y -= kSpacing) {
+    BodySlice slice;
+    slice.height = y;
+    const auto& of = avatar.vertex_segments();
+    for (int v = 0; v < avatar.num_vertices(); ++v) {
+      const Eigen::Vector3d p = avatar.rest_vertices().row(v).transpose();
+      if (std::abs(p.y() - y) > kSpacing || !of[v]) continue;
+      if (std::find(trunk_and_legs.begin(), trunk_and_legs.end(), *of[v]) != trunk_and_legs.end()) {
+        slice.points.emplace_back(p.x(), p.z());
+      }
+    }
+    m.slices.push_back(std::move(slice));
+  }
   return m;
 }
 
@@ -245,17 +281,18 @@ GarmentPattern MakeBuiltInGarment(const std::string& name, const BodyMeasures& m
   RequireInRange("garment '" + name + "' resolution", resolution, 8, 1024, "");
   RequireInRange("garment '" + name + "' gap", gap, 0.0, 0.2, "m");
   if (name == "skirt") {
-    const std::vector<Ring> rings = {Around(m.waist, gap), Around(m.hips, gap),
-                                     {m.knee_height - 0.05, m.hips.half_width + gap + 0.12,
-                                      m.hips.half_depth + gap + 0.12}};
-    return Tube(rings, m, material, resolution, "skirt", HAnimJoint::kSacroiliac);
+    // Ease at the hips (4 cm) and a flared hem leave the legs room to swing.
+    const std::vector<Ring> rings = {Around(m.waist, gap), Around(m.hips, gap, 0.04),
+                                     {m.knee_height - 0.05, m.hips.half_width + gap + 0.16,
+                                      m.hips.half_depth + gap + 0.16}};
+    return Tube(rings, m, gap, material, resolution, "skirt", HAnimJoint::kSacroiliac);
   }
   if (name == "dress") {
     const std::vector<Ring> rings = {Around(m.chest, gap), Around(m.waist, gap),
                                      Around(m.hips, gap),
                                      {m.knee_height - 0.12, m.hips.half_width + gap + 0.1,
                                       m.hips.half_depth + gap + 0.1}};
-    return Tube(rings, m, material, resolution, "dress", HAnimJoint::kVl5);
+    return Tube(rings, m, gap, material, resolution, "dress", HAnimJoint::kVl5);
   }
   if (name == "cape") return Cape(m, material, resolution, gap);
   std::string valid;

@@ -26,6 +26,14 @@ struct BodySection {
   double half_depth = 0.0;
 };
 
+/// The skin of the trunk and legs (arms, neck and head left out) in a horizontal slab: the
+/// points a garment's ring at that height must enclose [m].
+struct BodySlice {
+  double height = 0.0;
+  /// (x, z) of the skin vertices within the slab.
+  std::vector<Eigen::Vector2d> points;
+};
+
 /// Where a garment goes on an avatar in its rest pose (y up, facing +z) [m].
 struct BodyMeasures {
   BodySection shoulders;  // at the shoulder joints, torso only (arms excluded)
@@ -33,6 +41,10 @@ struct BodyMeasures {
   BodySection waist;      // at vl5
   BodySection hips;       // at the hip joints, thighs included
   double knee_height = 0.5;
+  /// Slices every 2 cm from below the knees to above the shoulders, top first: every ring of
+  /// a garment is widened until it encloses its slice plus the gap, so a garment never
+  /// starts inside the body however its design rings are drawn.
+  std::vector<BodySlice> slices;
 };
 
 /// Measures the rest skin of `avatar` around its H-Anim joints. Throws InputError naming the

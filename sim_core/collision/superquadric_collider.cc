@@ -75,13 +75,14 @@ std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const Segmen
 /// A skin triangle in superquadric coordinates with the cone of ray directions it can meet.
 struct RayTriangle {
   Eigen::Vector3d v0, e1, e2;
+  Eigen::Vector3i vertices{-1, -1, -1};  // the avatar's vertex indices
   Eigen::Vector3d axis;  // unit centroid direction
   double cone_cos = -1;  // rays with direction·axis below this miss the triangle
 };
 
 RayTriangle MakeRayTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                             const Eigen::Vector3d& c) {
-  RayTriangle t{a, b - a, c - a, (a + b + c).normalized(), -1.0};
+  RayTriangle t{a, b - a, c - a, Eigen::Vector3i::Constant(-1), (a + b + c).normalized(), -1.0};
   if (a.norm() > 0 && b.norm() > 0 && c.norm() > 0 && (a + b + c).norm() > 0) {
     // The triangle's directions lie in the spherical hull of its corners' directions, which
     // the cap about the centroid direction through the farthest corner contains when that
@@ -93,8 +94,9 @@ RayTriangle MakeRayTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
   return t;
 }
 
-/// Möller–Trumbore from the origin along `d`: distance t > 0 of the hit, or −1.
-double RayHit(const RayTriangle& tri, const Eigen::Vector3d& d) {
+/// Möller–Trumbore from the origin along `d`: distance t > 0 of the hit, or −1; the hit's
+/// barycentric coordinates (u, v) of e1 and e2 in `uv`.
+double RayHit(const RayTriangle& tri, const Eigen::Vector3d& d, Eigen::Vector2d* uv = nullptr) {
   const Eigen::Vector3d p = d.cross(tri.e2);
   const double det = tri.e1.dot(p);
   if (std::abs(det) < 1e-300) return -1.0;
@@ -105,6 +107,7 @@ double RayHit(const RayTriangle& tri, const Eigen::Vector3d& d) {
   const double v = d.dot(q) / det;
   if (v < 0.0 || u + v > 1.0) return -1.0;
   const double t = tri.e2.dot(q) / det;
+  if (uv) *uv = Eigen::Vector2d(u, v);
   return t > 0.0 ? t : -1.0;
 }
 
@@ -153,24 +156,34 @@ SkinDistanceMap BuildMap(const Superquadric& sq, const std::vector<RayTriangle>&
   const int num_nodes = (num_eta + 1) * num_omega;
   map.skin_offset.assign(num_nodes, 0.0);
   map.skin_normal.assign(num_nodes, Eigen::Vector3d::UnitZ());
+  map.hit_vertices.assign(num_nodes, Eigen::Vector3i::Constant(-1));
+  map.hit_weights.assign(num_nodes, Eigen::Vector3d::Zero());
+  map.ray.assign(num_nodes, Eigen::Vector3d::UnitZ());
+  map.surface_radius.assign(num_nodes, 0.0);
   std::vector<char> known(num_nodes, 0);
   for (int j = 0; j <= num_eta; ++j) {
     for (int k = 0; k < num_omega; ++k) {
       const Eigen::Vector3d surface =
           ParametricSurfacePoint(sq, -kPi / 2 + j * kPi / num_eta, -kPi + k * 2 * kPi / num_omega);
       const Eigen::Vector3d d = surface.normalized();
+      const int node = NodeIndex(map, j, k);
+      map.ray[node] = d;
+      map.surface_radius[node] = surface.norm();
       double farthest = -1.0;
       const RayTriangle* hit = nullptr;
+      Eigen::Vector2d uv, hit_uv;
       for (const RayTriangle& tri : triangles) {
         if (d.dot(tri.axis) < tri.cone_cos) continue;
-        const double t = RayHit(tri, d);
+        const double t = RayHit(tri, d, &uv);
         if (t > farthest) {
           farthest = t;
           hit = &tri;
+          hit_uv = uv;
         }
       }
       if (!hit) continue;
-      const int node = NodeIndex(map, j, k);
+      map.hit_vertices[node] = hit->vertices;
+      map.hit_weights[node] = Eigen::Vector3d(1.0 - hit_uv.x() - hit_uv.y(), hit_uv.x(), hit_uv.y());
       map.skin_offset[node] = farthest - surface.norm();
       // Outward: the side the ray leaves through (winding is not trusted).
       const Eigen::Vector3d normal = hit->e1.cross(hit->e2).normalized();
@@ -226,6 +239,7 @@ SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadric
       return Eigen::Vector3d(to_local * avatar.rest_vertices().row(tri[c]).transpose());
     };
     triangles.push_back(MakeRayTriangle(corner(0), corner(1), corner(2)));
+    triangles.back().vertices = tri;
   }
   segment.map = BuildMap(segment.superquadric, triangles, options.map_eta_intervals,
                          options.map_omega_intervals);
@@ -240,7 +254,8 @@ SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadric
     radius = std::max(radius, (to_local * avatar.rest_vertices().row(v).transpose()).norm() +
                                   thickness / kMinSkinCosine);
   }
-  segment.bounding_radius = radius;
+  segment.bounding_radius = segment.rest_bounding_radius = radius;
+  segment.rest_max_offset = largest_offset;
   return segment;
 }
 
@@ -311,13 +326,39 @@ void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_w
   }
 }
 
+void SuperquadricCollider::TrackSkin(const Points& skinned) {
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    SuperquadricSegment& segment = segments_[s];
+    SkinDistanceMap& map = segment.map;
+    const Eigen::Isometry3d& to_local = end_[s].to_local;
+    double largest = -std::numeric_limits<double>::infinity();
+    for (std::size_t node = 0; node < map.hit_vertices.size(); ++node) {
+      const Eigen::Vector3i& v = map.hit_vertices[node];
+      if (v[0] < 0) continue;
+      const Eigen::Vector3d& w = map.hit_weights[node];
+      const Eigen::Vector3d a = to_local * skinned.row(v[0]).transpose();
+      const Eigen::Vector3d b = to_local * skinned.row(v[1]).transpose();
+      const Eigen::Vector3d c = to_local * skinned.row(v[2]).transpose();
+      const Eigen::Vector3d& ray = map.ray[node];
+      map.skin_offset[node] = (w[0] * a + w[1] * b + w[2] * c).dot(ray) - map.surface_radius[node];
+      const Eigen::Vector3d normal = (b - a).cross(c - a);
+      const double length = normal.norm();
+      if (length > 0.0) map.skin_normal[node] = (normal.dot(ray) >= 0.0 ? normal : -normal) / length;
+      largest = std::max(largest, map.skin_offset[node]);
+    }
+    segment.bounding_radius =
+        segment.rest_bounding_radius + std::max(0.0, largest - segment.rest_max_offset);
+  }
+}
+
 void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_world,
-                                  const Points& /*skinned_vertices: rigid segments*/, double dt) {
+                                  const Points& skinned_vertices, double dt) {
   const bool usable =
       joint_world.size() >= static_cast<std::size_t>(avatar_->skeleton().num_joints());
   if (usable) {
     start_ = end_;  // same size: no allocation
     SetPose(joint_world, end_);
+    if (skinned_vertices.rows() == avatar_->num_vertices()) TrackSkin(skinned_vertices);
   }
   const bool moving = usable && has_pose_ && std::isfinite(dt) && dt > 0.0;
   if (usable) has_pose_ = true;
@@ -406,21 +447,31 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
   CullSegments(end_, lo, hi, 0.0);
   double deepest = 0.0;
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    // The most penetrated segment only, and along its skin normal: a push along the ray from
+    // the centre of an elongated segment (a thigh) would slide the cloth along the limb and
+    // tear it where two segments overlap at a joint.
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    double worst_gap = 0.0;
+    int worst = -1;
+    Eigen::Vector3d worst_normal = Eigen::Vector3d::Zero();
     for (int s : active_) {
-      const Eigen::Vector3d q = end_[s].to_local * positions.row(i).transpose();
+      const Eigen::Vector3d q = end_[s].to_local * x;
       if (q.norm() > segments_[s].bounding_radius) continue;
       ShellProbe probe;
       ProbeShell(segments_[s], q, settings_.thickness, probe);
-      if (probe.radial_gap >= 0.0) continue;
-      deepest = std::max(deepest, -probe.radial_gap);
-      const Eigen::Vector3d x = end_[s].to_world * (probe.shell_radius * probe.direction);
-      positions.row(i) = x.transpose();
-      const Eigen::Vector3d normal =
+      if (probe.radial_gap >= 0.0 || probe.normal_gap >= worst_gap) continue;
+      worst_gap = probe.normal_gap;
+      worst = s;
+      worst_normal =
           end_[s].to_world.linear() * (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
-      const Eigen::Vector3d body_velocity = BodyVelocity(s, x, true);
-      const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);
-      if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
     }
+    if (worst < 0) continue;
+    deepest = std::max(deepest, -worst_gap);
+    const Eigen::Vector3d corrected = x - worst_gap * worst_normal;
+    positions.row(i) = corrected.transpose();
+    const Eigen::Vector3d body_velocity = BodyVelocity(worst, corrected, true);
+    const double inward = (velocities.row(i).transpose() - body_velocity).dot(worst_normal);
+    if (inward < 0.0) velocities.row(i) -= inward * worst_normal.transpose();
   }
   return deepest;
 }

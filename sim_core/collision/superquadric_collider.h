@@ -83,6 +83,15 @@ struct SkinDistanceMap {
   /// Nodes whose ray missed the skin (open ends of a segment's skin), filled from their
   /// neighbours [-].
   int num_filled_nodes = 0;
+  /// Per node: the skin triangle its ray hit (avatar vertex indices, −1 for filled nodes)
+  /// and the hit's barycentric weights. Through them the map follows the skinned surface
+  /// every frame (TrackSkin), so linear blend skinning's bending near joints, which a rigid
+  /// superquadric cannot follow, is still collided with.
+  std::vector<Eigen::Vector3i> hit_vertices;
+  std::vector<Eigen::Vector3d> hit_weights;
+  /// Per node: the ray's unit direction and the superquadric's radius along it [m].
+  std::vector<Eigen::Vector3d> ray;
+  std::vector<double> surface_radius;
 };
 
 /// One segment as the collider sees it.
@@ -92,8 +101,11 @@ struct SuperquadricSegment {
   Superquadric superquadric;  ///< frame relative to the joint's frame
   SkinDistanceMap map;
   /// Radius of a sphere about the superquadric's centre holding the segment's skin and its
-  /// shell (skin + the collider's thickness) [m].
+  /// shell (skin + the collider's thickness) [m]; grows when the tracked skin moves out.
   double bounding_radius = 0.0;
+  /// The bounding radius in the rest pose and the largest skin offset then [m].
+  double rest_bounding_radius = 0.0;
+  double rest_max_offset = 0.0;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
   int num_vertices = 0;
@@ -176,6 +188,9 @@ class SuperquadricCollider : public BodyCollider {
   /// Segments whose bounding sphere grown by `reach` [m] meets the box [lo, hi].
   void CullSegments(const std::vector<Placement>& placements, const Eigen::Vector3d& lo,
                     const Eigen::Vector3d& hi, double reach);
+  /// Moves every map node's skin point to where skinning put it: `skinned` (n×3) in the
+  /// segment's end-of-step frame. Never allocates.
+  void TrackSkin(const Points& skinned);
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;

@@ -264,6 +264,10 @@ void Simulation::StepOnce(FrameReport& report) {
     const auto start = std::chrono::steady_clock::now();
     report.max_penetration =
         std::max(report.max_penetration, body_->ProjectOut(state_.positions, state_.velocities));
+    // Attached particles are where the body puts them; the correction must not move them.
+    for (const BodyAttachment& a : attachments_) {
+      state_.positions.row(a.particle) = (avatar_->joint_world()[a.joint] * a.local).transpose();
+    }
     report.collision_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }

@@ -155,8 +155,8 @@ TEST(BuiltInScenes, DemoIsTheHangingSheetSwingingOntoASphereForFourSeconds) {
   EXPECT_LT(scene.spheres[0].center.y(), 0.0);
 }
 
-TEST(BuiltInSceneNames, ListsDemoHangAndDrape) {
-  EXPECT_EQ(BuiltInSceneNames(), (std::vector<std::string>{"demo", "hang", "drape"}));
+TEST(BuiltInSceneNames, ListsDemoHangDrapeAndGarment) {
+  EXPECT_EQ(BuiltInSceneNames(), (std::vector<std::string>{"demo", "hang", "drape", "garment"}));
 }
 
 TEST(BuiltInSceneText, RefusesUnknownNameListingKnownOnes) {
@@ -389,11 +389,30 @@ TEST(ParseSceneText, RefusesDuplicateMaterialAndGarmentNames) {
   EXPECT_TRUE(Contains(ErrorOf(garments), "garment[1].name = \"sheet\": duplicate"));
 }
 
-TEST(ParseSceneText, RefusesAGarmentWithBothOrNeitherPanelAndMesh) {
+TEST(ParseSceneText, RefusesAGarmentWithMoreOrLessThanOneShape) {
   const std::string neither = "[[garment]]\nname = \"sheet\"\n";
-  EXPECT_TRUE(Contains(ErrorOf(neither), "test.toml:1:1: garment[0] \"sheet\": has neither"));
+  EXPECT_TRUE(Contains(ErrorOf(neither), "test.toml:1:1: garment[0] \"sheet\": needs exactly one of"));
   const std::string both = std::string(kMinimalScene) + "[garment.mesh]\nfile = \"skirt.obj\"\n";
-  EXPECT_TRUE(Contains(ErrorOf(both), "has both"));
+  EXPECT_TRUE(Contains(ErrorOf(both), "needs exactly one of [garment.panel], [garment.mesh] and pattern"));
+}
+
+TEST(ParseSceneText, ReadsTheAvatarAndAPatternGarment) {
+  const sim::SceneDescription scene = LoadBuiltInScene("garment");
+  ASSERT_TRUE(scene.avatar.has_value());
+  EXPECT_EQ(scene.avatar->clip->name, "walk");
+  EXPECT_EQ(scene.avatar->collision, sim::BodyCollisionMethod::kSuperquadric);
+  EXPECT_EQ(scene.garments.at(0).pattern.value_or(""), "skirt");
+}
+
+TEST(ParseSceneText, RefusesAPatternWithoutAvatarAndAnUnknownClip) {
+  const std::string pattern = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
+  EXPECT_TRUE(Contains(ErrorOf(pattern), "test.toml:1: garment[0].pattern = \"skirt\": a pattern "
+                                         "garment is fitted to an avatar, and the scene has none"));
+  const std::string clip = pattern + "[avatar]\nclip = \"waltz\"\n";
+  const std::string message = ErrorOf(clip);
+  EXPECT_TRUE(Contains(message, "avatar.clip = \"waltz\""));
+  EXPECT_TRUE(Contains(message, "\"walk\""));
+  EXPECT_TRUE(Contains(message, "\"dance\""));
 }
 
 TEST(ParseSceneText, RefusesZeroAndSkewPanelAxes) {
