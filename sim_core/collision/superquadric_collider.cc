@@ -259,6 +259,41 @@ SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadric
   return segment;
 }
 
+/// Which distance of the skin from a joint centre its sphere takes: low, so the sphere stays
+/// inside the skin where the cross-section is not round (the waist).
+constexpr double kJointSpherePercentile = 0.2;
+
+/// Joint spheres for every fitted segment whose parent segment is fitted too.
+std::vector<JointSphere> MakeJointSpheres(const Avatar& avatar,
+                                          const std::vector<SuperquadricSegment>& segments) {
+  std::vector<JointSphere> spheres;
+  const Skeleton& skeleton = avatar.skeleton();
+  auto fitted = [&](HAnimJoint joint) {
+    return std::any_of(segments.begin(), segments.end(),
+                       [&](const SuperquadricSegment& s) { return s.segment == joint; });
+  };
+  for (const SuperquadricSegment& segment : segments) {
+    const std::optional<HAnimJoint> parent = HAnimParent(segment.segment);
+    if (!parent || !fitted(*parent)) continue;
+    const Eigen::Isometry3d& joint = skeleton.rest_world()[segment.joint];
+    const Eigen::Vector3d centre = joint.translation();
+    const Eigen::Vector3d along =
+        (joint * segment.superquadric.frame.translation() - centre).normalized();
+    std::vector<double> distances;
+    for (int v = 0; v < avatar.num_vertices(); ++v) {
+      const Eigen::Vector3d offset = avatar.rest_vertices().row(v).transpose() - centre;
+      const double axial = offset.dot(along);
+      if (std::abs(axial) > 0.02 || offset.norm() > 0.3) continue;
+      distances.push_back((offset - axial * along).norm());
+    }
+    if (distances.size() < 8) continue;
+    const std::size_t rank = static_cast<std::size_t>(kJointSpherePercentile * distances.size());
+    std::nth_element(distances.begin(), distances.begin() + rank, distances.end());
+    spheres.push_back({segment.joint, distances[rank]});
+  }
+  return spheres;
+}
+
 }  // namespace
 
 std::vector<SegmentSuperquadricFit> FitAvatarSegments(const Avatar& avatar,
@@ -314,6 +349,9 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   motion_.assign(n, Eigen::Isometry3d::Identity());
   sweep_.assign(n, 0.0);
   active_.reserve(n);
+  spheres_ = MakeJointSpheres(*avatar_, segments_);
+  sphere_start_.assign(spheres_.size(), Eigen::Vector3d::Zero());
+  sphere_end_ = sphere_start_;
   SetPose(avatar_->skeleton().rest_world(), end_);
   start_ = end_;
 }
@@ -323,6 +361,9 @@ void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_w
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     out[s].to_world = joint_world[segments_[s].joint] * segments_[s].superquadric.frame;
     out[s].to_local = out[s].to_world.inverse(Eigen::Isometry);
+  }
+  for (std::size_t k = 0; k < spheres_.size(); ++k) {
+    sphere_end_[k] = joint_world[spheres_[k].joint].translation();
   }
 }
 
@@ -357,12 +398,16 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
       joint_world.size() >= static_cast<std::size_t>(avatar_->skeleton().num_joints());
   if (usable) {
     start_ = end_;  // same size: no allocation
+    sphere_start_ = sphere_end_;
     SetPose(joint_world, end_);
     if (skinned_vertices.rows() == avatar_->num_vertices()) TrackSkin(skinned_vertices);
   }
   const bool moving = usable && has_pose_ && std::isfinite(dt) && dt > 0.0;
   if (usable) has_pose_ = true;
-  if (!moving) start_ = end_;
+  if (!moving) {
+    start_ = end_;
+    sphere_start_ = sphere_end_;
+  }
   inverse_dt_ = moving ? 1.0 / dt : 0.0;
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     motion_[s] = end_[s].to_world * start_[s].to_local;
@@ -402,6 +447,36 @@ void BoundingBox(const Points& positions, Eigen::Vector3d& lo, Eigen::Vector3d& 
 
 }  // namespace
 
+bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
+                                        double& gap, Eigen::Vector3d& normal,
+                                        Eigen::Vector3d& body_velocity) {
+  const std::vector<Placement>& placement = at_end ? end_ : start_;
+  gap = std::numeric_limits<double>::infinity();
+  for (int s : active_) {
+    ++stats_.num_tests;
+    const Eigen::Vector3d q = placement[s].to_local * x;
+    if (q.norm() > segments_[s].bounding_radius + reach + sweep_[s]) continue;
+    ShellProbe probe;
+    ProbeShell(segments_[s], q, settings_.thickness, probe);
+    if (probe.normal_gap >= gap) continue;
+    gap = probe.normal_gap;
+    normal = placement[s].to_world.linear() *
+             (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
+    body_velocity = BodyVelocity(s, x, at_end);
+  }
+  for (std::size_t k = 0; k < spheres_.size(); ++k) {
+    ++stats_.num_tests;
+    const Eigen::Vector3d offset = x - (at_end ? sphere_end_[k] : sphere_start_[k]);
+    const double distance = offset.norm();
+    const double sphere_gap = distance - spheres_[k].radius - settings_.thickness;
+    if (sphere_gap > reach || sphere_gap >= gap || distance == 0.0) continue;
+    gap = sphere_gap;
+    normal = offset / distance;
+    body_velocity = (sphere_end_[k] - sphere_start_[k]) * inverse_dt_;
+  }
+  return gap <= reach;
+}
+
 void SuperquadricCollider::FindContacts(const Points& positions, const Points& velocities, double h,
                                         double margin, std::vector<Contact>& contacts) {
   stats_ = {};
@@ -413,27 +488,15 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     const Eigen::Vector3d v = velocities.row(i).transpose();
-    const double reach = margin + h * v.norm();
-    double best_gap = std::numeric_limits<double>::infinity();
+    double gap;
+    Eigen::Vector3d normal, body_velocity;
+    if (!DeepestShell(x, false, margin + h * v.norm(), gap, normal, body_velocity)) continue;
+    const double body_normal_velocity = body_velocity.dot(normal);
+    if (gap + h * (v.dot(normal) - body_normal_velocity) > margin) continue;
     Contact contact;
-    for (int s : active_) {
-      ++stats_.num_tests;
-      const Eigen::Vector3d q = start_[s].to_local * x;
-      if (q.norm() > segments_[s].bounding_radius + reach + sweep_[s]) continue;
-      ShellProbe probe;
-      ProbeShell(segments_[s], q, settings_.thickness, probe);
-      const Eigen::Vector3d normal =
-          start_[s].to_world.linear() * (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
-      const Eigen::Vector3d body_velocity = BodyVelocity(s, x, false);
-      const double body_normal_velocity = body_velocity.dot(normal);
-      if (probe.normal_gap + h * (v.dot(normal) - body_normal_velocity) > margin) continue;
-      if (probe.normal_gap >= best_gap) continue;
-      best_gap = probe.normal_gap;
-      contact.normal = normal;
-      contact.target_normal_velocity = body_normal_velocity - probe.normal_gap / h;
-    }
-    if (best_gap == std::numeric_limits<double>::infinity()) continue;
     contact.particle = static_cast<int>(i);
+    contact.normal = normal;
+    contact.target_normal_velocity = body_normal_velocity - gap / h;
     contact.friction = settings_.friction;
     contacts.push_back(contact);
     ++stats_.num_contacts;
@@ -447,31 +510,17 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
   CullSegments(end_, lo, hi, 0.0);
   double deepest = 0.0;
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    // The most penetrated segment only, and along its skin normal: a push along the ray from
-    // the centre of an elongated segment (a thigh) would slide the cloth along the limb and
-    // tear it where two segments overlap at a joint.
+    // The most penetrated shell only, along its normal: a push along the ray from the centre
+    // of an elongated segment (a thigh) would slide the cloth along the limb and tear it
+    // where two segments overlap at a joint.
     const Eigen::Vector3d x = positions.row(i).transpose();
-    double worst_gap = 0.0;
-    int worst = -1;
-    Eigen::Vector3d worst_normal = Eigen::Vector3d::Zero();
-    for (int s : active_) {
-      const Eigen::Vector3d q = end_[s].to_local * x;
-      if (q.norm() > segments_[s].bounding_radius) continue;
-      ShellProbe probe;
-      ProbeShell(segments_[s], q, settings_.thickness, probe);
-      if (probe.radial_gap >= 0.0 || probe.normal_gap >= worst_gap) continue;
-      worst_gap = probe.normal_gap;
-      worst = s;
-      worst_normal =
-          end_[s].to_world.linear() * (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
-    }
-    if (worst < 0) continue;
-    deepest = std::max(deepest, -worst_gap);
-    const Eigen::Vector3d corrected = x - worst_gap * worst_normal;
-    positions.row(i) = corrected.transpose();
-    const Eigen::Vector3d body_velocity = BodyVelocity(worst, corrected, true);
-    const double inward = (velocities.row(i).transpose() - body_velocity).dot(worst_normal);
-    if (inward < 0.0) velocities.row(i) -= inward * worst_normal.transpose();
+    double gap;
+    Eigen::Vector3d normal, body_velocity;
+    if (!DeepestShell(x, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) continue;
+    deepest = std::max(deepest, -gap);
+    positions.row(i) = (x - gap * normal).transpose();
+    const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);
+    if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
   }
   return deepest;
 }

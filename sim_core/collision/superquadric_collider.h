@@ -111,6 +111,16 @@ struct SuperquadricSegment {
   int num_vertices = 0;
 };
 
+/// A sphere centred on a joint between two fitted segments: the skin that linear blend
+/// skinning bends around a joint (the front of a bent knee) moves beyond both rigid
+/// superquadrics' maps, so the joint itself carries a sphere of the skin's radius there.
+struct JointSphere {
+  int joint = -1;
+  /// The skin's distance from the joint centre across the bone (20th percentile of the
+  /// vertices within 2 cm of the joint's cross-section plane, so it stays inside the skin) [m].
+  double radius = 0.0;
+};
+
 /// Where a point is relative to one segment's skin shell (skin + thickness).
 struct ShellProbe {
   /// Radial gap from the shell [m]: |q| − shell radius along the ray; < 0 inside.
@@ -171,6 +181,8 @@ class SuperquadricCollider : public BodyCollider {
 
   /// The segments that got a superquadric.
   const std::vector<SuperquadricSegment>& segments() const { return segments_; }
+  /// The spheres on joints between two fitted segments.
+  const std::vector<JointSphere>& joint_spheres() const { return spheres_; }
   /// The segments that had skin vertices but fewer than the minimum, so no superquadric:
   /// their skin is not collided with.
   const std::vector<HAnimJoint>& skipped_segments() const { return skipped_; }
@@ -188,6 +200,11 @@ class SuperquadricCollider : public BodyCollider {
   /// Segments whose bounding sphere grown by `reach` [m] meets the box [lo, hi].
   void CullSegments(const std::vector<Placement>& placements, const Eigen::Vector3d& lo,
                     const Eigen::Vector3d& hi, double reach);
+  /// The deepest shell among the segments and joint spheres at `x` (world), at the start or
+  /// the end of the step: its normal gap [m], outward normal and surface velocity there.
+  /// Returns false when `x` is beyond every shell by more than `reach` [m].
+  bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach, double& gap,
+                    Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
   /// Moves every map node's skin point to where skinning put it: `skinned` (n×3) in the
   /// segment's end-of-step frame. Never allocates.
   void TrackSkin(const Points& skinned);
@@ -199,6 +216,9 @@ class SuperquadricCollider : public BodyCollider {
   BodyCollisionSettings settings_;
   bool skin_normals_ = false;
   std::vector<SuperquadricSegment> segments_;
+  std::vector<JointSphere> spheres_;
+  /// Joint-sphere centres at the start and end of the step [m].
+  std::vector<Eigen::Vector3d> sphere_start_, sphere_end_;
   std::vector<HAnimJoint> skipped_;
   std::vector<Placement> start_;
   std::vector<Placement> end_;
