@@ -248,6 +248,7 @@ ClothRegions::ClothRegions(const ClothModel& cloth, int region_size)
     triangles_[start[leaf_of[corners_[t][0]]]++] = static_cast<int>(t);
   }
   normals_.resize(corners_.size());
+  norms_.resize(corners_.size());
   reached_.assign(nodes_.size(), 0);
   selected_.reserve(nodes_.size());
 }
@@ -255,18 +256,19 @@ ClothRegions::ClothRegions(const ClothModel& cloth, int region_size)
 namespace {
 
 /// A base region's cone from its triangles' normals (area-weighted mean axis, then the
-/// widest normal); returns the triangles tested.
-/// `normals` is scratch for `count` vectors.
+/// widest normal); returns the triangles tested. `normals` is scratch for `count`
+/// vectors, `norms` for their lengths.
 int LeafCone(const Points& x, const std::vector<Eigen::Vector3i>& corners, const int* triangles,
-             int count, Eigen::Vector3d* normals, ClothRegionNode& node) {
+             int count, Eigen::Vector3d* normals, double* norms, ClothRegionNode& node) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double weight = 0.0;
   for (int j = 0; j < count; ++j) {
     const Eigen::Vector3i& c = corners[triangles[j]];
     const Eigen::Vector3d a = x.row(c[0]).transpose();
     normals[j] = (x.row(c[1]).transpose() - a).cross(x.row(c[2]).transpose() - a);
+    norms[j] = normals[j].norm();
     sum += normals[j];
-    weight += normals[j].norm();
+    weight += norms[j];
   }
   node.cone_weight = weight;
   node.cone_angle = 0.0;
@@ -277,10 +279,11 @@ int LeafCone(const Points& x, const std::vector<Eigen::Vector3i>& corners, const
     return count;
   }
   node.cone_axis = sum / length;
+  // The widest normal has the smallest cos = axis·n/|n|; compared without dividing.
   double min_cos = 1.0;
   for (int j = 0; j < count; ++j) {
-    const double norm = normals[j].norm();
-    if (norm > 0.0) min_cos = std::min(min_cos, node.cone_axis.dot(normals[j]) / norm);
+    const double dot = node.cone_axis.dot(normals[j]);
+    if (norms[j] > 0.0 && dot < min_cos * norms[j]) min_cos = dot / norms[j];
   }
   node.cone_angle = std::acos(std::clamp(min_cos, -1.0, 1.0));
   if (!(node.cone_angle >= 0.0)) node.cone_angle = kPi;  // NaN positions
@@ -348,7 +351,8 @@ long long ClothRegions::Refit(const Points& positions, const double* half_extent
     }
     if (cones) {
       tests += LeafCone(positions, corners_, triangles_.data() + node.first_triangle,
-                        node.num_triangles, normals_.data() + node.first_triangle, node);
+                        node.num_triangles, normals_.data() + node.first_triangle,
+                        norms_.data() + node.first_triangle, node);
     }
   }
   return tests;

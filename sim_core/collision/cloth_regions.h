@@ -91,6 +91,7 @@ class ClothRegions {
   int num_roots_ = 0;
   int max_depth_ = 0;
   std::vector<Eigen::Vector3d> normals_;  // Refit scratch, by slot of triangles_
+  std::vector<double> norms_;
   std::vector<char> reached_;             // Select scratch
   std::vector<int> selected_;
 };
