@@ -153,7 +153,9 @@ json RunCase(const std::shared_ptr<const Avatar>& avatar, const ClothModel& shee
       const auto start = std::chrono::steady_clock::now();
       colliders[mode]->FindContacts(x, v, h, margin, contacts);
       const auto stop = std::chrono::steady_clock::now();
-      if (rep >= 0) ms[mode].push_back(std::chrono::duration<double, std::milli>(stop - start).count());
+      if (rep >= 0) {
+        ms[mode].push_back(std::chrono::duration<double, std::milli>(stop - start).count());
+      }
       num_contacts[mode] = contacts.size();
     }
   }
@@ -170,7 +172,8 @@ json RunCase(const std::shared_ptr<const Avatar>& avatar, const ClothModel& shee
     return 100.0 * (1.0 - a / b);
   };
   out["saving_percent"] = {
-      {"adaptive_vs_off", {{"tests", saving(2, 0, "num_tests")}, {"time", saving(2, 0, "median_ms")}}},
+      {"adaptive_vs_off",
+       {{"tests", saving(2, 0, "num_tests")}, {"time", saving(2, 0, "median_ms")}}},
       {"fixed_vs_off", {{"tests", saving(1, 0, "num_tests")}, {"time", saving(1, 0, "median_ms")}}},
       {"adaptive_vs_fixed",
        {{"tests", saving(2, 1, "num_tests")}, {"time", saving(2, 1, "median_ms")}}}};

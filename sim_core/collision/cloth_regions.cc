@@ -312,7 +312,8 @@ void ParentCone(const ClothRegionNode* children, int count, ClothRegionNode& nod
   double angle = 0.0;
   for (int c = 0; c < count; ++c) {
     if (!(children[c].cone_weight > 0.0)) continue;
-    const double between = std::acos(std::clamp(node.cone_axis.dot(children[c].cone_axis), -1.0, 1.0));
+    const double cos_between = node.cone_axis.dot(children[c].cone_axis);
+    const double between = std::acos(std::clamp(cos_between, -1.0, 1.0));
     angle = std::max(angle, between + children[c].cone_angle);
   }
   node.cone_angle = angle >= 0.0 ? std::min(angle, kPi) : kPi;  // NaN → not flat

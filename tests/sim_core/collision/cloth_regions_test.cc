@@ -203,7 +203,8 @@ TEST(ClothRegions, ConesHoldEveryTriangleNormalBelowThem) {
     const Eigen::Vector3d a = x.row(t[0]), b = x.row(t[1]), c = x.row(t[2]);
     const Eigen::Vector3d normal = (b - a).cross(c - a).normalized();
     for (int k = leaf_of[t[0]]; k >= 0; k = regions.nodes()[k].parent) {
-      const double angle = std::acos(std::clamp(normal.dot(regions.nodes()[k].cone_axis), -1.0, 1.0));
+      const double cos_angle = normal.dot(regions.nodes()[k].cone_axis);
+      const double angle = std::acos(std::clamp(cos_angle, -1.0, 1.0));
       EXPECT_LE(angle, regions.nodes()[k].cone_angle + 1e-9) << k;
       widest[k] = std::max(widest[k], angle);
     }
