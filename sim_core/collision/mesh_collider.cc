@@ -40,6 +40,14 @@ void ValidateInputs(const Avatar* avatar, const BodyCollisionSettings& settings,
                      std::to_string(options.max_merge_levels) + " (allowed 0..16)");
   }
   RequirePositive(where + " options.max_penetration", options.max_penetration, "m");
+  if (options.cloth_region_size < 1 || options.cloth_region_size > 256) {
+    throw InputError(where + ": options.cloth_region_size is " +
+                     std::to_string(options.cloth_region_size) + " (allowed 1..256)");
+  }
+  if (!(options.cloth_flatness_angle >= 0.0 && options.cloth_flatness_angle < kPi / 2)) {
+    throw InputError(where + ": options.cloth_flatness_angle is " +
+                     FormatValue(options.cloth_flatness_angle) + " rad (allowed [0, pi/2))");
+  }
 }
 
 /// Regions of up to `target` triangles, each grown breadth first over edge adjacency from
@@ -187,6 +195,10 @@ struct MeshColliderRegions {
   std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
   btDbvt tree;
   std::vector<const btDbvtNode*> stack;
+  /// Body regions (tree leaves) overlapping the current cloth node's box, in depth-first
+  /// order; below them each deeper cloth node's share, one list per depth (sized by
+  /// SetCloth: cloth depth + 1 lists of up to all leaves).
+  std::vector<const btDbvtNode*> candidates;
   /// Nearest triangle per piece of the current query, and the pieces touched.
   std::vector<double> best_squared;
   std::vector<int> best_triangle;
@@ -261,6 +273,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.cursor.assign(max_cells, 0);
   r.tree.optimizeTopDown();
   r.stack.reserve(r.data.size() + 2);
+  r.candidates.resize(r.data.size());
   r.best_squared.assign(normals_.num_pieces(), kInf);
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
@@ -269,6 +282,16 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
 }
 
 MeshCollider::~MeshCollider() = default;
+
+void MeshCollider::SetCloth(const ClothModel& cloth) {
+  cloth_ = std::make_unique<ClothRegions>(cloth, options_.cloth_region_size);
+  const std::size_t n = static_cast<std::size_t>(cloth.num_particles());
+  half_extents_.assign(n, -1.0);
+  reaches_.assign(n, 0.0);
+  regions_->candidates.resize((cloth_->max_depth() + 1) * regions_->data.size());
+  particle_contacts_.assign(n, Contact{});
+  has_contact_.assign(n, 0);
+}
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
 
@@ -398,6 +421,49 @@ MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, do
   return Resolve(point);
 }
 
+int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
+                                   const Eigen::Vector3d& box_max) {
+  MeshColliderRegions& r = *regions_;
+  const btDbvtVolume query = btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max));
+  int count = 0;
+  r.stack.clear();
+  if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
+  // The same depth-first order as FindNearest, so each particle meets its regions (and
+  // ties between equally close triangles break) exactly as there.
+  while (!r.stack.empty()) {
+    const btDbvtNode* node = r.stack.back();
+    r.stack.pop_back();
+    ++num_tests_;
+    if (!Intersect(node->volume, query)) continue;
+    if (node->isinternal()) {
+      r.stack.push_back(node->childs[0]);
+      r.stack.push_back(node->childs[1]);
+      continue;
+    }
+    r.candidates[count++] = node;
+  }
+  return count;
+}
+
+MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vector3d& point,
+                                                               double reach, int first,
+                                                               int count) {
+  MeshColliderRegions& r = *regions_;
+  const double half = std::max(reach - settings_.thickness, 0.0);
+  const btVector3 center = ToBullet(point);
+  const btVector3 extent(half, half, half);
+  const btDbvtVolume query = btDbvtVolume::FromMM(center - extent, center + extent);
+  r.touched.clear();
+  for (int c = first; c < first + count; ++c) {
+    const btDbvtNode* node = r.candidates[c];
+    ++num_tests_;
+    if (!Intersect(node->volume, query)) continue;
+    SearchRegion(r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(node->data))],
+                 point, reach);
+  }
+  return Resolve(point);
+}
+
 void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
                                 double reach) {
   MeshColliderRegions& r = *regions_;
@@ -479,36 +545,132 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
   return nearest;
 }
 
+double MeshCollider::ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const {
+  // Far enough for a contact at the start (inside the shell, however deep within
+  // max_penetration) and for one reached during the step at the relative speed.
+  return settings_.thickness +
+         std::max(margin + h * (velocity.norm() + max_vertex_speed_), options_.max_penetration);
+}
+
+bool MeshCollider::MakeContact(int particle, const Eigen::Vector3d& velocity,
+                               const Nearest& nearest, double h, double margin,
+                               Contact& contact) const {
+  const double shell = settings_.thickness;
+  const double distance = nearest.signed_distance;
+  const double relative_normal_velocity =
+      (velocity - nearest.surface_velocity).dot(nearest.normal);
+  if (distance >= shell && distance + h * relative_normal_velocity > shell + margin) {
+    return false;
+  }
+  contact = Contact{};
+  contact.particle = particle;
+  contact.normal = nearest.normal;
+  contact.target_normal_velocity =
+      nearest.surface_velocity.dot(nearest.normal) + (shell - distance) / h;
+  contact.friction = settings_.friction;
+  return true;
+}
+
 void MeshCollider::FindContacts(const Points& positions, const Points& velocities, double h,
                                 double margin, std::vector<Contact>& contacts) {
   stats_ = BodyCollisionStats{};
   num_tests_ = 0;
+  num_queries_ = 0;
   if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
   margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
-  const double shell = settings_.thickness;
+  if (options_.cloth_regions && cloth_ != nullptr &&
+      positions.rows() == cloth_->num_particles()) {
+    FindContactsPerRegion(positions, velocities, h, margin, contacts);
+  } else {
+    FindContactsPerParticle(positions, velocities, h, margin, contacts);
+  }
+  stats_.num_tests = num_tests_;
+}
+
+void MeshCollider::FindContactsPerParticle(const Points& positions, const Points& velocities,
+                                           double h, double margin,
+                                           std::vector<Contact>& contacts) {
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     const Eigen::Vector3d v = velocities.row(i).transpose();
-    // Far enough for a contact at the start (inside the shell, however deep within
-    // max_penetration) and for one reached during the step at the relative speed.
-    const double reach =
-        shell + std::max(margin + h * (v.norm() + max_vertex_speed_), options_.max_penetration);
+    const double reach = ReachOf(v, h, margin);
     if (!(reach < kInf) || !x.allFinite()) continue;
+    ++num_queries_;
     const Nearest nearest = FindNearest(x, reach);
-    if (!nearest.found) continue;
-    const double distance = nearest.signed_distance;
-    const double relative_normal_velocity = (v - nearest.surface_velocity).dot(nearest.normal);
-    if (distance >= shell && distance + h * relative_normal_velocity > shell + margin) continue;
     Contact contact;
-    contact.particle = static_cast<int>(i);
-    contact.normal = nearest.normal;
-    contact.target_normal_velocity =
-        nearest.surface_velocity.dot(nearest.normal) + (shell - distance) / h;
-    contact.friction = settings_.friction;
+    if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
+      continue;
+    }
     contacts.push_back(contact);
     ++stats_.num_contacts;
   }
-  stats_.num_tests = num_tests_;
+}
+
+void MeshCollider::FindContactsPerRegion(const Points& positions, const Points& velocities,
+                                         double h, double margin,
+                                         std::vector<Contact>& contacts) {
+  const double shell = settings_.thickness;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    const double reach = ReachOf(velocities.row(i).transpose(), h, margin);
+    const bool valid = reach < kInf && positions.row(i).allFinite();
+    // The same query box as FindNearest's, so a region's box holds its particles' boxes.
+    half_extents_[i] = valid ? std::max(reach - shell, 0.0) : -1.0;
+    reaches_[i] = reach;
+  }
+  num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive);
+  // Fixed regions: no angle passes, so the walk goes down to the base regions.
+  const double flatness = options_.cloth_adaptive ? options_.cloth_flatness_angle : -1.0;
+  for (int k : cloth_->Select(flatness)) {
+    const ClothRegionNode& node = cloth_->nodes()[k];
+    if (!(node.box_min.x() <= node.box_max.x())) continue;  // no valid particle
+    ++num_queries_;
+    const int count = GatherCandidates(node.box_min, node.box_max);
+    if (count > 0) TestClothNode(k, 0, count, positions, velocities, h, margin);
+  }
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    if (!has_contact_[i]) continue;
+    has_contact_[i] = 0;
+    contacts.push_back(particle_contacts_[i]);
+    ++stats_.num_contacts;
+  }
+}
+
+void MeshCollider::TestClothNode(int k, int first, int count, const Points& positions,
+                                 const Points& velocities, double h, double margin) {
+  MeshColliderRegions& r = *regions_;
+  const ClothRegionNode& node = cloth_->nodes()[k];
+  if (node.num_children > 0) {
+    // Each child keeps the candidates its own box overlaps, in the same order, written
+    // after the parent's list.
+    const int child_first = first + count;
+    for (int c = node.first_child; c < node.first_child + node.num_children; ++c) {
+      const ClothRegionNode& child = cloth_->nodes()[c];
+      if (!(child.box_min.x() <= child.box_max.x())) continue;
+      const btDbvtVolume box =
+          btDbvtVolume::FromMM(ToBullet(child.box_min), ToBullet(child.box_max));
+      int child_count = 0;
+      for (int j = first; j < first + count; ++j) {
+        ++num_tests_;
+        if (Intersect(r.candidates[j]->volume, box)) {
+          r.candidates[child_first + child_count++] = r.candidates[j];
+        }
+      }
+      if (child_count > 0) {
+        TestClothNode(c, child_first, child_count, positions, velocities, h, margin);
+      }
+    }
+    return;
+  }
+  const std::vector<int>& particles = cloth_->particles();
+  for (int s = node.first; s < node.first + node.count; ++s) {
+    const int p = particles[s];
+    if (half_extents_[p] < 0.0) continue;
+    const Nearest nearest =
+        FindNearestAmongCandidates(positions.row(p).transpose(), reaches_[p], first, count);
+    if (!nearest.found) continue;
+    has_contact_[p] =
+        MakeContact(p, velocities.row(p).transpose(), nearest, h, margin, particle_contacts_[p]);
+  }
 }
 
 double MeshCollider::ProjectOut(Points& positions, Points& velocities) {

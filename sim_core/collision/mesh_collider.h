@@ -14,13 +14,20 @@
 /// Deviation from the paper: the paper tests a flat region "coarsely" without saying how;
 /// here it is the slab and plane grid above, which is exact (no contact is lost, whatever
 /// the region's shape), flatness only making it effective.
+///
+/// The cloth has adaptive regions too (cloth_regions.h, after SetCloth): a flat piece of
+/// cloth makes one broad-phase query against the body's region tree for all its
+/// particles instead of one per particle; each particle then tests only the body regions
+/// that query returned. Contacts are the same with or without them.
 
 #include <Eigen/Geometry>
 #include <memory>
 #include <vector>
 
 #include "sim_core/avatar/avatar.h"
+#include "sim_core/cloth/cloth_model.h"
 #include "sim_core/collision/body_collider.h"
+#include "sim_core/collision/cloth_regions.h"
 #include "sim_core/collision/surface_geometry.h"
 
 namespace costume::sim {
@@ -45,6 +52,18 @@ struct MeshCollisionOptions {
   /// Penetration below the surface [m] > 0 that FindContacts and ProjectOut still see;
   /// particles deeper than this are lost, as with any proximity method.
   double max_penetration = 0.05;
+  /// Query the body per cloth region rather than per particle (once SetCloth has given the
+  /// cloth's topology); false reproduces the per-particle queries exactly.
+  bool cloth_regions = true;
+  /// Cloth base regions hold about cloth_region_size × cloth_region_size particles [-],
+  /// 1 ..= 256.
+  int cloth_region_size = 8;
+  /// Take flat nodes of the cloth's hierarchy whole (the adaptive regions); false queries
+  /// every base region and skips the normal cones, so the saving can be measured.
+  bool cloth_adaptive = true;
+  /// Cloth flatness cone [rad], in [0, π/2): a node of the cloth's hierarchy whose
+  /// triangle normals all lie within this angle of its axis is queried as one region.
+  double cloth_flatness_angle = 0.35;
 };
 
 /// Cloth against the avatar's skinned mesh. Works for open meshes too, but inside and
@@ -61,6 +80,14 @@ class MeshCollider : public BodyCollider {
   MeshCollider(const MeshCollider&) = delete;
   MeshCollider& operator=(const MeshCollider&) = delete;
 
+  /// Gives the cloth's topology (ClothModel::triangles, lattice shape; positions are
+  /// passed to FindContacts) and builds its region hierarchy, used when
+  /// options.cloth_regions is set and FindContacts gets cloth.num_particles() positions.
+  /// Without it, or for any other particle count, FindContacts queries per particle.
+  /// Allocates all FindContacts scratch. Throws nothing beyond std::bad_alloc (the options
+  /// were checked by the constructor).
+  void SetCloth(const ClothModel& cloth);
+
   /// Takes the skinned vertices (num_vertices×3) [m] (the joint frames are not needed);
   /// vertex velocities are (new − previous)/dt. Refits the region boxes and grids. Ignored
   /// when the row count is wrong; a non-positive dt gives zero velocities. Never throws;
@@ -71,8 +98,9 @@ class MeshCollider : public BodyCollider {
   /// See BodyCollider. Normal: unit direction from the closest surface point to the
   /// particle (its opposite inside), the closest feature's pseudonormal when on the
   /// surface. Target normal velocity: the surface velocity at the closest point along the
-  /// normal plus (thickness − signed distance)/h. Never throws; allocates only through
-  /// `contacts` growing.
+  /// normal plus (thickness − signed distance)/h. Contacts are appended in particle order.
+  /// Never throws; allocates only through `contacts` growing (and, without SetCloth, on
+  /// its first call).
   void FindContacts(const Points& positions, const Points& velocities, double h, double margin,
                     std::vector<Contact>& contacts) override;
 
@@ -87,6 +115,12 @@ class MeshCollider : public BodyCollider {
   int num_regions() const;
   int num_base_regions() const { return num_base_regions_; }
 
+  /// The cloth's region hierarchy after SetCloth, else null.
+  const ClothRegions* cloth_regions() const { return cloth_.get(); }
+  /// Broad-phase queries of the body's region tree in the last FindContacts call: one per
+  /// cloth region taken (with cloth regions) or per particle (without).
+  long long num_broad_phase_queries() const { return num_queries_; }
+
  private:
   /// The closest surface point to `point` over the pieces within `reach` [m] of it.
   struct Nearest {
@@ -96,6 +130,26 @@ class MeshCollider : public BodyCollider {
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
   };
   Nearest FindNearest(const Eigen::Vector3d& point, double reach);
+  /// As FindNearest, searching only the body regions in candidate slots
+  /// [first, first + count).
+  Nearest FindNearestAmongCandidates(const Eigen::Vector3d& point, double reach, int first,
+                                     int count);
+  /// Gathers the body regions whose boxes overlap [box_min, box_max] into candidate slots
+  /// [0, count), in the order FindNearest visits them; returns the count.
+  int GatherCandidates(const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max);
+  /// How far a particle's search must reach [m]; +inf or NaN for bad input.
+  double ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const;
+  /// The contact rule: fills `contact` and returns true when the particle needs one.
+  bool MakeContact(int particle, const Eigen::Vector3d& velocity, const Nearest& nearest,
+                   double h, double margin, Contact& contact) const;
+  void FindContactsPerParticle(const Points& positions, const Points& velocities, double h,
+                               double margin, std::vector<Contact>& contacts);
+  void FindContactsPerRegion(const Points& positions, const Points& velocities, double h,
+                             double margin, std::vector<Contact>& contacts);
+  /// Tests the particles of cloth node k against candidate slots [first, first + count),
+  /// narrowing the list for each child on the way down to the base regions.
+  void TestClothNode(int k, int first, int count, const Points& positions,
+                     const Points& velocities, double h, double margin);
   /// Keeps, per piece, the closest of the region's triangles within `reach` of `point`.
   void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
                     double reach);
@@ -116,6 +170,14 @@ class MeshCollider : public BodyCollider {
   std::unique_ptr<MeshColliderRegions> regions_;
   BodyCollisionStats stats_;
   long long num_tests_ = 0;  // tests of the current query, summed into stats_
+  long long num_queries_ = 0;
+  /// Cloth side (SetCloth): hierarchy, per-particle query half sizes [m] (−1: skipped)
+  /// and reaches [m], and per-particle contact slots so contacts come out in order.
+  std::unique_ptr<ClothRegions> cloth_;
+  std::vector<double> half_extents_;
+  std::vector<double> reaches_;
+  std::vector<Contact> particle_contacts_;
+  std::vector<char> has_contact_;
 };
 
 }  // namespace costume::sim
