@@ -469,12 +469,13 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
     const Eigen::Vector3d offset = x - (at_end ? sphere_end_[k] : sphere_start_[k]);
     const double distance = offset.norm();
     const double sphere_gap = distance - spheres_[k].radius - settings_.thickness;
-    if (sphere_gap > reach || sphere_gap >= gap || distance == 0.0) continue;
+    const double sweep = (sphere_end_[k] - sphere_start_[k]).norm();
+    if (sphere_gap > reach + sweep || sphere_gap >= gap || distance == 0.0) continue;
     gap = sphere_gap;
     normal = offset / distance;
     body_velocity = (sphere_end_[k] - sphere_start_[k]) * inverse_dt_;
   }
-  return gap <= reach;
+  return gap < std::numeric_limits<double>::infinity();
 }
 
 void SuperquadricCollider::FindContacts(const Points& positions, const Points& velocities, double h,

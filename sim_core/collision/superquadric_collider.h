@@ -202,7 +202,8 @@ class SuperquadricCollider : public BodyCollider {
                     const Eigen::Vector3d& hi, double reach);
   /// The deepest shell among the segments and joint spheres at `x` (world), at the start or
   /// the end of the step: its normal gap [m], outward normal and surface velocity there.
-  /// Returns false when `x` is beyond every shell by more than `reach` [m].
+  /// Shells farther than `reach` [m] plus their own motion over the step are skipped;
+  /// returns false when every shell was.
   bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach, double& gap,
                     Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
   /// Moves every map node's skin point to where skinning put it: `skinned` (n×3) in the

@@ -284,6 +284,7 @@ Colliders MakeColliders(const ClothModel& sheet) {
   settings.thickness = kThickness;
   MeshCollisionOptions on_options;
   on_options.max_penetration = 0.02;
+  on_options.cloth_regions = true;
   MeshCollisionOptions off_options = on_options;
   off_options.cloth_regions = false;
   Colliders c;
