@@ -9,7 +9,8 @@
 namespace costume::assets {
 
 void WriteObjFrame(const std::filesystem::path& path, const sim::ClothModel& model,
-                   const sim::Points& positions, const std::vector<sim::GarmentRange>& garments) {
+                   const sim::Points& positions, const std::vector<sim::GarmentRange>& garments,
+                   const sim::AvatarMotion* avatar) {
   const std::filesystem::path temporary = path.string() + ".part";
   {
     std::ofstream out(temporary);
@@ -29,6 +30,18 @@ void WriteObjFrame(const std::filesystem::path& path, const sim::ClothModel& mod
       for (int t = g.first_triangle; t < g.first_triangle + g.num_triangles; ++t) {
         const Eigen::Vector3i& tri = model.triangles()[t];
         out << "f " << tri[0] + 1 << ' ' << tri[1] + 1 << ' ' << tri[2] + 1 << '\n';
+      }
+    }
+    if (avatar) {
+      const sim::Points& skin = avatar->vertices();
+      for (Eigen::Index i = 0; i < skin.rows(); ++i) {
+        std::snprintf(line, sizeof(line), "v %.6g %.6g %.6g\n", skin(i, 0), skin(i, 1), skin(i, 2));
+        out << line;
+      }
+      out << "o avatar\n";
+      const Eigen::Index base = positions.rows() + 1;
+      for (const Eigen::Vector3i& tri : avatar->avatar().triangles()) {
+        out << "f " << tri[0] + base << ' ' << tri[1] + base << ' ' << tri[2] + base << '\n';
       }
     }
     if (!out) throw sim::InputError(temporary.string() + ": write failed (disk full?)");

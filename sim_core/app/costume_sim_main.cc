@@ -22,7 +22,7 @@ using costume::sim::Simulation;
 
 struct Options {
   std::string scene_file;
-  std::string builtin = "demo";
+  std::string builtin = "garment";
   std::string out_dir = "out";
   bool write_frames = true;
   bool quiet = false;
@@ -70,7 +70,7 @@ int Run(const Options& options) {
       char name[32];
       std::snprintf(name, sizeof(name), "frame_%04d.obj", frame);
       costume::assets::WriteObjFrame(out / name, sim->model(), sim->state().positions,
-                                     sim->garments());
+                                     sim->garments(), sim->avatar());
     }
   }
   const auto strain = costume::sim::StructuralStrain(sim->model(), sim->state().positions);
@@ -86,7 +86,8 @@ int Run(const Options& options) {
 int main(int argc, char** argv) {
   CLI::App app{
       "costume_sim: simulates a cloth scene headless and writes its frames as OBJ files.\n"
-      "Without a scene file it runs the built-in demo. Scene format: docs/scene_format.md."};
+      "Without a scene file it runs the built-in garment scene (a skirt on the walking\n"
+      "built-in humanoid). Scene format: docs/scene_format.md."};
   Options options;
   app.add_option("scene", options.scene_file, "Scene file (TOML)")->check(CLI::ExistingFile);
   app.add_option("--builtin", options.builtin, "Built-in scene to run when no file is given")
