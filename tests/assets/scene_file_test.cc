@@ -400,7 +400,7 @@ TEST(ParseSceneText, ReadsTheAvatarAndAPatternGarment) {
   const sim::SceneDescription scene = LoadBuiltInScene("garment");
   ASSERT_TRUE(scene.avatar.has_value());
   EXPECT_EQ(scene.avatar->clip->name, "walk");
-  EXPECT_EQ(scene.avatar->collision, sim::BodyCollisionMethod::kSuperquadric);
+  EXPECT_EQ(scene.avatar->collision, sim::BodyCollisionMethod::kMesh);
   EXPECT_EQ(scene.garments.at(0).pattern.value_or(""), "skirt");
 }
 
