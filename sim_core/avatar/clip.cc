@@ -32,14 +32,16 @@ double LegLength(const Skeleton& skeleton) {
              .norm() * 2.0;
 }
 
-/// The first H-Anim child of `joint` both skeletons have: where the bone points.
+/// The first H-Anim child of `joint` both skeletons have: where the bone points. The root
+/// and the pelvis have none: their frames carry the whole body, whose direction the facing
+/// alignment already matches (a rig whose root sits behind the spine, as MakeHuman's does,
+/// would otherwise be tipped over by its root-to-spine direction).
 std::optional<HAnimJoint> SharedChild(HAnimJoint joint, const Skeleton& a, const Skeleton& b) {
+  if (joint == HAnimJoint::kHumanoidRoot || joint == HAnimJoint::kSacroiliac) return std::nullopt;
   for (HAnimJoint child : AllHAnimJoints()) {
     if (HAnimParent(child) != joint || a.Find(child) < 0 || b.Find(child) < 0) continue;
     // The spine's first child stands for the bone; the shoulders branch off it.
     if (joint == HAnimJoint::kVc7 && child != HAnimJoint::kSkullbase) continue;
-    if (joint == HAnimJoint::kHumanoidRoot && child != HAnimJoint::kVl5) continue;
-    if (joint == HAnimJoint::kSacroiliac) continue;  // the pelvis has two bones: no direction
     return child;
   }
   return std::nullopt;

@@ -49,7 +49,16 @@ ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentS
   GarmentPattern pattern = MakeBuiltInGarment(*garment.pattern, MeasureBody(avatar), material,
                                               garment.pattern_resolution);
   pattern.data.name = garment.name;
-  const int joint = avatar.skeleton().Find(pattern.attached_to);
+  // The pattern's joint, or the nearest H-Anim ancestor the avatar maps (MakeHuman's
+  // skeleton has no separate sacroiliac: the skirt hangs from its root).
+  std::optional<HAnimJoint> holder = pattern.attached_to;
+  while (holder && avatar.skeleton().Find(*holder) < 0) holder = HAnimParent(*holder);
+  if (!holder) {
+    throw InputError(GarmentContext(scene, garment) + ": avatar '" + avatar.name() +
+                     "' maps no H-Anim joint at or above '" +
+                     std::string(HAnimName(pattern.attached_to)) + "' to hold the garment");
+  }
+  const int joint = avatar.skeleton().Find(*holder);
   const Eigen::Isometry3d to_joint = avatar.skeleton().rest_world()[joint].inverse();
   for (int p : pattern.attached) {
     pattern.data.pinned.push_back(p);
