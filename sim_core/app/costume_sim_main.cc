@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <vector>
@@ -41,8 +42,17 @@ double Median(std::vector<double> values) {
 }
 
 void PrintFrame(int frame, int num_frames, const Simulation& sim, const FrameReport& r) {
-  std::printf("frame %4d/%d  t=%6.3f s  %7.2f ms  iterations %4d  contacts %5d%s%s\n", frame,
-              num_frames, sim.state().time, r.wall_ms, r.iterations, r.num_contacts,
+  char extra[96] = "";
+  if (sim.body_collider()) {
+    std::snprintf(extra, sizeof(extra), "  avatar collision %5.2f ms", r.collision_ms);
+  }
+  if (sim.scene().effects.self_collision) {
+    const std::size_t used = std::strlen(extra);
+    std::snprintf(extra + used, sizeof(extra) - used, "  self-collision %5.2f ms%s",
+                  r.self_collision_ms, r.unresolved_self_collisions ? " [unresolved]" : "");
+  }
+  std::printf("frame %4d/%d  t=%6.3f s  %7.2f ms  iterations %4d  contacts %5d%s%s%s\n", frame,
+              num_frames, sim.state().time, r.wall_ms, r.iterations, r.num_contacts, extra,
               r.converged ? "" : "  [solver hit its iteration cap]",
               r.rolled_back_steps ? "  [non-finite step undone]" : "");
 }
