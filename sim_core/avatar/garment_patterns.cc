@@ -288,8 +288,12 @@ GarmentPattern MakeBuiltInGarment(const std::string& name, const BodyMeasures& m
     return Tube(rings, m, gap, material, resolution, "skirt", HAnimJoint::kSacroiliac);
   }
   if (name == "dress") {
-    const std::vector<Ring> rings = {Around(m.chest, gap), Around(m.waist, gap),
-                                     Around(m.hips, gap),
+    // Strapless, its top halfway between the waist and the chest: higher, the hanging upper
+    // arms would be inside it.
+    const Ring chest = Around(m.chest, gap), waist = Around(m.waist, gap);
+    const Ring top{0.5 * (chest.height + waist.height), 0.5 * (chest.half_width + waist.half_width),
+                   0.5 * (chest.half_depth + waist.half_depth)};
+    const std::vector<Ring> rings = {top, waist, Around(m.hips, gap, 0.03),
                                      {m.knee_height - 0.12, m.hips.half_width + gap + 0.1,
                                       m.hips.half_depth + gap + 0.1}};
     return Tube(rings, m, gap, material, resolution, "dress", HAnimJoint::kVl5);
