@@ -535,7 +535,8 @@ sim::SurfaceMesh ParseMesh(const TableView& table) {
 
 sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::string>& materials) {
   table.RefuseUnknownKeys(
-      {"name", "material", "pin_points", "pin_tolerance", "panel", "mesh", "pattern", "resolution"});
+      {"name", "material", "pin_points", "pin_tolerance", "attach_to", "panel", "mesh", "pattern",
+       "resolution"});
   sim::GarmentSpec garment;
   garment.source_line = table.line();
   garment.name = ReadName(table.Require("name"));
@@ -549,6 +550,14 @@ sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::str
     garment.pin_points = ReadPoints(*pins, "m");
   }
   garment.pin_tolerance = NumberOr(table, "pin_tolerance", garment.pin_tolerance, kPositive, "m");
+  if (const std::optional<Field> attach = table.Find("attach_to")) {
+    garment.attach_to = sim::ParseHAnimName(ReadName(*attach));
+    if (!garment.attach_to) {
+      std::vector<std::string> names;
+      for (sim::HAnimJoint joint : sim::AllHAnimJoints()) names.push_back(Quote(sim::HAnimName(joint)));
+      attach->Refuse("not an H-Anim joint; the joints are " + Join(names));
+    }
+  }
   const std::optional<TableView> panel = FindTable(table, "panel", "[garment.panel]");
   const std::optional<TableView> mesh = FindTable(table, "mesh", "[garment.mesh]");
   const std::optional<Field> pattern = table.Find("pattern");

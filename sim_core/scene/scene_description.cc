@@ -198,10 +198,16 @@ void ValidateSphere(const SphereObstacleSpec& sphere, std::size_t index,
 void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser) {
   if (!scene.avatar) {
     for (std::size_t i = 0; i < scene.garments.size(); ++i) {
-      if (scene.garments[i].pattern) {
-        scene_refuser.AtLine(scene.garments[i].source_line)
-            .Refuse("garment[" + std::to_string(i) + "].pattern", Quote(*scene.garments[i].pattern),
-                    "a pattern garment is fitted to an avatar, and the scene has none");
+      const GarmentSpec& garment = scene.garments[i];
+      const Refuser refuser = scene_refuser.AtLine(garment.source_line);
+      const std::string field = "garment[" + std::to_string(i) + "]";
+      if (garment.pattern) {
+        refuser.Refuse(field + ".pattern", Quote(*garment.pattern),
+                       "a pattern garment is fitted to an avatar, and the scene has none");
+      }
+      if (garment.attach_to) {
+        refuser.Refuse(field + ".attach_to", Quote(std::string(HAnimName(*garment.attach_to))),
+                       "garments attach to an avatar, and the scene has none");
       }
     }
     return;

@@ -62,6 +62,9 @@ struct GarmentSpec {
   std::vector<Eigen::Vector3d> pin_points;
   /// A pin point must have a particle within this distance [m].
   double pin_tolerance = 1e-3;
+  /// When set, the pinned particles are held by this joint of the scene's avatar and move
+  /// with it (a waistband, a collar) instead of staying fixed in space; needs an avatar.
+  std::optional<HAnimJoint> attach_to;
   /// Line of the garment's table in the scene file (0 when not from a file), for messages.
   int source_line = 0;
 };

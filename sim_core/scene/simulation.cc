@@ -40,6 +40,26 @@ Material ResolveMaterial(const SceneDescription& scene, const GarmentSpec& garme
                    "stiff_cotton, blender_cotton");
 }
 
+/// Holds the pinned particles of `data` by `joint` of the scene's avatar — or by its nearest
+/// H-Anim ancestor the avatar maps (MakeHuman's skeleton has no separate sacroiliac: a skirt
+/// hangs from its root) — listing them in `attachments` (indices local to the garment).
+void Attach(const SceneDescription& scene, const GarmentSpec& garment, HAnimJoint joint,
+            const ClothModelData& data, std::vector<BodyAttachment>& attachments) {
+  const Avatar& avatar = *scene.avatar->avatar;
+  std::optional<HAnimJoint> holder = joint;
+  while (holder && avatar.skeleton().Find(*holder) < 0) holder = HAnimParent(*holder);
+  if (!holder) {
+    throw InputError(GarmentContext(scene, garment) + ": avatar '" + avatar.name() +
+                     "' maps no H-Anim joint at or above '" + std::string(HAnimName(joint)) +
+                     "' to hold the garment");
+  }
+  const int index = avatar.skeleton().Find(*holder);
+  const Eigen::Isometry3d to_joint = avatar.skeleton().rest_world()[index].inverse();
+  for (int p : data.pinned) {
+    attachments.push_back({p, index, to_joint * Eigen::Vector3d(data.rest_positions.row(p))});
+  }
+}
+
 /// A pattern garment fitted to the scene's avatar; its attached particles are pinned and
 /// listed in `attachments` (indices local to the garment).
 ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentSpec& garment,
@@ -49,21 +69,8 @@ ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentS
   GarmentPattern pattern = MakeBuiltInGarment(*garment.pattern, MeasureBody(avatar), material,
                                               garment.pattern_resolution);
   pattern.data.name = garment.name;
-  // The pattern's joint, or the nearest H-Anim ancestor the avatar maps (MakeHuman's
-  // skeleton has no separate sacroiliac: the skirt hangs from its root).
-  std::optional<HAnimJoint> holder = pattern.attached_to;
-  while (holder && avatar.skeleton().Find(*holder) < 0) holder = HAnimParent(*holder);
-  if (!holder) {
-    throw InputError(GarmentContext(scene, garment) + ": avatar '" + avatar.name() +
-                     "' maps no H-Anim joint at or above '" +
-                     std::string(HAnimName(pattern.attached_to)) + "' to hold the garment");
-  }
-  const int joint = avatar.skeleton().Find(*holder);
-  const Eigen::Isometry3d to_joint = avatar.skeleton().rest_world()[joint].inverse();
-  for (int p : pattern.attached) {
-    pattern.data.pinned.push_back(p);
-    attachments.push_back({p, joint, to_joint * Eigen::Vector3d(pattern.data.rest_positions.row(p))});
-  }
+  pattern.data.pinned = pattern.attached;
+  Attach(scene, garment, pattern.attached_to, pattern.data, attachments);
   return std::move(pattern.data);
 }
 
@@ -76,6 +83,7 @@ ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& ga
                             : BuildMeshCloth(*garment.mesh, material, garment.name);
   data.pinned = FindNearestParticles(data.rest_positions, garment.pin_points,
                                      garment.pin_tolerance, GarmentContext(scene, garment));
+  if (garment.attach_to) Attach(scene, garment, *garment.attach_to, data, attachments);
   return data;
 }
 
