@@ -16,6 +16,7 @@
 #include "sim_core/hierarchy/quincunx_pyramid.h"
 #include "sim_core/hierarchy/step_solvers.h"
 #include "sim_core/solver/implicit_stepper.h"
+#include "tests/support/smooth_state.h"
 
 namespace costume::sim {
 namespace {
@@ -128,19 +129,7 @@ TEST(MeshCoarsening, ReproducesTheLatticeRuleAwayFromTheBorder) {
   EXPECT_EQ(found_pairs, expected_pairs);
 }
 
-/// A smooth in-plane deformation and velocity (as in quincunx_pyramid_test.cc).
-ClothState SmoothState(const ClothModel& model) {
-  ClothState state = ClothState::AtRest(model);
-  const double pi = std::numbers::pi;
-  for (int i = 0; i < model.num_particles(); ++i) {
-    const double x = model.rest_positions()(i, 0), z = model.rest_positions()(i, 2);
-    state.positions(i, 0) += 2e-3 * std::sin(pi * x) * std::cos(pi * z) + 1e-3 * z;
-    state.positions(i, 2) += 2e-3 * std::cos(pi * x) * std::sin(pi * z);
-    state.velocities(i, 0) = 0.01 * std::cos(pi * z);
-    state.velocities(i, 2) = -0.01 * std::sin(pi * x);
-  }
-  return state;
-}
+using test::SmoothState;
 
 Eigen::VectorXd StepChange(std::shared_ptr<const ClothModel> model, double h) {
   StepperSettings settings;

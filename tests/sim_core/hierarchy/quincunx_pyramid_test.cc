@@ -11,6 +11,7 @@
 
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/solver/implicit_stepper.h"
+#include "tests/support/smooth_state.h"
 
 namespace costume::sim {
 namespace {
@@ -73,20 +74,7 @@ TEST(QuincunxPyramid, ProlongationReproducesConstantsAndRestrictionIsItsTranspos
   EXPECT_NEAR(fine.dot(other), coarse.dot(restricted), 1e-10);
 }
 
-/// A smooth in-plane deformation of the flat sheet: displacement ε·(sin πx cos πz,
-/// cos πx sin πz) in (x, z) and a smooth velocity, so every level sees the same field.
-ClothState SmoothState(const ClothModel& model) {
-  ClothState state = ClothState::AtRest(model);
-  const double pi = std::numbers::pi;
-  for (int i = 0; i < model.num_particles(); ++i) {
-    const double x = model.rest_positions()(i, 0), z = model.rest_positions()(i, 2);
-    state.positions(i, 0) += 2e-3 * std::sin(pi * x) * std::cos(pi * z) + 1e-3 * z;
-    state.positions(i, 2) += 2e-3 * std::cos(pi * x) * std::sin(pi * z);
-    state.velocities(i, 0) = 0.01 * std::cos(pi * z);
-    state.velocities(i, 2) = -0.01 * std::sin(pi * x);
-  }
-  return state;
-}
+using test::SmoothState;
 
 /// Δv of one implicit step of `model` from `state` (CHOLMOD, so no solver error enters).
 Eigen::VectorXd StepChange(std::shared_ptr<const ClothModel> model, const ClothState& state,
