@@ -8,7 +8,6 @@
 
 #include <cmath>
 #include <map>
-#include <numbers>
 #include <random>
 
 #include "sim_core/cloth/lattice_panel.h"
