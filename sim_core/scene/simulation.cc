@@ -144,7 +144,8 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
   if (method == BodyCollisionMethod::kMesh) {
     // Contacts inside the solve keep cloth within millimetres of the skin, so the search
     // reaches 1.5 cm below it rather than the default 5 cm: the per-particle triangle search
-    // dominates the method's cost and shrinks with the cube of that reach.
+    // dominates the method's cost and shrinks with the cube of that reach. 1 cm lost cloth
+    // the kicking leg drove 2.6 cm deep in one step (garment_collision_test).
     MeshCollisionOptions options;
     options.max_penetration = 0.015;
     return std::make_unique<MeshCollider>(std::move(avatar), settings, options);
