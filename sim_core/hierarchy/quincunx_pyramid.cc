@@ -280,4 +280,15 @@ void QuincunxPyramid::UpdateRegion(std::shared_ptr<const ClothModel> edited_leve
   }
 }
 
+std::vector<std::shared_ptr<const ClothModel>> QuincunxPyramid::LevelModels() const {
+  std::vector<std::shared_ptr<const ClothModel>> models;
+  for (const PyramidLevel& level : levels_) models.push_back(level.model);
+  return models;
+}
+
+void QuincunxPyramid::RestoreLevelModels(
+    const std::vector<std::shared_ptr<const ClothModel>>& models) {
+  for (std::size_t l = 0; l < levels_.size() && l < models.size(); ++l) levels_[l].model = models[l];
+}
+
 }  // namespace costume::sim

@@ -82,6 +82,11 @@ class QuincunxPyramid {
   void UpdateRegion(std::shared_ptr<const ClothModel> edited_level0, const Points& positions,
                     const std::vector<int>& region);
 
+  /// Every level's model, level 0 first: what undoing an edit puts back.
+  std::vector<std::shared_ptr<const ClothModel>> LevelModels() const;
+  /// Puts back models LevelModels returned earlier for this pyramid (same topology).
+  void RestoreLevelModels(const std::vector<std::shared_ptr<const ClothModel>>& models);
+
  private:
   void AddLevel();
   void AddMeshLevel();

@@ -265,6 +265,7 @@ void Simulation::FindContacts(double h, FrameReport& report) {
 void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
   if (avatar_) MoveAvatar(state_.time + h, h);
+  if (grabbing_) ApplyGrab(grab_, state_.positions, applied_, grabbed_);
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
   if (self_collision_) start_positions_ = state_.positions;
@@ -294,6 +295,7 @@ void Simulation::StepOnce(FrameReport& report) {
     report.collision_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
+  if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
   if (self_collision_) {
     const auto start = std::chrono::steady_clock::now();
     const SelfCollisionReport self = self_collision_->Resolve(start_positions_, h, state_);
@@ -301,6 +303,60 @@ void Simulation::StepOnce(FrameReport& report) {
     report.self_collision_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
+}
+
+bool Simulation::SetGrab(const Grab& grab) {
+  if (!IsValidGrab(grab)) return false;
+  grab_ = grab;
+  grabbing_ = true;
+  stepper_.SetAppliedForces(&applied_);
+  return true;
+}
+
+void Simulation::ReleaseGrab() {
+  grabbing_ = false;
+  stepper_.SetAppliedForces(nullptr);
+  grabbed_.clear();
+  grab_feedback_.setZero();
+}
+
+int Simulation::EliminateStretchEnergy(const Eigen::Vector3d& centre, double radius) {
+  if (!centre.allFinite() || !std::isfinite(radius) || radius <= 0.0) return 0;
+  std::vector<int> region;
+  std::vector<bool> inside(model_->num_particles(), false);
+  for (int p = 0; p < model_->num_particles(); ++p) {
+    if ((state_.positions.row(p).transpose() - centre).norm() > radius) continue;
+    inside[p] = true;
+    region.push_back(p);
+  }
+  Eigen::VectorXd rest(model_->num_springs());
+  int changed = 0;
+  for (int k = 0; k < model_->num_springs(); ++k) {
+    const Spring& s = model_->springs()[k];
+    rest[k] = s.rest_length;
+    if (!inside[s.a] || !inside[s.b]) continue;
+    const double length = (state_.positions.row(s.b) - state_.positions.row(s.a)).norm();
+    if (!(length > 0.0)) continue;  // a collapsed spring keeps its rest length
+    rest[k] = length;
+    ++changed;
+  }
+  if (changed == 0) return 0;
+  undo_.push_back(pyramid_ ? pyramid_->LevelModels()
+                           : std::vector<std::shared_ptr<const ClothModel>>{model_});
+  model_ = model_->WithRestLengths(rest);
+  stepper_.ReplaceModel(model_);
+  if (pyramid_) pyramid_->UpdateRegion(model_, state_.positions, region);
+  return changed;
+}
+
+bool Simulation::UndoEdit() {
+  if (undo_.empty()) return false;
+  const std::vector<std::shared_ptr<const ClothModel>> models = std::move(undo_.back());
+  undo_.pop_back();
+  model_ = models.front();
+  stepper_.ReplaceModel(model_);
+  if (pyramid_) pyramid_->RestoreLevelModels(models);
+  return true;
 }
 
 FrameReport Simulation::AdvanceFrame() {

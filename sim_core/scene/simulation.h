@@ -15,6 +15,7 @@
 #include "sim_core/collision/self_collision.h"
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
+#include "sim_core/scene/grab.h"
 #include "sim_core/scene/scene_description.h"
 #include "sim_core/solver/implicit_stepper.h"
 
@@ -75,6 +76,33 @@ class Simulation {
   /// Advances one frame (1/frame_rate s, in solver.substeps steps). Never throws.
   FrameReport AdvanceFrame();
 
+  // ---- editing (mode B, paper §5) ------------------------------------------------------
+  /// The designer grabs the cloth: from the next step on, the particles within the grab's
+  /// radius of its centre (selected afresh each step) feel F_h·g(x) (grab.h). Held until
+  /// ReleaseGrab or the next SetGrab. Collision with the avatar stays on: a grab cannot push
+  /// cloth into the body. Returns false and changes nothing for a grab with non-finite
+  /// fields or a radius <= 0. Never throws.
+  bool SetGrab(const Grab& grab);
+  /// Lets go: the cloth returns to its rest shape unless the stretch was made permanent.
+  void ReleaseGrab();
+  bool grabbing() const { return grabbing_; }
+  /// The particles the grab held in the last step.
+  const std::vector<int>& grabbed() const { return grabbed_; }
+  /// The force for the device after the last step [N]: minus the sum of the spring forces
+  /// on the grabbed particles (zero when not grabbing).
+  const Eigen::Vector3d& grab_feedback() const { return grab_feedback_; }
+  /// "Eliminate stretch energy" (paper §5.3): every spring with both ends within `radius`
+  /// [m] of `centre` [m] takes its current length as rest length, so the cloth stays where
+  /// it was left. A new model revision; the pyramid's coarse levels are brought in line for
+  /// that region only. Returns the number of springs changed (0 for non-finite input or an
+  /// empty region). The previous revision is kept for UndoEdit. Never throws.
+  int EliminateStretchEnergy(const Eigen::Vector3d& centre, double radius);
+  /// Restores the rest lengths before the last EliminateStretchEnergy (repeatable down to
+  /// the model the scene was built with); false when there is nothing to undo.
+  bool UndoEdit();
+  /// Edits that UndoEdit can still take back.
+  int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
+
   const SceneDescription& scene() const { return scene_; }
   const ClothModel& model() const { return stepper_.model(); }
   std::shared_ptr<const ClothModel> shared_model() const { return model_; }
@@ -119,6 +147,15 @@ class Simulation {
   /// Positions at the start of the step, for self-collision's continuous tests.
   Points start_positions_;
   std::vector<Contact> contacts_;
+  /// The grab and what it does; `applied_` is what the stepper adds (n×3) [N].
+  Grab grab_;
+  bool grabbing_ = false;
+  Points applied_;
+  std::vector<int> grabbed_;
+  std::vector<char> is_grabbed_;
+  Eigen::Vector3d grab_feedback_ = Eigen::Vector3d::Zero();
+  /// Earlier model revisions, every pyramid level's, newest last.
+  std::vector<std::vector<std::shared_ptr<const ClothModel>>> undo_;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
   std::vector<double> normal_impulse_;

@@ -93,6 +93,21 @@ void ImplicitStepper::SetConstraints(const ClothState& state, std::span<const Co
   }
 }
 
+void ImplicitStepper::ReplaceModel(std::shared_ptr<const ClothModel> revision) {
+  bool same = revision && revision->num_particles() == model_->num_particles() &&
+              revision->num_springs() == model_->num_springs() &&
+              revision->pinned() == model_->pinned();
+  for (int k = 0; same && k < model_->num_springs(); ++k) {
+    same = revision->springs()[k].a == model_->springs()[k].a &&
+           revision->springs()[k].b == model_->springs()[k].b;
+  }
+  if (!same) {
+    throw InputError("model '" + model_->name() + "': a revision must keep the particles, " +
+                     "springs and pins (only rest lengths may change)");
+  }
+  model_ = std::move(revision);
+}
+
 bool ImplicitStepper::Solve(const ClothState& state, double h, StepReport& report) {
   if (!settings_.warm_start) dv_.setZero();
   static_cast<SolveReport&>(report) = solver_->Solve(state, h, a_, b_, constraints_, dv_);

@@ -74,6 +74,15 @@ class ImplicitStepper {
     pin_velocity_.row(particle) = velocity.transpose();
   }
 
+  /// Forces applied to the particles in the coming steps (n×3) [N], held by the caller;
+  /// null for none. Never throws; never allocates.
+  void SetAppliedForces(const Points* forces) { settings_.external.applied = forces; }
+
+  /// Switches to a revision of the model with the same particles and springs (rest lengths
+  /// edited, paper §5.3): the system's pattern and the solver are kept. Throws InputError
+  /// when the topology differs.
+  void ReplaceModel(std::shared_ptr<const ClothModel> revision);
+
   const ClothModel& model() const { return *model_; }
   const StepperSettings& settings() const { return settings_; }
 

@@ -11,6 +11,7 @@ void AssembleImplicitSystem(const ClothModel& model, const ClothState& state, do
     a.AddToDiagonal(i, (model.masses()[i] + h * drag) * Eigen::Matrix3d::Identity());
     const Eigen::Vector3d v = state.velocities.row(i).transpose();
     b.segment<3>(3 * i) = h * (model.masses()[i] * external.gravity - drag * v);
+    if (external.applied) b.segment<3>(3 * i) += h * external.applied->row(i).transpose();
   }
   const auto& springs = model.springs();
   for (int k = 0; k < model.num_springs(); ++k) {

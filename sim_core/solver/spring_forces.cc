@@ -41,6 +41,7 @@ Eigen::VectorXd ComputeForces(const ClothModel& model, const ClothState& state,
   for (int i = 0; i < n; ++i) {
     f.segment<3>(3 * i) = model.masses()[i] * external.gravity -
                           (external.air_drag ? model.drag()[i] : 0.0) * Row(state.velocities, i);
+    if (external.applied) f.segment<3>(3 * i) += Row(*external.applied, i);
   }
   for (const Spring& s : model.springs()) {
     const SpringTerms t =

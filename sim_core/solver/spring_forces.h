@@ -42,10 +42,13 @@ struct ExternalForces {
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, -9.81, 0.0);
   /// Whether each particle feels its linear air drag −model.drag()[i]·v_i.
   bool air_drag = true;
+  /// Force applied to each particle (n×3) [N], held by the caller: the designer's grab
+  /// (paper §5); null for none.
+  const Points* applied = nullptr;
 };
 
-/// Total force (3n) [N] on every particle: springs, damping, gravity, drag. Test and tool
-/// path (allocates).
+/// Total force (3n) [N] on every particle: springs, damping, gravity, drag, applied forces.
+/// Test and tool path (allocates).
 Eigen::VectorXd ComputeForces(const ClothModel& model, const ClothState& state,
                               const ExternalForces& external);
 

@@ -1,0 +1,48 @@
+#include "sim_core/scene/grab.h"
+
+#include <cmath>
+
+#include "sim_core/solver/spring_forces.h"
+
+namespace costume::sim {
+
+bool IsValidGrab(const Grab& grab) {
+  return grab.centre.allFinite() && grab.force.allFinite() && std::isfinite(grab.radius) &&
+         grab.radius > 0.0;
+}
+
+double GrabWeight(const Grab& grab, const Eigen::Vector3d& x) {
+  const double s = 0.25 * grab.radius * grab.radius;
+  return std::exp(-(x - grab.centre).squaredNorm() / (2.0 * s));
+}
+
+void ApplyGrab(const Grab& grab, const Points& positions, Points& applied,
+               std::vector<int>& selected) {
+  applied.setZero(positions.rows(), 3);
+  selected.clear();
+  const double r2 = grab.radius * grab.radius;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    if ((x - grab.centre).squaredNorm() > r2) continue;
+    selected.push_back(static_cast<int>(i));
+    applied.row(i) = (GrabWeight(grab, x) * grab.force).transpose();
+  }
+}
+
+Eigen::Vector3d GrabFeedback(const ClothModel& model, const ClothState& state,
+                             const std::vector<int>& selected, std::vector<char>& is_selected) {
+  is_selected.assign(model.num_particles(), 0);
+  for (int p : selected) is_selected[p] = 1;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Spring& s : model.springs()) {
+    if (is_selected[s.a] == is_selected[s.b]) continue;  // outside, or internal: cancels
+    const SpringTerms t = EvaluateSpring(
+        s, state.positions.row(s.a).transpose(), state.positions.row(s.b).transpose(),
+        state.velocities.row(s.a).transpose(), state.velocities.row(s.b).transpose(),
+        JacobianMode::kDefinite);
+    sum += is_selected[s.a] ? t.force_on_a : Eigen::Vector3d(-t.force_on_a);
+  }
+  return -sum;
+}
+
+}  // namespace costume::sim

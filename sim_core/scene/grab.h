@@ -1,0 +1,45 @@
+#pragma once
+/// @file
+/// The designer's grab on the cloth (paper §5; DESIGN.md "Haptic selection and forces"): the
+/// device force F_h acts at the centre m of a selection sphere of radius r, and each particle
+/// inside it gets F(x) = F_h·g(x) with the isotropic Gaussian g(x) = exp(−‖x − m‖²/(2s)),
+/// normalised so g(m) = 1. The paper's printed formula lost its minus sign and gives s = r/2
+/// without units; here s is a variance, s = (r/2)² [m²], so the weight falls to
+/// e^(−2) ≈ 0.135 at the sphere's edge whatever the radius.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "sim_core/cloth/cloth_model.h"
+#include "sim_core/cloth/cloth_state.h"
+
+namespace costume::sim {
+
+struct Grab {
+  /// Sphere centre m, scene frame [m].
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  /// Selection radius r [m] > 0.
+  double radius = 0.05;
+  /// Device force F_h at the centre, scene frame [N].
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+};
+
+/// Whether every field is finite and the radius positive.
+bool IsValidGrab(const Grab& grab);
+
+/// g(x) = exp(−‖x − m‖²/(2s)), s = (r/2)² [-]. Never throws.
+double GrabWeight(const Grab& grab, const Eigen::Vector3d& x);
+
+/// The particles within r of m into `selected`, and F_h·g(x) on each of them into `applied`
+/// (n×3, zero elsewhere) [N]. Never throws; allocates only when `selected` grows or
+/// `applied` has the wrong size.
+void ApplyGrab(const Grab& grab, const Points& positions, Points& applied,
+               std::vector<int>& selected);
+
+/// The force fed back to the device [N]: minus the sum of the spring forces (elastic and
+/// damping) the cloth exerts on the selected particles; springs joining two selected
+/// particles cancel. Never throws; never allocates.
+Eigen::Vector3d GrabFeedback(const ClothModel& model, const ClothState& state,
+                             const std::vector<int>& selected, std::vector<char>& is_selected);
+
+}  // namespace costume::sim
