@@ -39,7 +39,7 @@ std::string UrlError(const std::string& url, const std::string& detail) {
   return "LCM URL \"" + url + "\": " + detail;
 }
 
-// Parses a whole decimal integer; nullopt-like false when `text` is anything else.
+// Parses a whole decimal integer into `value`; false when `text` is anything else.
 bool ParseInt(const std::string& text, long& value) {
   const char* end = text.data() + text.size();
   auto result = std::from_chars(text.data(), end, value);
