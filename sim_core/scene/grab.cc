@@ -42,7 +42,7 @@ Eigen::Vector3d GrabFeedback(const ClothModel& model, const ClothState& state,
         JacobianMode::kDefinite);
     sum += is_selected[s.a] ? t.force_on_a : Eigen::Vector3d(-t.force_on_a);
   }
-  return -sum;
+  return sum;
 }
 
 }  // namespace costume::sim

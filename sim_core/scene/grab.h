@@ -36,9 +36,11 @@ double GrabWeight(const Grab& grab, const Eigen::Vector3d& x);
 void ApplyGrab(const Grab& grab, const Points& positions, Points& applied,
                std::vector<int>& selected);
 
-/// The force fed back to the device [N]: minus the sum of the spring forces (elastic and
-/// damping) the cloth exerts on the selected particles; springs joining two selected
-/// particles cancel. Never throws; never allocates.
+/// The force fed back to the device [N]: the sum of the spring forces (elastic and damping)
+/// the rest of the cloth exerts on the selected particles — what the hand holding them feels,
+/// pulling back against the grab; minus the force the hand's grab puts into those springs
+/// (the "minus the sum" counts the springs' forces from the hand's side). Springs
+/// joining two selected particles cancel. Never throws; never allocates.
 Eigen::Vector3d GrabFeedback(const ClothModel& model, const ClothState& state,
                              const std::vector<int>& selected, std::vector<char>& is_selected);
 

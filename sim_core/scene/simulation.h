@@ -88,8 +88,9 @@ class Simulation {
   bool grabbing() const { return grabbing_; }
   /// The particles the grab held in the last step.
   const std::vector<int>& grabbed() const { return grabbed_; }
-  /// The force for the device after the last step [N]: minus the sum of the spring forces
-  /// on the grabbed particles (zero when not grabbing).
+  /// The force for the device after the last step [N]: the spring forces the rest of the
+  /// cloth exerts on the grabbed particles, pulling against the grab (grab.h; zero when not
+  /// grabbing).
   const Eigen::Vector3d& grab_feedback() const { return grab_feedback_; }
   /// "Eliminate stretch energy" (paper §5.3): every spring with both ends within `radius`
   /// [m] of `centre` [m] takes its current length as rest length, so the cloth stays where
