@@ -87,7 +87,10 @@ PeriodStatistics ComputePeriodStatistics(const std::int64_t* periods, std::int64
   stats.p99 = NearestRankPercentile(sorted.data(), n, 0.99);
   stats.p999 = NearestRankPercentile(sorted.data(), n, 0.999);
   double sum = 0.0;
-  for (std::int64_t p : sorted) sum += static_cast<double>(p);
+  for (std::int64_t p : sorted) {
+    sum += static_cast<double>(p);
+    stats.num_gaps += p > 2 * nominal ? 1 : 0;
+  }
   stats.mean = sum / static_cast<double>(n);
   for (std::int64_t& p : sorted) p = std::abs(p - nominal);
   std::sort(sorted.begin(), sorted.end());

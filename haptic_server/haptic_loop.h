@@ -104,6 +104,8 @@ struct PeriodStatistics {
   /// 99.9th percentile and maximum of |period − nominal|.
   std::int64_t error_p999 = 0;
   std::int64_t error_max = 0;
+  /// Periods longer than twice the nominal one (gaps the hand may feel).
+  std::int64_t num_gaps = 0;
 };
 
 /// Nearest-rank percentile of ascending `sorted` (n > 0): element ceil(q·n) − 1, q in (0, 1].

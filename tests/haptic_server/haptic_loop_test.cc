@@ -123,6 +123,7 @@ TEST(HapticLoop, ALongTickCountsAnOverrunAndSkipsTheMissedDeadline) {
   const PeriodStatistics s = loop.Statistics();
   EXPECT_EQ(s.max, 2'500'000);
   EXPECT_EQ(s.min, 500'000);
+  EXPECT_EQ(s.num_gaps, 1);  // the 2.5 ms period
   EXPECT_EQ(handler.last.deadline, 21 * kPeriod);  // no lag accumulated: deadlines on the grid
 }
 
