@@ -125,7 +125,9 @@ json LoopTiming(double seconds, bool load, int priority) {
       FillLatticePatch(40, 25, 0.05, p);
       p.sequence = ++frame;
       p.arrival_time = static_cast<double>(clock.Now()) * 1e-9;
-      p.centre = device.hand_position();
+      // The grab centre the simulation used; the hand stays within ~1 cm of the origin.
+      // (Not device.hand_position(): the tick thread writes that.)
+      p.centre = Eigen::Vector3d::Zero();
       PreparePatch(p);
       patches.Publish();
       next += 16'666'667;
