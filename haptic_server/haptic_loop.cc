@@ -1,0 +1,191 @@
+#include "haptic_server/haptic_loop.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <vector>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::haptics {
+
+namespace {
+constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
+}  // namespace
+
+std::int64_t MonotonicClock::Now() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+}
+
+void MonotonicClock::SleepUntil(std::int64_t deadline) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(deadline / kNanosPerSecond);
+  ts.tv_nsec = static_cast<long>(deadline % kNanosPerSecond);
+  // Absolute: a signal that interrupts the sleep just sleeps again to the same deadline.
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+void FakeClock::SleepUntil(std::int64_t deadline) {
+  now_ = std::max(now_, deadline);
+  if (script_next_ < script_size_) now_ += script_[script_next_++];
+}
+
+void FakeClock::ScriptLatencies(const std::int64_t* latencies, int count) {
+  script_size_ = std::min(count, kMaxScript);
+  std::copy(latencies, latencies + script_size_, script_.get());
+  script_next_ = 0;
+}
+
+RealtimeStatus TryRealtimePriority(int priority) {
+  RealtimeStatus status;
+  status.priority = priority;
+  sched_param param{};
+  param.sched_priority = priority;
+  const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+  status.realtime = error == 0;
+  if (!status.realtime) {
+    status.reason = std::string("SCHED_FIFO priority ") + std::to_string(priority) +
+                    " refused: " + std::strerror(error) +
+                    "; grant CAP_SYS_NICE (setcap cap_sys_nice+ep <program>) or an rtprio "
+                    "limit in /etc/security/limits.conf. Running at normal priority.";
+  }
+  status.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+  if (!status.memory_locked) {
+    const int lock_error = errno;
+    if (!status.reason.empty()) status.reason += " ";
+    status.reason += std::string("mlockall refused: ") + std::strerror(lock_error) +
+                     "; raise the memlock limit (ulimit -l) to avoid page faults in the tick.";
+  }
+  return status;
+}
+
+std::int64_t NearestRankPercentile(const std::int64_t* sorted, std::int64_t n, double q) {
+  const auto rank = static_cast<std::int64_t>(std::ceil(q * static_cast<double>(n)));
+  return sorted[std::clamp<std::int64_t>(rank - 1, 0, n - 1)];
+}
+
+PeriodStatistics ComputePeriodStatistics(const std::int64_t* periods, std::int64_t n,
+                                         std::int64_t nominal) {
+  PeriodStatistics stats;
+  stats.nominal = nominal;
+  stats.num_samples = n;
+  if (n <= 0) return stats;
+  std::vector<std::int64_t> sorted(periods, periods + n);
+  std::sort(sorted.begin(), sorted.end());
+  stats.min = sorted.front();
+  stats.max = sorted.back();
+  stats.p50 = NearestRankPercentile(sorted.data(), n, 0.50);
+  stats.p99 = NearestRankPercentile(sorted.data(), n, 0.99);
+  stats.p999 = NearestRankPercentile(sorted.data(), n, 0.999);
+  double sum = 0.0;
+  for (std::int64_t p : sorted) {
+    sum += static_cast<double>(p);
+    stats.num_gaps += p > 2 * nominal ? 1 : 0;
+  }
+  stats.mean = sum / static_cast<double>(n);
+  for (std::int64_t& p : sorted) p = std::abs(p - nominal);
+  std::sort(sorted.begin(), sorted.end());
+  stats.error_p999 = NearestRankPercentile(sorted.data(), n, 0.999);
+  stats.error_max = sorted.back();
+  return stats;
+}
+
+HapticLoop::HapticLoop(LoopClock& clock, TickHandler& handler, const HapticLoopOptions& options)
+    : clock_(clock), handler_(handler), options_(options) {
+  if (options_.period <= 0 || options_.ring_capacity <= 0) {
+    throw sim::InputError("haptic loop: period = " + std::to_string(options_.period) +
+                          " ns and ring_capacity = " + std::to_string(options_.ring_capacity) +
+                          " must both be > 0");
+  }
+  ring_ = std::make_unique<std::atomic<std::int64_t>[]>(options_.ring_capacity);
+}
+
+HapticLoop::~HapticLoop() { Stop(); }
+
+void HapticLoop::RecordPeriod(std::int64_t period) {
+  const std::int64_t k = num_recorded_.load(std::memory_order_relaxed);
+  ring_[k % options_.ring_capacity].store(period, std::memory_order_relaxed);
+  num_recorded_.store(k + 1, std::memory_order_release);
+}
+
+void HapticLoop::Run(std::int64_t num_ticks) {
+  const std::int64_t period = options_.period;
+  const double period_s = static_cast<double>(period) / kNanosPerSecond;
+  std::int64_t deadline = clock_.Now() + period;
+  std::int64_t previous_wake = -1;
+  for (std::int64_t k = 0; num_ticks < 0 || k < num_ticks; ++k) {
+    if (stop_.load(std::memory_order_relaxed)) break;
+    clock_.SleepUntil(deadline);
+    const std::int64_t now = clock_.Now();
+    if (previous_wake >= 0) RecordPeriod(now - previous_wake);
+    previous_wake = now;
+    // More than a period late: skip the deadlines already gone instead of racing to catch up.
+    const std::int64_t missed = (now - deadline) / period;
+    if (missed > 0) {
+      num_missed_.fetch_add(missed, std::memory_order_relaxed);
+      deadline += missed * period;
+    }
+    handler_.Tick(TickInfo{num_ticks_.load(std::memory_order_relaxed), now, deadline, period_s});
+    num_ticks_.fetch_add(1, std::memory_order_relaxed);
+    deadline += period;
+    if (clock_.Now() > deadline) num_overruns_.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+void HapticLoop::Start() {
+  if (thread_.joinable()) return;
+  stop_.store(false, std::memory_order_relaxed);
+  thread_ = std::thread([this] {
+    if (options_.realtime_priority > 0) {
+      status_ = TryRealtimePriority(options_.realtime_priority);
+    } else {
+      status_.reason = "real-time priority not requested";
+    }
+    status_ready_.store(true, std::memory_order_release);
+    Run(-1);
+  });
+}
+
+void HapticLoop::Stop() {
+  if (!thread_.joinable()) return;
+  RequestStop();
+  thread_.join();
+}
+
+RealtimeStatus HapticLoop::realtime_status() const {
+  if (!status_ready_.load(std::memory_order_acquire)) return {};
+  return status_;
+}
+
+LoopCounters HapticLoop::counters() const {
+  return {num_ticks_.load(std::memory_order_relaxed), num_missed_.load(std::memory_order_relaxed),
+          num_overruns_.load(std::memory_order_relaxed)};
+}
+
+PeriodStatistics HapticLoop::Statistics() const {
+  const std::int64_t recorded = num_recorded_.load(std::memory_order_acquire);
+  const std::int64_t n = std::min(recorded, options_.ring_capacity);
+  std::vector<std::int64_t> periods(static_cast<std::size_t>(n));
+  for (std::int64_t i = 0; i < n; ++i) {
+    periods[i] = ring_[i].load(std::memory_order_relaxed);
+  }
+  return ComputePeriodStatistics(periods.data(), n, options_.period);
+}
+
+void HapticLoop::ResetStatistics() {
+  num_recorded_.store(0);
+  num_ticks_.store(0);
+  num_missed_.store(0);
+  num_overruns_.store(0);
+}
+
+}  // namespace costume::haptics
