@@ -16,16 +16,21 @@ double GrabWeight(const Grab& grab, const Eigen::Vector3d& x) {
   return std::exp(-(x - grab.centre).squaredNorm() / (2.0 * s));
 }
 
-void ApplyGrab(const Grab& grab, const Points& positions, Points& applied,
-               std::vector<int>& selected) {
-  applied.setZero(positions.rows(), 3);
+void SelectGrabbed(const Grab& grab, const Points& positions, std::vector<int>& selected) {
   selected.clear();
   const double r2 = grab.radius * grab.radius;
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    const Eigen::Vector3d x = positions.row(i).transpose();
-    if ((x - grab.centre).squaredNorm() > r2) continue;
-    selected.push_back(static_cast<int>(i));
-    applied.row(i) = (GrabWeight(grab, x) * grab.force).transpose();
+    if ((positions.row(i).transpose() - grab.centre).squaredNorm() <= r2) {
+      selected.push_back(static_cast<int>(i));
+    }
+  }
+}
+
+void ApplyGrab(const Grab& grab, const Points& positions, const std::vector<int>& selected,
+               Points& applied) {
+  applied.setZero(positions.rows(), 3);
+  for (int i : selected) {
+    applied.row(i) = (GrabWeight(grab, positions.row(i).transpose()) * grab.force).transpose();
   }
 }
 

@@ -30,11 +30,15 @@ bool IsValidGrab(const Grab& grab);
 /// g(x) = exp(−‖x − m‖²/(2s)), s = (r/2)² [-]. Never throws.
 double GrabWeight(const Grab& grab, const Eigen::Vector3d& x);
 
-/// The particles within r of m into `selected`, and F_h·g(x) on each of them into `applied`
-/// (n×3, zero elsewhere) [N]. Never throws; allocates only when `selected` grows or
-/// `applied` has the wrong size.
-void ApplyGrab(const Grab& grab, const Points& positions, Points& applied,
-               std::vector<int>& selected);
+/// The particles within r of m: what a grab holds from the moment it starts (they stay
+/// held as the sphere moves, so the cloth cannot slip out of the hand). Never throws;
+/// allocates only when `selected` grows.
+void SelectGrabbed(const Grab& grab, const Points& positions, std::vector<int>& selected);
+
+/// F_h·g(x) on each selected particle into `applied` (n×3, zero elsewhere) [N]. Never
+/// throws; allocates only when `applied` has the wrong size.
+void ApplyGrab(const Grab& grab, const Points& positions, const std::vector<int>& selected,
+               Points& applied);
 
 /// The force fed back to the device [N]: the sum of the spring forces (elastic and damping)
 /// the rest of the cloth exerts on the selected particles — what the hand holding them feels,

@@ -262,7 +262,7 @@ void Simulation::FindContacts(double h, FrameReport& report) {
 void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
   if (avatar_) MoveAvatar(state_.time + h, h);
-  if (grabbing_) ApplyGrab(grab_, state_.positions, applied_, grabbed_);
+  if (grabbing_) ApplyGrab(grab_, state_.positions, grabbed_, applied_);
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
   if (self_collision_) start_positions_ = state_.positions;
@@ -305,6 +305,7 @@ void Simulation::StepOnce(FrameReport& report) {
 bool Simulation::SetGrab(const Grab& grab) {
   if (!IsValidGrab(grab)) return false;
   grab_ = grab;
+  if (!grabbing_) SelectGrabbed(grab_, state_.positions, grabbed_);
   grabbing_ = true;
   stepper_.SetAppliedForces(&applied_);
   return true;

@@ -78,15 +78,16 @@ class Simulation {
 
   // ---- editing (mode B, paper §5) ------------------------------------------------------
   /// The designer grabs the cloth: from the next step on, the particles within the grab's
-  /// radius of its centre (selected afresh each step) feel F_h·g(x) (grab.h). Held until
-  /// ReleaseGrab or the next SetGrab. Collision with the avatar stays on: a grab cannot push
+  /// radius of its centre feel F_h·g(x) (grab.h). The particles are selected when the grab
+  /// starts (the first SetGrab after a release) and stay held as later calls move the
+  /// sphere and change the force. Collision with the avatar stays on: a grab cannot push
   /// cloth into the body. Returns false and changes nothing for a grab with non-finite
   /// fields or a radius <= 0. Never throws.
   bool SetGrab(const Grab& grab);
   /// Lets go: the cloth returns to its rest shape unless the stretch was made permanent.
   void ReleaseGrab();
   bool grabbing() const { return grabbing_; }
-  /// The particles the grab held in the last step.
+  /// The particles the grab holds.
   const std::vector<int>& grabbed() const { return grabbed_; }
   /// The force for the device after the last step [N]: the spring forces the rest of the
   /// cloth exerts on the grabbed particles, pulling against the grab (grab.h; zero when not

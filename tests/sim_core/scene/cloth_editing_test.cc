@@ -32,7 +32,8 @@ TEST(Grab, AppliesTheWeightedForceInsideTheSphereOnly) {
   grab.force = Eigen::Vector3d(0, -2, 0);
   Points applied;
   std::vector<int> selected;
-  ApplyGrab(grab, x, applied, selected);
+  SelectGrabbed(grab, x, selected);
+  ApplyGrab(grab, x, selected, applied);
   EXPECT_EQ(selected, (std::vector<int>{0, 1}));
   EXPECT_NEAR(applied(0, 1), -2.0, 1e-15);
   EXPECT_NEAR(applied(1, 1), -2.0 * std::exp(-0.0009 / (2 * 0.0025)), 1e-15);
