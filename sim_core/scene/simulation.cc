@@ -334,7 +334,7 @@ int Simulation::EliminateStretchEnergy(const Eigen::Vector3d& centre, double rad
     rest[k] = s.rest_length;
     if (!inside[s.a] || !inside[s.b]) continue;
     const double length = (state_.positions.row(s.b) - state_.positions.row(s.a)).norm();
-    if (!(length > 0.0)) continue;  // a collapsed spring keeps its rest length
+    if (!(length > 0.0) || !std::isfinite(length)) continue;  // collapsed: keeps its rest length
     rest[k] = length;
     ++changed;
   }
