@@ -517,14 +517,15 @@ std::string ResolvePath(const std::string& base_dir, const std::string& file) {
 }
 
 sim::SurfaceMesh ParseMesh(const TableView& table) {
-  table.RefuseUnknownKeys({"file", "scale", "offset"});
+  table.RefuseUnknownKeys({"file", "scale", "offset", "weld_below"});
   const Field file = table.Require("file");
   MeshImportOptions options;
   options.scale = NumberOr(table, "scale", options.scale, kPositive, "m per file unit");
   options.offset = Vector3Or(table, "offset", options.offset, "m");
+  const double weld = NumberOr(table, "weld_below", 0.0, {0.0, 0.1, false, false}, "m");
   const std::string path = ResolvePath(table.source().base_dir, ReadName(file));
   try {
-    return ImportSurfaceMesh(path, options);
+    return sim::WeldShortEdges(ImportSurfaceMesh(path, options), weld);
   } catch (const InputError& error) {
     // The importer's message names the mesh file (else add it); this adds where the scene
     // asked for it.

@@ -416,4 +416,57 @@ ClothModelData BuildMeshCloth(const SurfaceMesh& mesh, const Material& material,
   return data;
 }
 
+SurfaceMesh WeldShortEdges(const SurfaceMesh& mesh, double min_length) {
+  RequireNonNegative(mesh.source + ": weld distance", min_length, "m");
+  const int n = static_cast<int>(mesh.vertices.rows());
+  std::vector<int> parent(n);
+  for (int v = 0; v < n; ++v) parent[v] = v;
+  auto root = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (const std::vector<int>& face : mesh.faces) {
+    for (std::size_t k = 0; k < face.size(); ++k) {
+      const int a = face[k], b = face[(k + 1) % face.size()];
+      if ((mesh.vertices.row(a) - mesh.vertices.row(b)).norm() < min_length) parent[root(a)] = root(b);
+    }
+  }
+  // Faces in welded vertices, collapsed ones dropped.
+  std::vector<std::vector<int>> faces;
+  for (const std::vector<int>& face : mesh.faces) {
+    std::vector<int> welded;
+    for (int v : face) {
+      const int r = root(v);
+      if (std::find(welded.begin(), welded.end(), r) == welded.end()) welded.push_back(r);
+    }
+    if (welded.size() >= 3) faces.push_back(std::move(welded));
+  }
+  // Renumber the vertices still used; each at the mean of the vertices welded into it.
+  std::vector<int> index(n, -1);
+  std::vector<int> count;
+  SurfaceMesh out;
+  out.source = mesh.source;
+  std::vector<Eigen::Vector3d> sums;
+  for (std::vector<int>& face : faces) {
+    for (int& v : face) {
+      if (index[v] < 0) {
+        index[v] = static_cast<int>(sums.size());
+        sums.push_back(Eigen::Vector3d::Zero());
+        count.push_back(0);
+      }
+      v = index[v];
+    }
+  }
+  for (int v = 0; v < n; ++v) {
+    const int r = index[root(v)];
+    if (r < 0) continue;
+    sums[r] += mesh.vertices.row(v).transpose();
+    ++count[r];
+  }
+  out.vertices.resize(static_cast<Eigen::Index>(sums.size()), 3);
+  for (std::size_t v = 0; v < sums.size(); ++v) out.vertices.row(v) = (sums[v] / count[v]).transpose();
+  out.faces = std::move(faces);
+  return out;
+}
+
 }  // namespace costume::sim

@@ -37,4 +37,12 @@ struct SurfaceMesh {
 ClothModelData BuildMeshCloth(const SurfaceMesh& mesh, const Material& material,
                               const std::string& name);
 
+/// Joins the ends of every edge shorter than `min_length` [m] (transitively) into one vertex
+/// at their mean position, and drops the faces that collapse (fewer than 3 distinct vertices;
+/// a quad that loses one becomes a triangle). Millimetre edges (a rolled hem modelled as a
+/// strip) would make particles of micrograms held by stiff bending springs: h²k/m beyond any
+/// step a frame can afford. Vertices in no face afterwards are removed. Throws InputError
+/// naming mesh.source when min_length is negative or not finite.
+SurfaceMesh WeldShortEdges(const SurfaceMesh& mesh, double min_length);
+
 }  // namespace costume::sim

@@ -492,3 +492,30 @@ TEST(BuildMeshCloth, RefusesBadMaterialNamingTheGarment) {
 
 }  // namespace
 }  // namespace costume::sim
+
+namespace costume::sim {
+namespace {
+
+// Two unit quads side by side, the middle edge's top end 0.5 mm from a fourth vertex placed
+// beside it: welding at 1 mm joins exactly those two, the quad that held both becomes a
+// triangle, nothing else moves (counted and located by hand).
+TEST(WeldShortEdges, JoinsTheEndsOfShortEdgesAndDropsWhatCollapses) {
+  SurfaceMesh mesh;
+  mesh.source = "weld test";
+  mesh.vertices.resize(7, 3);
+  mesh.vertices << 0, 0, 0,  1, 0, 0,  2, 0, 0,  0, 0, 1,  1, 0, 1,  2, 0, 1,  1.0005, 0, 1;
+  mesh.faces = {{0, 1, 4, 3}, {1, 2, 5, 6}, {1, 6, 4}};
+  const SurfaceMesh welded = WeldShortEdges(mesh, 0.001);
+  EXPECT_EQ(welded.vertices.rows(), 6);
+  ASSERT_EQ(welded.faces.size(), 2u);  // the sliver triangle (1, 6, 4) collapsed
+  EXPECT_EQ(welded.faces[0].size(), 4u);
+  EXPECT_EQ(welded.faces[1].size(), 4u);
+  double x_sum = 0.0;
+  for (Eigen::Index v = 0; v < welded.vertices.rows(); ++v) x_sum += welded.vertices(v, 0);
+  EXPECT_NEAR(x_sum, 0 + 1 + 2 + 0 + 2 + 1.00025, 1e-12);  // 4 and 6 met half-way
+  EXPECT_EQ(WeldShortEdges(mesh, 0.0).vertices.rows(), 7);
+  EXPECT_THROW(WeldShortEdges(mesh, -1.0), InputError);
+}
+
+}  // namespace
+}  // namespace costume::sim
