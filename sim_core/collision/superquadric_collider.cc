@@ -259,6 +259,9 @@ SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadric
   return segment;
 }
 
+/// Position-correction passes per particle in ProjectOut.
+constexpr int kProjectionPasses = 3;
+
 /// Which distance of the skin from a joint centre its sphere takes: low, so the sphere stays
 /// inside the skin where the cross-section is not round (the waist).
 constexpr double kJointSpherePercentile = 0.2;
@@ -514,14 +517,18 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
     // The most penetrated shell only, along its normal: a push along the ray from the centre
     // of an elongated segment (a thigh) would slide the cloth along the limb and tear it
     // where two segments overlap at a joint.
-    const Eigen::Vector3d x = positions.row(i).transpose();
-    double gap;
-    Eigen::Vector3d normal, body_velocity;
-    if (!DeepestShell(x, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) continue;
-    deepest = std::max(deepest, -gap);
-    positions.row(i) = (x - gap * normal).transpose();
-    const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);
-    if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
+    // A few passes: out of one shell can be into its neighbour's where segments overlap at
+    // a joint, and the normal gap of a deep point is only an estimate.
+    for (int pass = 0; pass < kProjectionPasses; ++pass) {
+      const Eigen::Vector3d x = positions.row(i).transpose();
+      double gap;
+      Eigen::Vector3d normal, body_velocity;
+      if (!DeepestShell(x, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) break;
+      if (pass == 0) deepest = std::max(deepest, -gap);
+      positions.row(i) = (x - gap * normal).transpose();
+      const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);
+      if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
+    }
   }
   return deepest;
 }
