@@ -193,6 +193,9 @@ class TableView {
 
   /// Refuses the first key (in file order) that is not in `allowed`, listing the allowed.
   void RefuseUnknownKeys(std::initializer_list<std::string_view> allowed) const {
+    RefuseUnknownKeys(std::vector<std::string_view>(allowed));
+  }
+  void RefuseUnknownKeys(const std::vector<std::string_view>& allowed) const {
     const toml::key* first_unknown = nullptr;
     for (auto&& [key, node] : *table_) {
       if (std::find(allowed.begin(), allowed.end(), key.str()) != allowed.end()) continue;
@@ -202,7 +205,8 @@ class TableView {
     }
     if (first_unknown) {
       Find(first_unknown->str())
-          ->Refuse("unknown key; allowed keys for " + header_ + ": " + Join(allowed));
+          ->Refuse("unknown key; allowed keys for " + header_ + ": " +
+                   Join(std::vector<std::string>(allowed.begin(), allowed.end())));
     }
   }
 
@@ -613,10 +617,31 @@ std::shared_ptr<const sim::Clip> BuiltInClip(const Field& field,
   return std::make_shared<const sim::Clip>(sim::MakeBuiltInClip(text->get(), std::move(skeleton)));
 }
 
+/// [avatar.posture]: joint rotations in degrees, [x, y, z] about the joint's rest axes
+/// applied in that order, keyed by H-Anim name; joints not named keep the rest pose.
+void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Pose& posture) {
+  std::vector<std::string> names;
+  for (sim::HAnimJoint joint : sim::AllHAnimJoints()) names.emplace_back(sim::HAnimName(joint));
+  const std::vector<std::string_view> allowed(names.begin(), names.end());
+  table.RefuseUnknownKeys(allowed);
+  posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  const double degree = std::acos(-1.0) / 180.0;
+  for (sim::HAnimJoint joint : sim::AllHAnimJoints()) {
+    const std::optional<Field> field = table.Find(sim::HAnimName(joint));
+    if (!field) continue;
+    const Eigen::Vector3d angles = ReadVector3(*field, "degrees");
+    const int index = skeleton.Find(joint);
+    if (index < 0) field->Refuse("the avatar has no joint mapped onto this H-Anim joint");
+    posture.rotations[index] = Eigen::AngleAxisd(angles.x() * degree, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(angles.y() * degree, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(angles.z() * degree, Eigen::Vector3d::UnitZ());
+  }
+}
+
 /// [avatar]: the built-in humanoid, the clip it plays, how cloth collides with it.
 sim::AvatarSpec ParseAvatar(const TableView& table) {
   table.RefuseUnknownKeys({"model", "clip", "collision", "thickness", "friction", "fit_time",
-                           "blend_time", "position", "heading"});
+                           "blend_time", "position", "heading", "posture"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
   if (const std::optional<Field> model = table.Find("model")) ReadChoice(*model, {"builtin"});
@@ -640,6 +665,9 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
   const double heading = NumberOr(table, "heading", 0.0, {-360.0, 360.0, false, false}, "degrees");
   avatar.motion.posture.orientation =
       Eigen::AngleAxisd(heading * std::acos(-1.0) / 180.0, Eigen::Vector3d::UnitY());
+  if (const std::optional<TableView> posture = FindTable(table, "posture", "[avatar.posture]")) {
+    ParsePosture(*posture, avatar.avatar->skeleton(), avatar.motion.posture);
+  }
   return avatar;
 }
 

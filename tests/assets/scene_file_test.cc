@@ -404,6 +404,19 @@ TEST(ParseSceneText, ReadsTheAvatarAndAPatternGarment) {
   EXPECT_EQ(scene.garments.at(0).pattern.value_or(""), "skirt");
 }
 
+TEST(ParseSceneText, ReadsThePostureInDegreesAndRefusesUnknownJoints) {
+  const std::string base = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\n";
+  const sim::SceneDescription scene =
+      ParseSceneText(base + "[avatar.posture]\nl_shoulder = [0, 0, 90]\n", "test.toml", "");
+  const sim::Skeleton& skeleton = scene.avatar->avatar->skeleton();
+  const Eigen::Quaterniond q =
+      scene.avatar->motion.posture.rotations[skeleton.Find(sim::HAnimJoint::kLShoulder)];
+  // 90° about z takes x to y (hand computation).
+  EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+  EXPECT_TRUE(Contains(ErrorOf(base + "[avatar.posture]\nl_shoulde = [0, 0, 1]\n"),
+                       "avatar.posture.l_shoulde"));
+}
+
 TEST(ParseSceneText, RefusesAPatternWithoutAvatarAndAnUnknownClip) {
   const std::string pattern = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   EXPECT_TRUE(Contains(ErrorOf(pattern), "test.toml:1: garment[0].pattern = \"skirt\": a pattern "
