@@ -97,7 +97,7 @@ std::string CommandName(std::int8_t kind) {
 
 Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period) {
   Deadline result{deadline + period, 0};
-  if (period <= 0 || result.next > now) return result;
+  if (period <= 0 || result.next >= now) return result;
   // The frame ran past its successor's deadline: jump to the first one still ahead.
   const std::int64_t behind = (now - result.next) / period + 1;
   result.next += behind * period;
@@ -161,9 +161,9 @@ void SimServer::Warn(std::string warning) {
 
 void SimServer::Step() {
   const auto start = std::chrono::steady_clock::now();
-  commands_.clear();
   bus_.HandleSubscriptions(0);
   for (const costume_lcm::command& command : commands_) ApplyCommand(command);
+  commands_.clear();
   ApplyLatestGrab();
   if (playback_ == Playback::kPlaying) {
     last_iterations_ = simulation_->AdvanceFrame().iterations;

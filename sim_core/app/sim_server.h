@@ -37,7 +37,7 @@ enum class Playback { kStopped, kPlaying, kPaused };
 
 /// The next wake-up of a fixed-rate loop on an absolute clock.
 struct Deadline {
-  /// The next deadline, strictly after `now` [ns].
+  /// The next deadline, at or after `now` [ns].
   std::int64_t next = 0;
   /// Deadlines passed over because the frame ran past them (0 when on time) [-].
   std::int64_t missed = 0;
@@ -45,8 +45,8 @@ struct Deadline {
 
 /// Given the deadline the frame that just finished was scheduled for (`deadline` [ns]), the
 /// clock after its work (`now` [ns], same origin) and the period (> 0) [ns]: the next
-/// deadline is deadline + period when that is still ahead; otherwise the first
-/// deadline + k·period after now, the k − 1 skipped ones counted as missed. Lag never
+/// deadline is deadline + period when that is not yet past (>= now); otherwise the first
+/// deadline + k·period after now, the k − 1 deadlines passed over counted as missed. Lag never
 /// accumulates: deadlines stay on the original grid. Never throws; never allocates.
 Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period);
 
