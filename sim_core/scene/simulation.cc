@@ -261,7 +261,10 @@ void Simulation::FindContacts(double h, FrameReport& report) {
 
 void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
-  if (avatar_) MoveAvatar(state_.time + h, h);
+  if (avatar_) {
+    // lag 0 (never frozen) gives state_.time + h bit for bit: the unfrozen run is unchanged.
+    MoveAvatar(avatar_frozen_ ? frozen_avatar_time_ : state_.time + h - avatar_lag_, h);
+  }
   if (grabbing_) ApplyGrab(grab_, state_.positions, grabbed_, applied_);
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
@@ -355,6 +358,20 @@ bool Simulation::UndoEdit() {
   stepper_.ReplaceModel(model_);
   if (pyramid_) pyramid_->RestoreLevelModels(models);
   return true;
+}
+
+void Simulation::SetAvatarFrozen(bool frozen) {
+  if (frozen == avatar_frozen_) return;
+  if (frozen) {
+    frozen_avatar_time_ = avatar_time();
+  } else {
+    avatar_lag_ = state_.time - frozen_avatar_time_;
+  }
+  avatar_frozen_ = frozen;
+}
+
+double Simulation::avatar_time() const {
+  return avatar_frozen_ ? frozen_avatar_time_ : state_.time - avatar_lag_;
 }
 
 FrameReport Simulation::AdvanceFrame() {

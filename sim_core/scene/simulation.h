@@ -105,6 +105,18 @@ class Simulation {
   /// Edits that UndoEdit can still take back.
   int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
 
+  // ---- the avatar's clock (mode B freezes it, paper §5) --------------------------------
+  /// Freezes (true) or resumes (false) the avatar's clock while the cloth keeps simulating:
+  /// in mode B the designer edits the cloth on a motionless body. Frozen, every step poses
+  /// the avatar at the time it was frozen; resumed, the clip carries on from that time (the
+  /// frozen interval is skipped, not caught up). Never frozen, the avatar is posed at
+  /// state().time exactly as before this switch existed. No effect without an avatar.
+  void SetAvatarFrozen(bool frozen);
+  bool avatar_frozen() const { return avatar_frozen_; }
+  /// The time the avatar is posed at after the last step [s]: state().time minus the
+  /// simulated time spent frozen.
+  double avatar_time() const;
+
   const SceneDescription& scene() const { return scene_; }
   const ClothModel& model() const { return stepper_.model(); }
   std::shared_ptr<const ClothModel> shared_model() const { return model_; }
@@ -158,6 +170,11 @@ class Simulation {
   Eigen::Vector3d grab_feedback_ = Eigen::Vector3d::Zero();
   /// Earlier model revisions, every pyramid level's, newest last.
   std::vector<std::vector<std::shared_ptr<const ClothModel>>> undo_;
+  /// The avatar's clock: frozen at `frozen_avatar_time_` [s], or state_.time − avatar_lag_
+  /// [s], the lag being the simulated time spent frozen (0 until the first freeze).
+  bool avatar_frozen_ = false;
+  double frozen_avatar_time_ = 0.0;
+  double avatar_lag_ = 0.0;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
   std::vector<double> normal_impulse_;

@@ -1,0 +1,565 @@
+#include "sim_core/app/sim_server.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <ctime>
+#include <utility>
+
+#include "bus/channels.h"
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim_app {
+
+namespace {
+
+constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
+/// Pending warnings kept for one status message; later ones in the same period are dropped
+/// (and the last entry says so) so a flood of bad commands cannot grow the message.
+constexpr std::size_t kMaxWarnings = 16;
+constexpr int kGrabButton = 1;  // grab.buttons bit 0
+
+std::int64_t MonotonicNow() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
+}
+
+void SleepUntil(std::int64_t deadline) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(deadline / kNanosPerSecond);
+  ts.tv_nsec = static_cast<long>(deadline % kNanosPerSecond);
+  // Absolute: a signal that interrupts the sleep sleeps again to the same deadline.
+  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+  }
+}
+
+sim::Grab ToGrab(const costume_lcm::grab& message) {
+  sim::Grab grab;
+  grab.centre = Eigen::Vector3d(message.centre[0], message.centre[1], message.centre[2]);
+  grab.radius = message.radius;
+  grab.force = Eigen::Vector3d(message.force[0], message.force[1], message.force[2]);
+  return grab;
+}
+
+std::int8_t ToLcmMode(Mode mode) {
+  return mode == Mode::kEditing ? costume_lcm::status::MODE_EDITING
+                                : costume_lcm::status::MODE_ANIMATION;
+}
+
+std::int8_t ToLcmPlayback(Playback playback) {
+  switch (playback) {
+    case Playback::kPlaying: return costume_lcm::status::PLAYBACK_PLAYING;
+    case Playback::kPaused: return costume_lcm::status::PLAYBACK_PAUSED;
+    case Playback::kStopped: break;
+  }
+  return costume_lcm::status::PLAYBACK_STOPPED;
+}
+
+/// The scene's solver settings with `solver`'s fields; ranges are checked by
+/// Simulation::Build (ValidateScene). Throws InputError for an unknown method.
+sim::SolverSettings ToSolverSettings(const costume_lcm::solver_parameters& solver) {
+  using P = costume_lcm::solver_parameters;
+  sim::SolverSettings settings;
+  switch (solver.method) {
+    case P::METHOD_PCG: settings.method = sim::SolverMethod::kPcg; break;
+    case P::METHOD_HIERARCHICAL: settings.method = sim::SolverMethod::kHierarchical; break;
+    case P::METHOD_MULTIGRID: settings.method = sim::SolverMethod::kMultigrid; break;
+    case P::METHOD_DIRECT: settings.method = sim::SolverMethod::kDirect; break;
+    default:
+      throw sim::InputError("command SET_SOLVER: solver.method = " +
+                            std::to_string(solver.method) + ": must be 0 (pcg), 1 "
+                            "(hierarchical), 2 (multigrid) or 3 (direct)");
+  }
+  settings.levels = solver.levels;
+  settings.tolerance = solver.tolerance;
+  settings.max_iterations = solver.max_iterations;
+  settings.substeps = solver.substeps;
+  settings.strain_limit = solver.strain_limit;
+  return settings;
+}
+
+std::string CommandName(std::int8_t kind) {
+  using C = costume_lcm::command;
+  switch (kind) {
+    case C::KIND_LOAD_AVATAR: return "LOAD_AVATAR";
+    case C::KIND_LOAD_COSTUME: return "LOAD_COSTUME";
+    case C::KIND_LOAD_ANIMATION: return "LOAD_ANIMATION";
+    case C::KIND_SET_MATERIAL: return "SET_MATERIAL";
+    case C::KIND_SAVE_VERSION: return "SAVE_VERSION";
+    default: return "kind " + std::to_string(kind);
+  }
+}
+
+}  // namespace
+
+Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period) {
+  Deadline result{deadline + period, 0};
+  if (period <= 0 || result.next >= now) return result;
+  // The frame ran past its successor's deadline: jump to the first one still ahead.
+  const std::int64_t behind = (now - result.next) / period + 1;
+  result.next += behind * period;
+  result.missed = behind;
+  return result;
+}
+
+SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServerOptions options)
+    : bus_(bus),
+      scene_(std::move(scene)),
+      options_(std::move(options)),
+      frame_publisher_(bus, bus::kClothFrameChannel),
+      patch_publisher_(bus, bus::kHapticPatchChannel),
+      status_publisher_(bus, bus::kSimStatusChannel) {
+  if (!(options_.status_period > 0.0) || !(options_.grab_timeout > 0.0)) {
+    throw sim::InputError("SimServerOptions: status_period = " +
+                          std::to_string(options_.status_period) + " s, grab_timeout = " +
+                          std::to_string(options_.grab_timeout) + " s: both must be > 0");
+  }
+  Rebuild(scene_);
+  mode_ = options_.mode;
+  SetMode(options_.mode);
+  playback_ = options_.start_playing ? Playback::kPlaying : Playback::kStopped;
+  commands_.reserve(16);
+  auto on_command = [this](const costume_lcm::command& c) { commands_.push_back(c); };
+  command_counts_ = bus::Subscribe<costume_lcm::command>(bus_, bus::kCommandChannel, on_command,
+                                                         options_.receive_policy);
+  haptic_command_counts_ = bus::Subscribe<costume_lcm::command>(
+      bus_, bus::kHapticCommandChannel, on_command, options_.receive_policy);
+  grab_counts_ = bus::Subscribe<costume_lcm::grab>(
+      bus_, bus::kGrabChannel,
+      [this](const costume_lcm::grab& g) {
+        latest_grab_ = g;
+        has_new_grab_ = true;
+      },
+      options_.receive_policy);
+  period_start_ = std::chrono::steady_clock::now();
+}
+
+bus::ReceiveCounts SimServer::command_counts() const {
+  bus::ReceiveCounts sum = *command_counts_;
+  const bus::ReceiveCounts& h = *haptic_command_counts_;
+  sum.accepted += h.accepted;
+  sum.malformed += h.malformed;
+  sum.oversized += h.oversized;
+  sum.stale += h.stale;
+  sum.out_of_order += h.out_of_order;
+  sum.sender_restarts += h.sender_restarts;
+  return sum;
+}
+
+void SimServer::Warn(std::string warning) {
+  if (warnings_.size() + 1 < kMaxWarnings) {
+    warnings_.push_back(std::move(warning));
+  } else if (warnings_.size() + 1 == kMaxWarnings) {
+    warnings_.push_back("more warnings this period were dropped");
+  }
+}
+
+// ---- the frame ---------------------------------------------------------------------------
+
+void SimServer::Step() {
+  const auto start = std::chrono::steady_clock::now();
+  bus_.HandleSubscriptions(0);
+  for (const costume_lcm::command& command : commands_) ApplyCommand(command);
+  commands_.clear();
+  ApplyLatestGrab();
+  if (playback_ == Playback::kPlaying) {
+    last_iterations_ = simulation_->AdvanceFrame().iterations;
+    ++frame_;
+  }
+  PublishFrame();
+  if (grabbing_) PublishPatch();
+  ++ticks_;
+  const double work_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  PublishStatusIfDue(work_ms);
+}
+
+std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_frames) {
+  const auto period = static_cast<std::int64_t>(std::llround(1e9 / scene_.frame_rate));
+  std::int64_t deadline = MonotonicNow();
+  std::int64_t steps = 0;
+  while (!stop.load(std::memory_order_relaxed) && (max_frames <= 0 || steps < max_frames)) {
+    Step();
+    ++steps;
+    const Deadline next = NextDeadline(deadline, MonotonicNow(), period);
+    overruns_ += next.missed;
+    deadline = next.next;
+    SleepUntil(deadline);
+  }
+  return steps;
+}
+
+void SimServer::Rebuild(const sim::SceneDescription& scene) {
+  auto rebuilt = sim::Simulation::Build(scene);  // throws before anything changes
+  if (grabbing_) ReleaseGrab();
+  simulation_ = std::move(rebuilt);
+  simulation_->SetAvatarFrozen(mode_ == Mode::kEditing);
+  scene_ = scene;
+  frame_ = 0;
+  ++model_revision_;  // a fresh model: patches of the old one must not be mistaken for it
+  edits_.clear();
+  redo_.clear();
+  patch_slot_.assign(simulation_->model().num_particles(), -1);
+}
+
+// ---- commands ----------------------------------------------------------------------------
+
+void SimServer::ApplyCommand(const costume_lcm::command& command) {
+  using C = costume_lcm::command;
+  switch (command.kind) {
+    case C::KIND_SET_MODE:
+      if (command.mode == C::MODE_ANIMATION || command.mode == C::MODE_EDITING) {
+        SetMode(command.mode == C::MODE_EDITING ? Mode::kEditing : Mode::kAnimation);
+      } else {
+        ++ignored_.commands_refused;
+        Warn("command SET_MODE: mode = " + std::to_string(command.mode) +
+             ": must be 0 (animation) or 1 (editing)");
+      }
+      return;
+    case C::KIND_PLAY: playback_ = Playback::kPlaying; return;
+    case C::KIND_PAUSE:
+      if (playback_ == Playback::kPlaying) playback_ = Playback::kPaused;
+      return;
+    case C::KIND_STOP:
+      try {
+        Rebuild(scene_);  // built once already, so not expected to throw
+      } catch (const sim::InputError& error) {
+        Warn(std::string("command STOP: rebuild failed: ") + error.what());
+      }
+      playback_ = Playback::kStopped;
+      return;
+    case C::KIND_ELIMINATE_STRETCH: EliminateStretch(command); return;
+    case C::KIND_UNDO: Undo(); return;
+    case C::KIND_REDO: Redo(); return;
+    case C::KIND_SET_SOLVER: SetSolver(command.solver); return;
+    case C::KIND_LOAD_AVATAR:
+    case C::KIND_LOAD_COSTUME:
+    case C::KIND_LOAD_ANIMATION:
+    case C::KIND_SET_MATERIAL:
+    case C::KIND_SAVE_VERSION:
+      ++ignored_.commands_refused;
+      Warn("command " + CommandName(command.kind) +
+           ": not available until the database issue; ignored");
+      return;
+    default:
+      ++ignored_.commands_refused;
+      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 13); ignored");
+  }
+}
+
+void SimServer::SetMode(Mode mode) {
+  mode_ = mode;
+  simulation_->SetAvatarFrozen(mode == Mode::kEditing);
+  if (mode == Mode::kAnimation && grabbing_) ReleaseGrab();  // modes are exclusive
+}
+
+void SimServer::EliminateStretch(const costume_lcm::command& command) {
+  SphereEdit edit{Eigen::Vector3d(command.centre[0], command.centre[1], command.centre[2]),
+                  command.radius};
+  if (command.grab_id >= 0 && grabbing_ && command.grab_id == grab_id_) {
+    edit = {grab_.centre, grab_.radius};  // the sphere the designer holds
+  } else if (command.grab_id >= 0) {
+    Warn("command ELIMINATE_STRETCH: grab_id = " + std::to_string(command.grab_id) +
+         " is not the active grab (" + std::to_string(active_grab_id()) +
+         "); using the command's sphere");
+  }
+  if (!edit.centre.allFinite() || !std::isfinite(edit.radius) || edit.radius <= 0.0) {
+    ++ignored_.commands_refused;
+    Warn("command ELIMINATE_STRETCH: radius = " + std::to_string(edit.radius) +
+         " m or a centre coordinate is not finite: radius must be > 0; ignored");
+    return;
+  }
+  if (simulation_->EliminateStretchEnergy(edit.centre, edit.radius) == 0) {
+    Warn("command ELIMINATE_STRETCH: no spring has both ends in the sphere; nothing changed");
+    return;
+  }
+  edits_.push_back(edit);
+  redo_.clear();
+  ++model_revision_;
+}
+
+void SimServer::Undo() {
+  if (!simulation_->UndoEdit()) {
+    Warn("command UNDO: nothing to undo");
+    return;
+  }
+  if (!edits_.empty()) {
+    redo_.push_back(edits_.back());
+    edits_.pop_back();
+  }
+  ++model_revision_;
+}
+
+// Re-applies the undone sphere edit at the cloth's current shape: exact when the cloth has
+// not moved since the undo, an approximation otherwise (the edit stores the sphere, not the
+// rest lengths; docs/processes.md).
+void SimServer::Redo() {
+  if (redo_.empty()) {
+    Warn("command REDO: nothing to redo");
+    return;
+  }
+  const SphereEdit edit = redo_.back();
+  redo_.pop_back();
+  if (simulation_->EliminateStretchEnergy(edit.centre, edit.radius) == 0) {
+    Warn("command REDO: no spring has both ends in the sphere any more; nothing changed");
+    return;
+  }
+  edits_.push_back(edit);
+  ++model_revision_;
+}
+
+void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
+  sim::SceneDescription scene = scene_;
+  try {
+    scene.solver = ToSolverSettings(solver);
+    Rebuild(scene);
+  } catch (const sim::InputError& error) {
+    ++ignored_.commands_refused;
+    Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
+    return;
+  }
+  Warn("command SET_SOLVER: simulation rebuilt with the new solver from frame 0; edits and "
+       "state were not carried over");
+}
+
+// ---- grabs -------------------------------------------------------------------------------
+
+void SimServer::ReleaseGrab() {
+  simulation_->ReleaseGrab();
+  grabbing_ = false;
+  last_finished_grab_id_ = std::max(last_finished_grab_id_, grab_id_);
+}
+
+void SimServer::ApplyLatestGrab() {
+  // A restarted haptic server numbers its grabs from 0 again.
+  if (grab_counts_->sender_restarts != grab_sender_restarts_) {
+    grab_sender_restarts_ = grab_counts_->sender_restarts;
+    last_finished_grab_id_ = -1;
+    if (grabbing_) ReleaseGrab();
+  }
+  if (!has_new_grab_) {
+    if (grabbing_ && ++frames_since_grab_message_ >
+                         std::llround(options_.grab_timeout * scene_.frame_rate)) {
+      ++ignored_.grabs_timed_out;
+      Warn("grab " + std::to_string(grab_id_) + ": no grab message for " +
+           std::to_string(options_.grab_timeout) + " s; released");
+      ReleaseGrab();
+    }
+    return;
+  }
+  has_new_grab_ = false;
+  frames_since_grab_message_ = 0;
+  const costume_lcm::grab& message = latest_grab_;
+  if (mode_ != Mode::kEditing) {
+    ++ignored_.grabs_in_animation;
+    return;
+  }
+  if (grabbing_ && message.device_id != grab_device_) {
+    ++ignored_.grabs_other_device;
+    return;
+  }
+  if (grabbing_ && message.grab_id < grab_id_) {
+    ++ignored_.grabs_stale_id;  // a late message of an earlier press
+    return;
+  }
+  const bool pressed = message.mode == costume_lcm::grab::MODE_GRAB &&
+                       (message.buttons & kGrabButton) != 0;
+  if (!pressed) {
+    if (grabbing_) ReleaseGrab();
+    return;
+  }
+  const bool same_grab = grabbing_ && message.grab_id == grab_id_;
+  if (!same_grab && message.grab_id <= last_finished_grab_id_) {
+    ++ignored_.grabs_stale_id;  // that press was released; a new press has a new id
+    return;
+  }
+  const sim::Grab grab = ToGrab(message);
+  if (!sim::IsValidGrab(grab)) {
+    ++ignored_.grabs_invalid;
+    return;
+  }
+  if (grabbing_ && !same_grab) ReleaseGrab();  // a new press: a new selection
+  if (message.gaussian_sigma > 0.0 && !warned_sigma_) {
+    warned_sigma_ = true;
+    Warn("grab.gaussian_sigma = " + std::to_string(message.gaussian_sigma) +
+         " m is not supported: the simulation uses sigma = radius/2 (grab.h)");
+  }
+  simulation_->SetGrab(grab);
+  grab_ = grab;
+  grab_id_ = message.grab_id;
+  grab_device_ = message.device_id;
+  grabbing_ = true;
+}
+
+// ---- publishing --------------------------------------------------------------------------
+
+void SimServer::PublishFrame() {
+  using F = costume_lcm::cloth_frame;
+  const sim::Points& x = simulation_->state().positions;
+  const int n = static_cast<int>(x.rows());
+  const int num_chunks = std::max(1, (n + F::MAX_PARTICLES_PER_CHUNK - 1) /
+                                         F::MAX_PARTICLES_PER_CHUNK);
+  F& m = frame_message_;
+  m.frame = frame_;
+  m.sim_time = simulation_->state().time;
+  m.model_revision = model_revision_;
+  m.mode = ToLcmMode(mode_);
+  m.total_particles = n;
+  m.num_chunks = static_cast<std::int16_t>(num_chunks);
+  for (int k = 0; k < num_chunks; ++k) {
+    const int first = k * F::MAX_PARTICLES_PER_CHUNK;
+    const int count = std::min<int>(F::MAX_PARTICLES_PER_CHUNK, n - first);
+    m.utime = bus::NowUtime();
+    m.chunk_index = static_cast<std::int16_t>(k);
+    m.first_particle = first;
+    m.num_particles = static_cast<std::int16_t>(count);
+    m.x.resize(count);
+    m.y.resize(count);
+    m.z.resize(count);
+    for (int i = 0; i < count; ++i) {
+      m.x[i] = static_cast<float>(x(first + i, 0));
+      m.y[i] = static_cast<float>(x(first + i, 1));
+      m.z[i] = static_cast<float>(x(first + i, 2));
+    }
+    frame_publisher_.Publish(m);
+  }
+}
+
+// The patch: the grabbed particles first (selected, with their Gaussian weight at the
+// current sphere, as ApplyGrab uses it), then every other end of a spring touching one of
+// them; the springs are every spring with a selected end, so both ends are in the patch.
+void SimServer::PublishPatch() {
+  using P = costume_lcm::haptic_patch;
+  const sim::ClothModel& model = simulation_->model();
+  const sim::ClothState& state = simulation_->state();
+  patch_particles_.clear();
+  patch_springs_.clear();
+  for (int p : simulation_->grabbed()) {
+    patch_slot_[p] = static_cast<int>(patch_particles_.size());
+    patch_particles_.push_back(p);
+  }
+  const int num_selected = static_cast<int>(patch_particles_.size());
+  for (int k = 0; k < model.num_springs(); ++k) {
+    const sim::Spring& s = model.springs()[k];
+    const bool a_in = patch_slot_[s.a] >= 0 && patch_slot_[s.a] < num_selected;
+    const bool b_in = patch_slot_[s.b] >= 0 && patch_slot_[s.b] < num_selected;
+    if (!a_in && !b_in) continue;
+    patch_springs_.push_back(k);
+    for (int end : {s.a, s.b}) {
+      if (patch_slot_[end] >= 0) continue;
+      patch_slot_[end] = static_cast<int>(patch_particles_.size());
+      patch_particles_.push_back(end);
+    }
+  }
+  const int np = static_cast<int>(patch_particles_.size());
+  const int ns = static_cast<int>(patch_springs_.size());
+  const int num_chunks =
+      std::max({1, (np + P::MAX_PARTICLES_PER_CHUNK - 1) / P::MAX_PARTICLES_PER_CHUNK,
+                (ns + P::MAX_SPRINGS_PER_CHUNK - 1) / P::MAX_SPRINGS_PER_CHUNK});
+  P& m = patch_message_;
+  m.frame = frame_;
+  m.model_revision = model_revision_;
+  m.device_id = grab_device_;
+  m.grab_id = grab_id_;
+  for (int i = 0; i < 3; ++i) m.centre[i] = grab_.centre[i];
+  m.radius = grab_.radius;
+  m.gaussian_sigma = 0.5 * grab_.radius;  // grab.h: s = (r/2)²
+  m.num_chunks = static_cast<std::int16_t>(num_chunks);
+  m.total_particles = np;
+  m.total_springs = ns;
+  for (int k = 0; k < num_chunks; ++k) {
+    const int first_p = std::min(np, k * P::MAX_PARTICLES_PER_CHUNK);
+    const int count_p = std::min<int>(P::MAX_PARTICLES_PER_CHUNK, np - first_p);
+    const int first_s = std::min(ns, k * P::MAX_SPRINGS_PER_CHUNK);
+    const int count_s = std::min<int>(P::MAX_SPRINGS_PER_CHUNK, ns - first_s);
+    m.utime = bus::NowUtime();
+    m.chunk_index = static_cast<std::int16_t>(k);
+    m.first_particle = first_p;
+    m.first_spring = first_s;
+    m.num_particles = static_cast<std::int16_t>(count_p);
+    for (auto* v : {&m.x, &m.y, &m.z, &m.vx, &m.vy, &m.vz, &m.mass, &m.weight}) {
+      v->resize(count_p);
+    }
+    m.particle_index.resize(count_p);
+    m.selected.resize(count_p);
+    for (int i = 0; i < count_p; ++i) {
+      const int slot = first_p + i;
+      const int p = patch_particles_[slot];
+      const Eigen::Vector3d x = state.positions.row(p).transpose();
+      m.particle_index[i] = p;
+      m.x[i] = static_cast<float>(x.x());
+      m.y[i] = static_cast<float>(x.y());
+      m.z[i] = static_cast<float>(x.z());
+      m.vx[i] = static_cast<float>(state.velocities(p, 0));
+      m.vy[i] = static_cast<float>(state.velocities(p, 1));
+      m.vz[i] = static_cast<float>(state.velocities(p, 2));
+      m.mass[i] = static_cast<float>(model.masses()[p]);
+      m.selected[i] = slot < num_selected;
+      m.weight[i] = slot < num_selected ? static_cast<float>(sim::GrabWeight(grab_, x)) : 0.0f;
+    }
+    m.num_springs = static_cast<std::int16_t>(count_s);
+    for (auto* v : {&m.spring_a, &m.spring_b}) v->resize(count_s);
+    for (auto* v : {&m.stiffness, &m.damping, &m.rest_length}) v->resize(count_s);
+    for (int i = 0; i < count_s; ++i) {
+      const sim::Spring& s = model.springs()[patch_springs_[first_s + i]];
+      m.spring_a[i] = patch_slot_[s.a];
+      m.spring_b[i] = patch_slot_[s.b];
+      m.stiffness[i] = static_cast<float>(s.stiffness);
+      m.damping[i] = static_cast<float>(s.damping);
+      m.rest_length[i] = static_cast<float>(s.rest_length);
+    }
+    patch_publisher_.Publish(m);
+  }
+  for (int p : patch_particles_) patch_slot_[p] = -1;
+}
+
+void SimServer::PublishStatusIfDue(double work_ms) {
+  ++period_ticks_;
+  period_work_ms_ += work_ms;
+  period_max_work_ms_ = std::max(period_max_work_ms_, work_ms);
+  const auto ticks_per_status =
+      std::max<std::int64_t>(1, std::llround(options_.status_period * scene_.frame_rate));
+  if (ticks_ % ticks_per_status == 0 || !warnings_.empty()) PublishStatus();
+}
+
+void SimServer::PublishStatus() {
+  using S = costume_lcm::status;
+  const auto now = std::chrono::steady_clock::now();
+  const double elapsed = std::chrono::duration<double>(now - period_start_).count();
+  S m{};
+  m.utime = bus::NowUtime();
+  m.process = options_.process_name;
+  m.pid = static_cast<std::int32_t>(getpid());
+  m.target_rate = scene_.frame_rate;
+  m.measured_rate = elapsed > 0.0 ? static_cast<double>(period_ticks_) / elapsed : 0.0;
+  m.frame_time_ms = period_ticks_ > 0 ? period_work_ms_ / static_cast<double>(period_ticks_) : 0;
+  m.max_frame_time_ms = period_max_work_ms_;
+  m.ticks = ticks_;
+  m.overruns = overruns_;
+  m.solver_iterations = last_iterations_;
+  m.mode = ToLcmMode(mode_);
+  m.playback = ToLcmPlayback(playback_);
+  m.frame = frame_;
+  m.sim_time = simulation_->state().time;
+  m.model_revision = model_revision_;
+  m.undo_depth = simulation_->num_undoable_edits();
+  m.redo_depth = redo_depth();
+  const bus::ReceiveCounts commands = command_counts();
+  const bus::ReceiveCounts& grabs = *grab_counts_;
+  m.dropped_malformed = commands.malformed + grabs.malformed;
+  m.dropped_oversized = commands.oversized + grabs.oversized;
+  m.dropped_stale = commands.stale + grabs.stale;
+  m.dropped_out_of_order = commands.out_of_order + grabs.out_of_order;
+  m.warnings = warnings_;
+  m.num_warnings = static_cast<std::int16_t>(m.warnings.size());
+  status_publisher_.Publish(m);
+  warnings_.clear();
+  period_ticks_ = 0;
+  period_work_ms_ = period_max_work_ms_ = 0.0;
+  period_start_ = now;
+}
+
+}  // namespace costume::sim_app

@@ -1,0 +1,199 @@
+#pragma once
+/// @file
+/// The 60 Hz simulation server (issue 5; docs/processes.md): owns one sim::Simulation, takes
+/// grabs and commands from the bus, and publishes cloth frames, haptic patches and status.
+/// The conversions between costume_lcm messages and sim types live here, not in sim_core,
+/// which knows nothing of LCM (STYLE.md §1).
+///
+/// Threading: one thread. Step() and Run() drain the bus themselves (HandleSubscriptions(0)),
+/// so handlers run on the loop's thread and nothing is shared.
+
+#include <Eigen/Core>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bus/message_bus.h"
+#include "bus/receive_filter.h"
+#include "bus/typed_bus.h"
+#include "lcm_types/costume_lcm/cloth_frame.hpp"
+#include "lcm_types/costume_lcm/command.hpp"
+#include "lcm_types/costume_lcm/grab.hpp"
+#include "lcm_types/costume_lcm/haptic_patch.hpp"
+#include "lcm_types/costume_lcm/status.hpp"
+#include "sim_core/scene/scene_description.h"
+#include "sim_core/scene/simulation.h"
+
+namespace costume::sim_app {
+
+/// Mode A (animation) or mode B (editing), exclusive as in the paper (§5).
+enum class Mode { kAnimation, kEditing };
+
+/// Whether frames advance. STOP also rebuilds the simulation (back to frame 0).
+enum class Playback { kStopped, kPlaying, kPaused };
+
+/// The next wake-up of a fixed-rate loop on an absolute clock.
+struct Deadline {
+  /// The next deadline, at or after `now` [ns].
+  std::int64_t next = 0;
+  /// Deadlines passed over because the frame ran past them (0 when on time) [-].
+  std::int64_t missed = 0;
+};
+
+/// Given the deadline the frame that just finished was scheduled for (`deadline` [ns]), the
+/// clock after its work (`now` [ns], same origin) and the period (> 0) [ns]: the next
+/// deadline is deadline + period when that is not yet past (>= now); otherwise the first
+/// deadline + k·period after now, the k − 1 deadlines passed over counted as missed. Lag never
+/// accumulates: deadlines stay on the original grid. Never throws; never allocates.
+Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period);
+
+struct SimServerOptions {
+  /// Mode at start.
+  Mode mode = Mode::kAnimation;
+  /// Playing (true) or stopped at frame 0 (false) at start.
+  bool start_playing = true;
+  /// Time between status messages [s] > 0.
+  double status_period = 1.0;
+  /// A grab whose messages stop for this long is released (the haptic server died) [s] > 0.
+  double grab_timeout = 0.25;
+  /// Acceptance of grab and command messages (size, age, order).
+  bus::ReceivePolicy receive_policy = {};
+  /// Process name in status.
+  std::string process_name = "sim_server";
+};
+
+/// Grab and command messages the server received but did not act on, since start.
+struct IgnoredCounts {
+  std::int64_t grabs_in_animation = 0;  ///< grabs in mode A
+  std::int64_t grabs_invalid = 0;       ///< non-finite centre/force or radius <= 0
+  std::int64_t grabs_stale_id = 0;      ///< a grab_id older than the current or a released one
+  std::int64_t grabs_other_device = 0;  ///< another device's grab while one is held
+  std::int64_t grabs_timed_out = 0;     ///< grabs released because their messages stopped
+  std::int64_t commands_refused = 0;    ///< unknown kind, bad field, or not yet available
+};
+
+/// The simulation server. Not copyable; holds references to the bus.
+class SimServer {
+ public:
+  /// Builds the simulation for `scene` and subscribes to COSTUME_GRAB, COSTUME_COMMAND and
+  /// COSTUME_COMMAND_HAPTIC on `bus` (which must outlive the server). Throws
+  /// sim::InputError for a scene the simulation refuses or bad options.
+  SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServerOptions options = {});
+  SimServer(const SimServer&) = delete;
+  SimServer& operator=(const SimServer&) = delete;
+
+  /// One frame's work without the clock: drain the bus (HandleSubscriptions(0)), apply the
+  /// commands in arrival order and then the latest grab, advance the simulation one frame
+  /// when playing, publish the cloth frame, the patch while grabbing, and status when due or
+  /// when a warning was raised. Never throws for bad messages (they are counted); a
+  /// rebuild the scene refuses keeps the old simulation and raises a warning.
+  void Step();
+
+  /// Steps at the scene's frame rate on CLOCK_MONOTONIC with absolute sleeps (NextDeadline)
+  /// until `stop` is set or `max_frames` (> 0) Steps have run. Returns the Steps run.
+  std::int64_t Run(const std::atomic<bool>& stop, std::int64_t max_frames = 0);
+
+  /// Publishes a status message now and clears the pending warnings.
+  void PublishStatus();
+  /// Adds a warning to the next status (which is then published at the end of this Step).
+  void Warn(std::string warning);
+
+  const sim::Simulation& simulation() const { return *simulation_; }
+  Mode mode() const { return mode_; }
+  Playback playback() const { return playback_; }
+  /// Frames advanced since the scene was (re)built: cloth_frame.frame.
+  std::int64_t frame() const { return frame_; }
+  /// +1 at each rest-length change (stretch elimination, undo, redo) and rebuild.
+  std::int64_t model_revision() const { return model_revision_; }
+  std::int64_t ticks() const { return ticks_; }
+  std::int64_t overruns() const { return overruns_; }
+  /// Redo stack depth (sphere edits undone that REDO can re-apply).
+  int redo_depth() const { return static_cast<int>(redo_.size()); }
+  const IgnoredCounts& ignored() const { return ignored_; }
+  /// Drop counters of the grab subscription and of both command subscriptions (summed).
+  bus::ReceiveCounts grab_counts() const { return *grab_counts_; }
+  bus::ReceiveCounts command_counts() const;
+  /// The grab being applied: its message id, or -1.
+  std::int64_t active_grab_id() const { return grabbing_ ? grab_id_ : -1; }
+  /// Warnings waiting for the next status.
+  const std::vector<std::string>& pending_warnings() const { return warnings_; }
+
+ private:
+  /// One sphere edit, for REDO: the sphere it eliminated stretch in.
+  struct SphereEdit {
+    Eigen::Vector3d centre;
+    double radius = 0.0;
+  };
+
+  void Rebuild(const sim::SceneDescription& scene);
+  void ApplyCommand(const costume_lcm::command& command);
+  void SetMode(Mode mode);
+  void EliminateStretch(const costume_lcm::command& command);
+  void Undo();
+  void Redo();
+  void SetSolver(const costume_lcm::solver_parameters& solver);
+  void ApplyLatestGrab();
+  void ReleaseGrab();
+  void PublishFrame();
+  void PublishPatch();
+  void PublishStatusIfDue(double work_ms);
+
+  bus::MessageBus& bus_;
+  sim::SceneDescription scene_;
+  SimServerOptions options_;
+  std::unique_ptr<sim::Simulation> simulation_;
+
+  bus::Publisher<costume_lcm::cloth_frame> frame_publisher_;
+  bus::Publisher<costume_lcm::haptic_patch> patch_publisher_;
+  bus::Publisher<costume_lcm::status> status_publisher_;
+  std::shared_ptr<const bus::ReceiveCounts> grab_counts_;
+  std::shared_ptr<const bus::ReceiveCounts> command_counts_;
+  std::shared_ptr<const bus::ReceiveCounts> haptic_command_counts_;
+
+  // Received this Step, applied at its end of the drain.
+  std::vector<costume_lcm::command> commands_;
+  costume_lcm::grab latest_grab_{};
+  bool has_new_grab_ = false;
+  std::int64_t frames_since_grab_message_ = 0;
+  std::int64_t grab_sender_restarts_ = 0;
+
+  Mode mode_ = Mode::kAnimation;
+  Playback playback_ = Playback::kPlaying;
+  std::int64_t frame_ = 0;
+  std::int64_t model_revision_ = 0;
+  int last_iterations_ = -1;
+
+  // The grab being applied.
+  bool grabbing_ = false;
+  std::int64_t grab_id_ = -1;
+  /// Grab ids at or below this are over (released or superseded): never restarted.
+  std::int64_t last_finished_grab_id_ = -1;
+  std::int8_t grab_device_ = 0;
+  sim::Grab grab_;
+  bool warned_sigma_ = false;
+
+  std::vector<SphereEdit> edits_;  ///< applied sphere edits, parallel to the undo stack
+  std::vector<SphereEdit> redo_;
+
+  // Messages and scratch, kept so publishing allocates only when something grows.
+  costume_lcm::cloth_frame frame_message_{};
+  costume_lcm::haptic_patch patch_message_{};
+  std::vector<int> patch_particles_;
+  std::vector<int> patch_springs_;
+  std::vector<int> patch_slot_;  ///< garment particle -> patch index, or -1
+
+  IgnoredCounts ignored_;
+  // Status accounting.
+  std::vector<std::string> warnings_;
+  std::int64_t ticks_ = 0;
+  std::int64_t overruns_ = 0;
+  std::int64_t period_ticks_ = 0;
+  double period_work_ms_ = 0.0;
+  double period_max_work_ms_ = 0.0;
+  std::chrono::steady_clock::time_point period_start_;
+};
+
+}  // namespace costume::sim_app

@@ -1,0 +1,501 @@
+// The 60 Hz simulation server driven frame by frame (Step) on LCM's in-process memq://
+// provider: the test plays the haptic server and the GUI, publishing grabs and commands and
+// reading back cloth frames, haptic patches and status. Oracles are computed from the
+// published messages and the model independently of the server's own bookkeeping.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cmath>
+#include <set>
+#include <tuple>
+#include <vector>
+
+#include "bus/channels.h"
+#include "bus/lcm_bus.h"
+#include "bus/typed_bus.h"
+#include "sim_core/app/sim_server.h"
+#include "tests/support/test_scenes.h"
+
+namespace costume::sim_app {
+namespace {
+
+using costume_lcm::command;
+using costume_lcm::grab;
+
+// ---- the loop's deadline arithmetic, by hand -------------------------------------------
+
+TEST(NextDeadline, OnTimeFramesKeepTheGrid) {
+  EXPECT_EQ(NextDeadline(0, 5, 10).next, 10);
+  EXPECT_EQ(NextDeadline(0, 5, 10).missed, 0);
+  EXPECT_EQ(NextDeadline(0, 10, 10).next, 10);  // finished exactly at the deadline: on time
+  EXPECT_EQ(NextDeadline(0, 10, 10).missed, 0);
+}
+
+TEST(NextDeadline, AnOverrunSkipsToTheNextFutureDeadlineAndCountsTheMissedOnes) {
+  // Frame due at 0 ran until 21: deadlines 10 and 20 passed; the next is 30.
+  EXPECT_EQ(NextDeadline(0, 21, 10).next, 30);
+  EXPECT_EQ(NextDeadline(0, 21, 10).missed, 2);
+  EXPECT_EQ(NextDeadline(100, 111, 10).next, 120);
+  EXPECT_EQ(NextDeadline(100, 111, 10).missed, 1);
+}
+
+// A loop on a fake clock: frames of 4, 4, 25, 4, 4 ms work at a 10 ms period. Lag never
+// accumulates: after the long frame the wake-ups return to the 10 ms grid.
+TEST(NextDeadline, AFakeClockLoopReturnsToTheGridAfterALongFrame) {
+  const std::int64_t period = 10;
+  const std::vector<std::int64_t> work = {4, 4, 25, 4, 4};
+  std::int64_t deadline = 0;
+  std::int64_t overruns = 0;
+  std::vector<std::int64_t> wakeups;
+  for (std::int64_t w : work) {
+    wakeups.push_back(deadline);
+    const Deadline next = NextDeadline(deadline, deadline + w, period);
+    overruns += next.missed;
+    deadline = next.next;  // the fake sleep returns exactly at the deadline
+  }
+  // The frame woken at 20 ends at 45: 30 and 40 are missed, the next wake-up is 50.
+  EXPECT_EQ(wakeups, (std::vector<std::int64_t>{0, 10, 20, 50, 60}));
+  EXPECT_EQ(overruns, 2);
+}
+
+// ---- the server on memq:// --------------------------------------------------------------
+
+sim::SceneDescription SoftHang() {
+  sim::Material soft;
+  soft.name = "soft";
+  soft.stretch_stiffness = soft.shear_stiffness = 20.0;  // N/m: a 1/4 N grab stretches cm
+  soft.bending_rigidity = 1e-6;
+  sim::SceneDescription scene = test::HangScene(17, soft);
+  scene.solver.strain_limit = 0.0;
+  scene.solver.tolerance = 1e-4;
+  return scene;
+}
+
+constexpr int kSettleFrames = 600;
+constexpr int kBottomMiddle = 16 * 17 + 8;
+
+/// What the server published, assembled from the chunks.
+struct Received {
+  std::int64_t frame = -1;
+  std::int64_t revision = -1;
+  std::int8_t mode = -1;
+  sim::Points positions;  ///< of the last frame (n×3) [m], as published (float)
+  std::vector<costume_lcm::haptic_patch> patch;  ///< chunks of the last patch
+  std::int64_t num_patch_chunks = 0;             ///< every patch chunk ever received
+  std::vector<costume_lcm::status> statuses;
+};
+
+class SimServerTest : public ::testing::Test {
+ protected:
+  explicit SimServerTest(sim::SceneDescription scene = SoftHang(), SimServerOptions options = {})
+      : bus_("memq://") {
+    bus::Subscribe<costume_lcm::cloth_frame>(
+        bus_, bus::kClothFrameChannel, [this](const costume_lcm::cloth_frame& m) {
+          received_.frame = m.frame;
+          received_.revision = m.model_revision;
+          received_.mode = m.mode;
+          received_.positions.resize(m.total_particles, 3);
+          for (int i = 0; i < m.num_particles; ++i) {
+            received_.positions.row(m.first_particle + i) << m.x[i], m.y[i], m.z[i];
+          }
+        });
+    bus::Subscribe<costume_lcm::haptic_patch>(
+        bus_, bus::kHapticPatchChannel, [this](const costume_lcm::haptic_patch& m) {
+          if (m.chunk_index == 0) received_.patch.clear();
+          received_.patch.push_back(m);
+          ++received_.num_patch_chunks;
+        });
+    bus::Subscribe<costume_lcm::status>(
+        bus_, bus::kSimStatusChannel,
+        [this](const costume_lcm::status& m) { received_.statuses.push_back(m); });
+    server_ = std::make_unique<SimServer>(bus_, std::move(scene), options);
+  }
+
+  /// Steps the server `n` frames, collecting what it publishes.
+  void Step(int n = 1) {
+    for (int i = 0; i < n; ++i) {
+      server_->Step();
+      bus_.HandleSubscriptions(0);
+    }
+  }
+
+  void SendCommand(command c) {
+    c.utime = bus::NowUtime();
+    command_publisher_.Publish(c);
+  }
+  void SendMode(std::int8_t mode) {
+    command c{};
+    c.kind = command::KIND_SET_MODE;
+    c.mode = mode;
+    SendCommand(c);
+  }
+  void SendKind(std::int8_t kind) {
+    command c{};
+    c.kind = kind;
+    SendCommand(c);
+  }
+
+  /// A pressed grab of device 0 at `centre` [m], radius [m], force [N].
+  static grab MakeGrab(std::int64_t id, const Eigen::Vector3d& centre, double radius,
+                       const Eigen::Vector3d& force) {
+    grab g{};
+    g.device_id = 0;
+    g.mode = grab::MODE_GRAB;
+    g.grab_id = id;
+    g.buttons = 1;
+    for (int i = 0; i < 3; ++i) {
+      g.centre[i] = centre[i];
+      g.force[i] = force[i];
+    }
+    g.radius = radius;
+    return g;
+  }
+  void SendGrab(grab g) {
+    g.utime = bus::NowUtime();
+    grab_publisher_.Publish(g);
+  }
+
+  Eigen::Vector3d Position(int p) const { return received_.positions.row(p).transpose(); }
+  double BottomHeight() const {
+    double sum = 0.0;
+    for (int j = 0; j < 17; ++j) sum += received_.positions(16 * 17 + j, 1);
+    return sum / 17;
+  }
+
+  /// In mode B, pulls the bottom middle down with 1/4 N for 1.5 s as a device would (the
+  /// sphere follows the grabbed point, read from the published frames).
+  void PullDown(std::int64_t id) {
+    for (int f = 0; f < 90; ++f) {
+      SendGrab(MakeGrab(id, Position(kBottomMiddle), 0.3, Eigen::Vector3d(0, -0.25, 0)));
+      Step();
+    }
+  }
+
+  bus::LcmBus bus_;
+  Received received_;
+  bus::Publisher<grab> grab_publisher_{bus_, bus::kGrabChannel};
+  bus::Publisher<command> command_publisher_{bus_, bus::kCommandChannel};
+  std::unique_ptr<SimServer> server_;
+};
+
+TEST_F(SimServerTest, PublishesEveryFrameWithTheFrameNumber) {
+  Step(3);
+  EXPECT_EQ(received_.frame, 3);
+  EXPECT_EQ(received_.positions.rows(), 17 * 17);
+  EXPECT_EQ(received_.mode, costume_lcm::cloth_frame::MODE_ANIMATION);
+  EXPECT_EQ(received_.num_patch_chunks, 0);  // no grab, no patch
+}
+
+TEST_F(SimServerTest, HapticPatchHoldsTheParticlesInTheSphereAndTheSpringsTouchingThem) {
+  SendMode(command::MODE_EDITING);
+  Step(30);
+  const Eigen::Vector3d centre = Position(kBottomMiddle) + Eigen::Vector3d(0.01, 0, 0);
+  const double radius = 0.2;
+  // Oracle: brute force over the last published frame, which is the state the grab selects
+  // from. Particles within float rounding of the sphere would be ambiguous: there are none.
+  std::set<int> inside;
+  for (int p = 0; p < received_.positions.rows(); ++p) {
+    const double d = (Position(p) - centre).norm();
+    ASSERT_GT(std::abs(d - radius), 1e-5) << "particle " << p << " on the sphere";
+    if (d < radius) inside.insert(p);
+  }
+  ASSERT_GT(inside.size(), 5u);
+  SendGrab(MakeGrab(0, centre, radius, Eigen::Vector3d::Zero()));
+  Step();
+  ASSERT_FALSE(received_.patch.empty());
+  ASSERT_EQ(received_.patch.size(), 1u);  // 289 particles fit one chunk
+  const costume_lcm::haptic_patch& patch = received_.patch[0];
+  EXPECT_EQ(patch.frame, received_.frame);
+  EXPECT_EQ(patch.grab_id, 0);
+  EXPECT_EQ(patch.num_chunks, 1);
+  std::set<int> selected;
+  for (int i = 0; i < patch.num_particles; ++i) {
+    if (patch.selected[i]) selected.insert(patch.particle_index[i]);
+    // Positions are those of the frame this patch belongs to.
+    EXPECT_EQ(patch.x[i], static_cast<float>(received_.positions(patch.particle_index[i], 0)));
+    EXPECT_EQ(patch.weight[i] > 0, static_cast<bool>(patch.selected[i]));
+  }
+  EXPECT_EQ(selected, inside);
+  // Springs: exactly the model's springs with an end among the selected particles.
+  using Key = std::tuple<int, int, float, float, float>;
+  std::multiset<Key> expected, got;
+  for (const sim::Spring& s : server_->simulation().model().springs()) {
+    if (!inside.count(s.a) && !inside.count(s.b)) continue;
+    expected.insert({s.a, s.b, static_cast<float>(s.stiffness), static_cast<float>(s.damping),
+                     static_cast<float>(s.rest_length)});
+  }
+  for (int k = 0; k < patch.num_springs; ++k) {
+    got.insert({patch.particle_index[patch.spring_a[k]], patch.particle_index[patch.spring_b[k]],
+                patch.stiffness[k], patch.damping[k], patch.rest_length[k]});
+  }
+  EXPECT_EQ(got, expected);
+  EXPECT_EQ(patch.total_springs, static_cast<int>(expected.size()));
+  // Every particle of the patch is selected or the other end of one of those springs.
+  std::set<int> ends(inside);
+  for (const Key& k : expected) ends.insert({std::get<0>(k), std::get<1>(k)});
+  std::set<int> listed(patch.particle_index.begin(), patch.particle_index.end());
+  EXPECT_EQ(listed, ends);
+}
+
+TEST_F(SimServerTest, AGrabPullingDownMovesTheGrabbedParticlesDown) {
+  SendMode(command::MODE_EDITING);
+  Step(kSettleFrames);
+  const double rest = Position(kBottomMiddle).y();
+  PullDown(0);
+  EXPECT_LT(Position(kBottomMiddle).y(), rest - 0.05);
+  EXPECT_GT(received_.num_patch_chunks, 80);
+}
+
+// Edit cases 1 and 2 of DESIGN.md through the server, then UNDO and REDO.
+TEST_F(SimServerTest, EliminatingStretchKeepsTheClothWhereLeftAndUndoBringsItBack) {
+  SendMode(command::MODE_EDITING);
+  Step(kSettleFrames);
+  const double rest = BottomHeight();
+  const std::int64_t revision0 = received_.revision;
+
+  // Case 1: pull, release (hover), settle: back near rest.
+  PullDown(0);
+  const double pulled = BottomHeight();
+  grab hover = MakeGrab(0, Position(kBottomMiddle), 0.3, Eigen::Vector3d::Zero());
+  hover.mode = grab::MODE_HOVER;
+  SendGrab(hover);
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), -1);
+  Step(kSettleFrames);
+  EXPECT_LT(pulled, rest - 0.05);
+  EXPECT_NEAR(BottomHeight(), rest, 0.1 * (rest - pulled));
+
+  // Case 2: pull, eliminate stretch over the whole sheet (as cloth_editing_test), release
+  // by button: it stays near where it was left.
+  PullDown(1);
+  const double left_at = BottomHeight();
+  command eliminate{};
+  eliminate.kind = command::KIND_ELIMINATE_STRETCH;
+  eliminate.grab_id = -1;
+  eliminate.centre[1] = eliminate.centre[2] = -0.5;
+  eliminate.radius = 2.0;
+  SendCommand(eliminate);
+  Step();
+  EXPECT_EQ(received_.revision, revision0 + 1);
+  grab up = MakeGrab(1, Position(kBottomMiddle), 0.3, Eigen::Vector3d::Zero());
+  up.buttons = 0;
+  SendGrab(up);
+  Step(kSettleFrames);
+  EXPECT_EQ(server_->active_grab_id(), -1);
+  EXPECT_NEAR(BottomHeight(), left_at, 0.2 * (rest - left_at));
+
+  // Undo: the original rest lengths, so it returns to rest.
+  SendKind(command::KIND_UNDO);
+  Step(kSettleFrames);
+  EXPECT_EQ(received_.revision, revision0 + 2);
+  EXPECT_NEAR(BottomHeight(), rest, 0.1 * (rest - left_at));
+  server_->PublishStatus();
+  Step();
+  ASSERT_FALSE(received_.statuses.empty());
+  EXPECT_EQ(received_.statuses.back().undo_depth, 0);
+  EXPECT_EQ(received_.statuses.back().redo_depth, 1);
+  EXPECT_EQ(received_.statuses.back().model_revision, revision0 + 2);
+
+  // Redo re-applies the sphere edit; a second undo has nothing to take back after one more.
+  SendKind(command::KIND_REDO);
+  Step();
+  EXPECT_EQ(received_.revision, revision0 + 3);
+  EXPECT_EQ(server_->simulation().num_undoable_edits(), 1);
+  EXPECT_EQ(server_->redo_depth(), 0);
+}
+
+TEST_F(SimServerTest, MalformedStaleAndOutOfOrderGrabsAreCountedAndIgnored) {
+  SendMode(command::MODE_EDITING);
+  Step(10);
+  const Eigen::Vector3d centre = Position(kBottomMiddle);
+  // Malformed: bytes that are no grab.
+  const std::vector<std::uint8_t> junk = {1, 2, 3, 4, 5};
+  bus_.Publish(bus::kGrabChannel, junk);
+  // Stale: stamped 5 s ago.
+  grab old = MakeGrab(0, centre, 0.2, Eigen::Vector3d::Zero());
+  old.utime = bus::NowUtime() - 5'000'000;
+  old.seq = 10;
+  bus::Publish(bus_, bus::kGrabChannel, old);
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), -1);
+  // In order (seq 20), then out of order (seq 15, a different grab id): only the first acts.
+  grab good = MakeGrab(3, centre, 0.2, Eigen::Vector3d::Zero());
+  good.utime = bus::NowUtime();
+  good.seq = 20;
+  bus::Publish(bus_, bus::kGrabChannel, good);
+  grab late = MakeGrab(4, centre, 0.2, Eigen::Vector3d::Zero());
+  late.utime = good.utime;  // not newer: a late message, not a restarted sender
+  late.seq = 15;
+  bus::Publish(bus_, bus::kGrabChannel, late);
+  // Invalid fields (negative radius), in order: decoded but refused.
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), 3);
+  grab bad = MakeGrab(3, centre, -1.0, Eigen::Vector3d::Zero());
+  bad.utime = bus::NowUtime();
+  bad.seq = 21;
+  bus::Publish(bus_, bus::kGrabChannel, bad);
+  // A stale grab id (an earlier press) arriving in seq order.
+  grab earlier = MakeGrab(2, centre, 0.2, Eigen::Vector3d::Zero());
+  earlier.utime = bus::NowUtime();
+  earlier.seq = 22;
+  Step();
+  bus::Publish(bus_, bus::kGrabChannel, earlier);
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), 3);
+  EXPECT_EQ(server_->ignored().grabs_invalid, 1);
+  EXPECT_EQ(server_->ignored().grabs_stale_id, 1);
+  server_->PublishStatus();
+  Step();
+  ASSERT_FALSE(received_.statuses.empty());
+  const costume_lcm::status& status = received_.statuses.back();
+  EXPECT_EQ(status.dropped_malformed, 1);
+  EXPECT_EQ(status.dropped_stale, 1);
+  EXPECT_EQ(status.dropped_out_of_order, 1);
+  EXPECT_EQ(status.mode, costume_lcm::status::MODE_EDITING);
+}
+
+TEST_F(SimServerTest, PauseStopsFramesAndStopReturnsToFrameZero) {
+  Step(5);
+  SendKind(command::KIND_PAUSE);
+  Step();
+  const std::int64_t paused_at = received_.frame;
+  const sim::Points positions = received_.positions;
+  Step(5);
+  EXPECT_EQ(received_.frame, paused_at);
+  EXPECT_EQ(received_.positions, positions);
+  EXPECT_EQ(server_->playback(), Playback::kPaused);
+  SendKind(command::KIND_PLAY);
+  Step(2);
+  EXPECT_EQ(received_.frame, paused_at + 2);
+  SendKind(command::KIND_STOP);
+  Step(3);
+  EXPECT_EQ(received_.frame, 0);
+  // Back at the scene's start: the rest positions.
+  const sim::Points& rest = server_->simulation().model().rest_positions();
+  EXPECT_LT((received_.positions - rest).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_EQ(server_->playback(), Playback::kStopped);
+}
+
+TEST_F(SimServerTest, AnimationModeIgnoresGrabs) {
+  Step(5);
+  SendGrab(MakeGrab(0, Position(kBottomMiddle), 0.3, Eigen::Vector3d(0, -1, 0)));
+  Step(3);
+  EXPECT_EQ(server_->active_grab_id(), -1);
+  EXPECT_EQ(server_->ignored().grabs_in_animation, 1);
+  EXPECT_EQ(received_.num_patch_chunks, 0);
+  // Switching to mode A during a grab lets go.
+  SendMode(command::MODE_EDITING);
+  SendGrab(MakeGrab(1, Position(kBottomMiddle), 0.3, Eigen::Vector3d(0, -1, 0)));
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), 1);
+  SendMode(command::MODE_ANIMATION);
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), -1);
+}
+
+TEST_F(SimServerTest, UnavailableCommandsWarnInStatusWithoutCrashing) {
+  SendKind(command::KIND_LOAD_AVATAR);
+  command solver{};
+  solver.kind = command::KIND_SET_SOLVER;
+  solver.solver.method = 77;
+  SendCommand(solver);
+  SendKind(99);
+  Step();  // warnings make the status go out at the end of the Step
+  Step();
+  ASSERT_FALSE(received_.statuses.empty());
+  const costume_lcm::status& status = received_.statuses.back();
+  ASSERT_EQ(status.num_warnings, 3);
+  EXPECT_NE(status.warnings[0].find("not available until the database issue"),
+            std::string::npos);
+  EXPECT_NE(status.warnings[1].find("solver.method = 77"), std::string::npos);
+  EXPECT_EQ(server_->ignored().commands_refused, 3);
+  EXPECT_EQ(received_.frame, 2);
+}
+
+TEST_F(SimServerTest, SetSolverRebuildsWithTheNewSolver) {
+  Step(5);
+  command solver{};
+  solver.kind = command::KIND_SET_SOLVER;
+  solver.solver.method = costume_lcm::solver_parameters::METHOD_DIRECT;
+  solver.solver.tolerance = 1e-3;
+  solver.solver.max_iterations = 100;
+  solver.solver.substeps = 2;
+  SendCommand(solver);
+  Step();
+  EXPECT_EQ(server_->simulation().scene().solver.method, sim::SolverMethod::kDirect);
+  EXPECT_EQ(server_->simulation().scene().solver.substeps, 2);
+  EXPECT_EQ(received_.frame, 1);  // rebuilt at frame 0, then one frame
+}
+
+// ELIMINATE_STRETCH naming the held grab uses that grab's sphere: the command's own sphere
+// (radius 0) would be refused.
+TEST_F(SimServerTest, EliminateStretchNamingTheHeldGrabUsesItsSphere) {
+  SendMode(command::MODE_EDITING);
+  Step(30);
+  const std::int64_t revision0 = received_.revision;
+  PullDown(7);
+  command eliminate{};
+  eliminate.kind = command::KIND_ELIMINATE_STRETCH;
+  eliminate.grab_id = 7;
+  SendCommand(eliminate);
+  SendGrab(MakeGrab(7, Position(kBottomMiddle), 0.3, Eigen::Vector3d(0, -0.25, 0)));
+  Step();
+  EXPECT_EQ(received_.revision, revision0 + 1);
+  EXPECT_EQ(server_->simulation().num_undoable_edits(), 1);
+  // Only springs with both ends within 0.3 m of the sphere's centre changed.
+  const sim::ClothModel& built = *sim::Simulation::Build(SoftHang())->shared_model();
+  const sim::ClothModel& now = server_->simulation().model();
+  int changed = 0;
+  for (int k = 0; k < now.num_springs(); ++k) {
+    if (now.springs()[k].rest_length != built.springs()[k].rest_length) ++changed;
+  }
+  EXPECT_GT(changed, 0);
+  EXPECT_LT(changed, now.num_springs() / 2);
+  // Naming no grab with no sphere is refused and counted.
+  eliminate.grab_id = -1;
+  SendCommand(eliminate);
+  Step();
+  EXPECT_EQ(server_->ignored().commands_refused, 1);
+  EXPECT_EQ(received_.revision, revision0 + 1);
+}
+
+TEST_F(SimServerTest, AGrabWhoseMessagesStopIsReleased) {
+  SendMode(command::MODE_EDITING);
+  Step();
+  SendGrab(MakeGrab(0, Position(kBottomMiddle), 0.3, Eigen::Vector3d::Zero()));
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), 0);
+  Step(15);  // 0.25 s at 60 Hz
+  EXPECT_EQ(server_->active_grab_id(), 0);
+  Step();
+  EXPECT_EQ(server_->active_grab_id(), -1);
+  EXPECT_EQ(server_->ignored().grabs_timed_out, 1);
+}
+
+}  // namespace
+}  // namespace costume::sim_app
+
+namespace costume::sim_app {
+namespace {
+
+// The real clock: six frames at 60 Hz span five periods (the first runs at once), and the
+// hang scene's frames are far shorter than a period, so none overruns on an idle machine.
+TEST(SimServerRun, StepsAtTheFrameRate) {
+  bus::LcmBus bus("memq://");
+  SimServer server(bus, SoftHang());
+  std::atomic<bool> stop{false};
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(server.Run(stop, 6), 6);
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(elapsed, 5.0 / 60.0);
+  EXPECT_EQ(server.frame(), 6);
+  EXPECT_EQ(server.ticks(), 6);
+  std::printf("6 frames in %.1f ms, %lld overruns\n", 1e3 * elapsed,
+              static_cast<long long>(server.overruns()));
+}
+
+}  // namespace
+}  // namespace costume::sim_app
