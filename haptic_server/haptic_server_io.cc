@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "bus/channels.h"
 #include "sim_core/common/input_error.h"
@@ -18,6 +19,7 @@ PatchAssembler::PatchAssembler(const PatchCapacity& capacity) : capacity_(capaci
   sim::RequirePositive("patch capacity.max_springs", capacity.max_springs, "springs");
   sim::RequirePositive("patch capacity.max_chunks", capacity.max_chunks, "chunks");
   patch_.Reserve(capacity.max_particles, capacity.max_springs);
+  selected_.reserve(static_cast<std::size_t>(capacity.max_particles));
   received_.assign(static_cast<std::size_t>(capacity.max_chunks), 0);
 }
 
@@ -60,6 +62,7 @@ void PatchAssembler::Start(const costume_lcm::haptic_patch& c) {
   springs_received_ = 0;
   patch_.positions.resize(static_cast<std::size_t>(c.total_particles));
   patch_.velocities.resize(static_cast<std::size_t>(c.total_particles));
+  selected_.assign(static_cast<std::size_t>(c.total_particles), 0);
   patch_.springs.resize(static_cast<std::size_t>(c.total_springs));
   assembling_ = true;
 }
@@ -74,6 +77,7 @@ void PatchAssembler::CopyChunk(const costume_lcm::haptic_patch& c) {
     const std::size_t k = static_cast<std::size_t>(c.first_particle + i);
     patch_.positions[k] = Eigen::Vector3d(c.x[i], c.y[i], c.z[i]);
     patch_.velocities[k] = Eigen::Vector3d(c.vx[i], c.vy[i], c.vz[i]);
+    selected_[k] = c.selected[i] ? 1 : 0;
   }
   for (int i = 0; i < c.num_springs; ++i) {
     PatchSpring& s = patch_.springs[static_cast<std::size_t>(c.first_spring + i)];
@@ -124,6 +128,33 @@ bool PatchAssembler::Add(const costume_lcm::haptic_patch& c) {
   device_id_ = header_.device_id;
   ++counts_.num_assembled;
   return true;
+}
+
+void ApplySelection(HapticPatch& patch, const std::vector<std::uint8_t>& selected) {
+  const std::size_t n = patch.positions.size();
+  if (!patch.valid || selected.size() != n) return;
+  if (std::none_of(selected.begin(), selected.end(), [](std::uint8_t s) { return s != 0; })) {
+    return;
+  }
+  const double variance = GaussianVariance(patch.radius);
+  patch.num_selected = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    // A selected particle exactly at the Gaussian's tail still counts as selected (weight > 0).
+    patch.weights[i] = selected[i] != 0
+                           ? std::max(GaussianWeight(patch.positions[i], patch.centre, variance),
+                                      std::numeric_limits<double>::min())
+                           : 0.0;
+    patch.num_selected += selected[i] != 0 ? 1 : 0;
+  }
+  patch.boundary_springs.clear();
+  patch.boundary_signs.clear();
+  for (int k = 0; k < static_cast<int>(patch.springs.size()); ++k) {
+    const bool a_in = selected[static_cast<std::size_t>(patch.springs[k].a)] != 0;
+    const bool b_in = selected[static_cast<std::size_t>(patch.springs[k].b)] != 0;
+    if (a_in == b_in) continue;  // internal springs cancel; outside springs do not touch us
+    patch.boundary_springs.push_back(k);
+    patch.boundary_signs.push_back(a_in ? 1 : -1);
+  }
 }
 
 // ---- GrabTracker ------------------------------------------------------------------------
@@ -335,6 +366,7 @@ void HapticServerIo::OnPatchChunk(const costume_lcm::haptic_patch& chunk) {
     ++counts.num_invalid_patches;
     return;
   }
+  ApplySelection(slot, assembler_.selected());
   slot.arrival_time = static_cast<double>(clock_.Now()) * 1e-9;
   patches_.Publish();
   ++counts_.num_patches_handed;

@@ -95,6 +95,8 @@ class PatchAssembler {
 
   /// The last completed patch (valid until the next Add).
   const HapticPatch& patch() const { return patch_; }
+  /// Its `selected` flags (1: the simulation applies F_h to the particle), one per particle.
+  const std::vector<std::uint8_t>& selected() const { return selected_; }
   std::int64_t frame() const { return frame_; }
   std::int64_t grab_id() const { return grab_id_; }
   int device_id() const { return device_id_; }
@@ -111,6 +113,7 @@ class PatchAssembler {
 
   PatchCapacity capacity_;
   HapticPatch patch_;
+  std::vector<std::uint8_t> selected_;
   std::vector<std::uint8_t> received_;  // per chunk index of the frame being assembled
   bool assembling_ = false;
   costume_lcm::haptic_patch header_;    // the first chunk's header fields (arrays left empty)
@@ -122,6 +125,16 @@ class PatchAssembler {
   int device_id_ = 0;
   PatchAssemblyCounts counts_;
 };
+
+/// Makes a prepared patch (PreparePatch) select what the simulation selected: the particles
+/// flagged in `selected` (one flag per particle) get g(x_i) about patch.centre, all others 0,
+/// and the boundary springs and num_selected are recomputed. The simulation keeps the particles
+/// it selected when the grab started (a particle may have drifted out of the sphere, another
+/// into it); PreparePatch's distance test alone would then disagree with the force it applies.
+/// When no particle is flagged (a sender that does not fill the flags) the distance selection
+/// stays. Does nothing to an invalid patch or on a size mismatch. Never throws; allocates only
+/// beyond the patch's reserved capacity.
+void ApplySelection(HapticPatch& patch, const std::vector<std::uint8_t>& selected);
 
 // ---- the grab protocol ------------------------------------------------------------------
 

@@ -184,6 +184,30 @@ TEST_F(IoFixture, PatchInTwoChunksReachesTheTickAndItsFeedbackIsTheStretchedSpri
   EXPECT_NEAR(grabs_.back().force[0], -feedback_.back().requested_force[0], 1e-12);
 }
 
+TEST_F(IoFixture, TheSimulationsSelectionFlagsDecideWhichSpringsPullTheHand) {
+  Build(kHoldGrab);
+  RunTicks(2);
+  // Particle 1 lies outside the sphere but the simulation still holds it (it was inside when
+  // the grab started): both ends are held, the spring is internal and pulls nobody's hand.
+  const TwoParticlePatch patch;
+  costume_lcm::haptic_patch held = patch.Chunk(1, 1);
+  held.selected = {true};
+  PublishChunk(patch.Chunk(1, 0));
+  PublishChunk(held);
+  RunTicks(1);
+  ASSERT_EQ(feedback_.back().patch_frame, 1);
+  EXPECT_EQ(feedback_.back().requested_force[0], 0.0);
+  // The same patch without flags anywhere falls back to the distance test: 2 N again.
+  costume_lcm::haptic_patch unflagged0 = patch.Chunk(2, 0);
+  costume_lcm::haptic_patch unflagged1 = patch.Chunk(2, 1);
+  unflagged0.selected = {false};
+  PublishChunk(unflagged0);
+  PublishChunk(unflagged1);
+  RunTicks(1);
+  ASSERT_EQ(feedback_.back().patch_frame, 2);
+  EXPECT_NEAR(feedback_.back().requested_force[0], patch.ExpectedFeedbackX(), 1e-9);
+}
+
 TEST_F(IoFixture, MissingChunkOrMixedFramesAreDroppedAndCounted) {
   Build(kHoldGrab);
   RunTicks(2);
