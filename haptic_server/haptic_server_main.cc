@@ -125,6 +125,14 @@ int Run(const Arguments& args) {
   workspace.offset = Eigen::Vector3d(args.offset[0], args.offset[1], args.offset[2]);
   workspace.Validate("--scale/--offset");
 
+  std::unique_ptr<bus::LcmBus> lcm_bus;
+  try {  // before the device is opened: a refused URL leaves no device running
+    lcm_bus = std::make_unique<bus::LcmBus>(
+        args.lcm_url, args.lan ? bus::Reach::kNetwork : bus::Reach::kThisHost);
+  } catch (const sim::InputError& error) {
+    throw sim::InputError(std::string(error.what()) + " (--lan allows it)");
+  }
+  bus::LcmBus& lcm = *lcm_bus;
   std::unique_ptr<HapticDevice> inner = MakeDevice(args);
   ReleasableDevice device(*inner);
   const DeviceStatus opened = device.Open();
@@ -133,7 +141,6 @@ int Run(const Arguments& args) {
                  opened.message.c_str());
     return 1;
   }
-  bus::LcmBus lcm(args.lcm_url, args.lan ? bus::Reach::kNetwork : bus::Reach::kThisHost);
   std::printf("costume_haptic_server: device %s, LCM %s, radius %g m\n", device.name().c_str(),
               lcm.url().c_str(), args.radius);
 
