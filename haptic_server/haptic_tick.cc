@@ -56,6 +56,9 @@ void HapticTick::Tick(const TickInfo& info) {
   out.sequence = info.index;
   out.tip_position = ToArray(tip);
   out.tip_velocity = ToArray(workspace_.VelocityToScene(state_.velocity));
+  const Eigen::Quaterniond orientation(workspace_.rotation *
+                                       state_.orientation.toRotationMatrix());
+  out.tip_orientation = {orientation.w(), orientation.x(), orientation.y(), orientation.z()};
   out.device_force = ToArray(device_force_);
   out.feedback_force = ToArray(feedback);
   out.buttons = state_.buttons;

@@ -27,6 +27,8 @@ struct OutgoingDeviceState {
   /// Tip position [m] and velocity [m/s], scene frame.
   std::array<double, 3> tip_position{};
   std::array<double, 3> tip_velocity{};
+  /// Tip orientation (w, x, y, z), unit quaternion rotating tip axes into the scene frame.
+  std::array<double, 4> tip_orientation{1.0, 0.0, 0.0, 0.0};
   /// The force sent to the device [N], device frame, after ForceSafety.
   std::array<double, 3> device_force{};
   /// The unfiltered feedback at the tip [N], scene frame (for the GUI and logs).
