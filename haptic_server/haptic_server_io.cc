@@ -241,7 +241,9 @@ void ToFeedbackMessage(const OutgoingDeviceState& state, std::int64_t utime, int
 }
 
 void ToGrabMessage(const OutgoingDeviceState& state, const GrabState& grab, std::int64_t utime,
-                   int device_id, double radius, costume_lcm::grab& m) {
+                   int device_id, double radius, double coupling_stiffness,
+                   costume_lcm::grab& m) {
+  m.coupling_stiffness = coupling_stiffness;
   m.utime = utime;
   m.device_id = static_cast<std::int8_t>(device_id);
   m.mode = grab.mode;
@@ -396,7 +398,8 @@ void HapticServerIo::DrainOutgoing() {
 void HapticServerIo::PublishState(const OutgoingDeviceState& state, const GrabState& grab,
                                   bool publish_all) {
   const std::int64_t utime = ToUtime(state.time_ns);
-  ToGrabMessage(state, grab, utime, options_.device_id, options_.radius, grab_msg_);
+  ToGrabMessage(state, grab, utime, options_.device_id, options_.radius,
+                options_.coupling_stiffness, grab_msg_);
   if (grab_out_.Publish(grab_msg_)) ++counts_.num_grabs_published;
   else ++counts_.num_publish_refused;
   if (!publish_all) return;

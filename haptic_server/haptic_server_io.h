@@ -186,9 +186,10 @@ void ToFeedbackMessage(const OutgoingDeviceState& state, std::int64_t utime, int
 
 /// Fills `message` (all but seq): centre = tip (scene), radius [m], gaussian_sigma = r/2 (the
 /// standard deviation of grab_forces.h), force = F_h = −feedback (scene) while grabbing and
-/// zero while hovering.
+/// zero while hovering, coupling_stiffness [N/m] (0: the simulation applies F_h instead).
 void ToGrabMessage(const OutgoingDeviceState& state, const GrabState& grab, std::int64_t utime,
-                   int device_id, double radius, costume_lcm::grab& message);
+                   int device_id, double radius, double coupling_stiffness,
+                   costume_lcm::grab& message);
 
 // ---- the I/O thread ---------------------------------------------------------------------
 
@@ -237,6 +238,10 @@ class ReleasableDevice final : public HapticDevice {
 struct HapticServerIoOptions {
   /// Grab sphere radius r [m] > 0 (later set from the GUI).
   double radius = 0.05;
+  /// Stiffness of the simulation's implicit coupling between the sphere and the grabbed
+  /// cloth (grab.coupling_stiffness) [N/m] >= 0; 0 sends F_h as a force instead, which the
+  /// 60 Hz explicit application makes unstable on light cloth (sim_core/scene/grab.h).
+  double coupling_stiffness = 200.0;
   /// This device's index (device_state.device_id, grab.device_id), 0..127.
   int device_id = 0;
   /// Publish device_state, feedback and grab for every n-th tick (>= 1). The default 4 gives

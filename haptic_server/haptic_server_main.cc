@@ -49,6 +49,7 @@ struct Arguments {
   std::string device_log;
   std::string openhaptics_name;
   double radius = 0.05;
+  double coupling = 200.0;
   std::string lcm_url;
   bool lan = false;
   double seconds = 0.0;
@@ -149,6 +150,7 @@ int Run(const Arguments& args) {
   OutgoingQueue outgoing;
   HapticServerIoOptions io_options;
   io_options.radius = args.radius;
+  io_options.coupling_stiffness = args.coupling;
   io_options.publish_every = args.publish_every;
   // Constructed before the tick runs: it reserves the patch slots the tick reads.
   HapticServerIo io(lcm, clock, patches, outgoing, device, workspace, io_options);
@@ -207,6 +209,11 @@ int main(int argc, char** argv) {
   app.add_option("--openhaptics-device", args.openhaptics_name,
                  "OpenHaptics device configuration name (empty: the default device)");
   app.add_option("--radius", args.radius, "grab sphere radius [m]")->capture_default_str();
+  app.add_option("--coupling", args.coupling,
+                 "stiffness of the simulation's implicit grab coupling [N/m]; 0 sends F_h as a "
+                 "force instead")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   app.add_option("--lcm-url", args.lcm_url,
                  "LCM URL (empty: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0)");
   app.add_flag("--lan", args.lan, "allow an LCM URL that leaves this machine (ttl > 0, tcpq)");

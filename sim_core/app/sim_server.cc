@@ -41,6 +41,7 @@ sim::Grab ToGrab(const costume_lcm::grab& message) {
   grab.centre = Eigen::Vector3d(message.centre[0], message.centre[1], message.centre[2]);
   grab.radius = message.radius;
   grab.force = Eigen::Vector3d(message.force[0], message.force[1], message.force[2]);
+  grab.coupling_stiffness = message.coupling_stiffness;
   return grab;
 }
 

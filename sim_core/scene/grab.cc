@@ -8,7 +8,8 @@ namespace costume::sim {
 
 bool IsValidGrab(const Grab& grab) {
   return grab.centre.allFinite() && grab.force.allFinite() && std::isfinite(grab.radius) &&
-         grab.radius > 0.0;
+         grab.radius > 0.0 && std::isfinite(grab.coupling_stiffness) &&
+         grab.coupling_stiffness >= 0.0;
 }
 
 double GrabWeight(const Grab& grab, const Eigen::Vector3d& x) {

@@ -22,6 +22,14 @@ struct Grab {
   double radius = 0.05;
   /// Device force F_h at the centre, scene frame [N].
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  /// When > 0 [N/m], the grab is a position coupling instead of a force: each grabbed
+  /// particle i is pulled by a zero-length spring of stiffness coupling_stiffness·g(x_i)
+  /// towards where the sphere's motion since the grab started takes it, solved implicitly.
+  /// A haptic device measures position, not force; coupling it by a force computed at 1 kHz
+  /// and applied explicitly to grams of cloth at 60 Hz is unstable beyond a few N/m
+  /// (h²·k·Σg/m ≫ 1), while the implicit spring is stable at any stiffness. F_h is then
+  /// ignored.
+  double coupling_stiffness = 0.0;
 };
 
 /// Whether every field is finite and the radius positive.

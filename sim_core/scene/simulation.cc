@@ -265,7 +265,7 @@ void Simulation::StepOnce(FrameReport& report) {
     // lag 0 (never frozen) gives state_.time + h bit for bit: the unfrozen run is unchanged.
     MoveAvatar(avatar_frozen_ ? frozen_avatar_time_ : state_.time + h - avatar_lag_, h);
   }
-  if (grabbing_) ApplyGrab(grab_, state_.positions, grabbed_, applied_);
+  if (grabbing_) UpdateGrabForces();
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
   if (self_collision_) start_positions_ = state_.positions;
@@ -308,17 +308,48 @@ void Simulation::StepOnce(FrameReport& report) {
 bool Simulation::SetGrab(const Grab& grab) {
   if (!IsValidGrab(grab)) return false;
   grab_ = grab;
-  if (!grabbing_) SelectGrabbed(grab_, state_.positions, grabbed_);
+  if (!grabbing_) {
+    SelectGrabbed(grab_, state_.positions, grabbed_);
+    grab_start_centre_ = grab_.centre;
+    grab_start_positions_ = state_.positions;
+  }
   grabbing_ = true;
-  stepper_.SetAppliedForces(&applied_);
+  if (grab_.coupling_stiffness > 0.0) {
+    stepper_.SetAppliedForces(nullptr);
+    stepper_.SetAnchors(&anchor_targets_, &anchor_stiffness_);
+  } else {
+    stepper_.SetAnchors(nullptr, nullptr);
+    stepper_.SetAppliedForces(&applied_);
+  }
   return true;
 }
 
 void Simulation::ReleaseGrab() {
   grabbing_ = false;
   stepper_.SetAppliedForces(nullptr);
+  stepper_.SetAnchors(nullptr, nullptr);
   grabbed_.clear();
   grab_feedback_.setZero();
+}
+
+// A force grab applies F_h·g; a coupling grab moves each grabbed particle's anchor with the
+// sphere (weights from the particle's distance to the sphere's start, so the grab's shape
+// travels with it).
+void Simulation::UpdateGrabForces() {
+  if (grab_.coupling_stiffness <= 0.0) {
+    ApplyGrab(grab_, state_.positions, grabbed_, applied_);
+    return;
+  }
+  anchor_targets_.setZero(model_->num_particles(), 3);
+  anchor_stiffness_.setZero(model_->num_particles());
+  Grab at_start = grab_;
+  at_start.centre = grab_start_centre_;
+  const Eigen::Vector3d moved = grab_.centre - grab_start_centre_;
+  for (int i : grabbed_) {
+    const Eigen::Vector3d start = grab_start_positions_.row(i).transpose();
+    anchor_targets_.row(i) = (start + moved).transpose();
+    anchor_stiffness_[i] = grab_.coupling_stiffness * GrabWeight(at_start, start);
+  }
 }
 
 int Simulation::EliminateStretchEnergy(const Eigen::Vector3d& centre, double radius) {

@@ -141,6 +141,7 @@ class Simulation {
              const StepperSettings& settings);
   void StepOnce(FrameReport& report);
   void MoveAvatar(double t, double h);
+  void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts();
   void ApplyStrainLimit(FrameReport& report);
@@ -164,7 +165,12 @@ class Simulation {
   /// The grab and what it does; `applied_` is what the stepper adds (n×3) [N].
   Grab grab_;
   bool grabbing_ = false;
+  /// Where the sphere was when the grab started, and the grabbed particles then [m].
+  Eigen::Vector3d grab_start_centre_ = Eigen::Vector3d::Zero();
+  Points grab_start_positions_;
   Points applied_;
+  Points anchor_targets_;
+  Eigen::VectorXd anchor_stiffness_;
   std::vector<int> grabbed_;
   std::vector<char> is_grabbed_;
   Eigen::Vector3d grab_feedback_ = Eigen::Vector3d::Zero();

@@ -78,6 +78,14 @@ class ImplicitStepper {
   /// null for none. Never throws; never allocates.
   void SetAppliedForces(const Points* forces) { settings_.external.applied = forces; }
 
+  /// Zero-length springs to `targets` (n×3) [m] of stiffness `stiffness` (n) [N/m], held by
+  /// the caller, solved implicitly (ExternalForces::anchor_targets); nulls for none. Never
+  /// throws; never allocates.
+  void SetAnchors(const Points* targets, const Eigen::VectorXd* stiffness) {
+    settings_.external.anchor_targets = targets;
+    settings_.external.anchor_stiffness = stiffness;
+  }
+
   /// Switches to a revision of the model with the same particles and springs (rest lengths
   /// edited, paper §5.3): the system's pattern and the solver are kept. Throws InputError
   /// when the topology differs.

@@ -12,6 +12,13 @@ void AssembleImplicitSystem(const ClothModel& model, const ClothState& state, do
     const Eigen::Vector3d v = state.velocities.row(i).transpose();
     b.segment<3>(3 * i) = h * (model.masses()[i] * external.gravity - drag * v);
     if (external.applied) b.segment<3>(3 * i) += h * external.applied->row(i).transpose();
+    if (external.anchor_stiffness && (*external.anchor_stiffness)[i] > 0.0) {
+      // f = k (target − x), ∂f/∂x = −k I: A += h² k I, b += h (f − h k v) (B&W eq. 6).
+      const double k = (*external.anchor_stiffness)[i];
+      const Eigen::Vector3d x = state.positions.row(i).transpose();
+      a.AddToDiagonal(i, (h * h * k) * Eigen::Matrix3d::Identity());
+      b.segment<3>(3 * i) += h * (k * (external.anchor_targets->row(i).transpose() - x) - h * k * v);
+    }
   }
   const auto& springs = model.springs();
   for (int k = 0; k < model.num_springs(); ++k) {

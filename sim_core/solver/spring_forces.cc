@@ -42,6 +42,10 @@ Eigen::VectorXd ComputeForces(const ClothModel& model, const ClothState& state,
     f.segment<3>(3 * i) = model.masses()[i] * external.gravity -
                           (external.air_drag ? model.drag()[i] : 0.0) * Row(state.velocities, i);
     if (external.applied) f.segment<3>(3 * i) += Row(*external.applied, i);
+    if (external.anchor_stiffness) {
+      f.segment<3>(3 * i) += (*external.anchor_stiffness)[i] *
+                             (Row(*external.anchor_targets, i) - Row(state.positions, i));
+    }
   }
   for (const Spring& s : model.springs()) {
     const SpringTerms t =
@@ -80,6 +84,7 @@ void ComputeForceJacobians(const ClothModel& model, const ClothState& state,
   for (int i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
       kv.emplace_back(3 * i + c, 3 * i + c, -(external.air_drag ? model.drag()[i] : 0.0));
+      if (external.anchor_stiffness) kx.emplace_back(3 * i + c, 3 * i + c, -(*external.anchor_stiffness)[i]);
     }
   }
   for (const Spring& s : model.springs()) {

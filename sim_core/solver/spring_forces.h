@@ -45,6 +45,11 @@ struct ExternalForces {
   /// Force applied to each particle (n×3) [N], held by the caller: the designer's grab
   /// (paper §5); null for none.
   const Points* applied = nullptr;
+  /// Zero-length springs pulling particle i towards anchor_targets row i with stiffness
+  /// anchor_stiffness[i] [N/m] (0: none), held by the caller and solved implicitly like the
+  /// cloth's own springs, so a stiff grab stays stable on light cloth; null for none.
+  const Points* anchor_targets = nullptr;
+  const Eigen::VectorXd* anchor_stiffness = nullptr;
 };
 
 /// Total force (3n) [N] on every particle: springs, damping, gravity, drag, applied forces.

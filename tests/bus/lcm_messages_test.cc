@@ -373,8 +373,8 @@ TEST(LcmMessages, EncodingIsBigEndianFieldsAfterTheFingerprint) {
   EXPECT_EQ(big_endian(8), 0x0102030405060708u);
   EXPECT_EQ(big_endian(16), 9u);
   // grab: hash 8, utime 8, seq 8, device_id 1, mode 1, grab_id 8, buttons 4, centre 24,
-  // radius 8, sigma 8, force 24.
-  EXPECT_EQ(bytes.size(), 8u + 8 + 8 + 1 + 1 + 8 + 4 + 24 + 8 + 8 + 24);
+  // radius 8, sigma 8, force 24, coupling stiffness 8.
+  EXPECT_EQ(bytes.size(), 8u + 8 + 8 + 1 + 1 + 8 + 4 + 24 + 8 + 8 + 24 + 8);
 }
 
 // A full chunk fits one UDP datagram (channel name + 1 + payload <= 65,499 bytes).

@@ -4,13 +4,9 @@
 // frames like the GUI would. Run only inside a private network namespace (ctest wraps it in
 // `unshare -n` with a multicast route on lo, tests/CMakeLists.txt), so nothing leaves it.
 //
-// What this asserts today: the two processes start in the namespace, find each other over
-// multicast, exchange grabs and haptic patches for the whole grab, publish every cloth frame,
-// and both exit 0 with the force faded. Edit case 1 itself (the cloth follows the 10 cm pull
-// and returns) does not hold yet: the haptic server's F_h (a virtual coupling, up to 67 N per
-// particle) applied by the simulation to each grabbed particle (F_h·g, so Σg ≈ 5–10 times
-// F_h in all) makes the coupling too stiff and it oscillates; the cloth moves 2–3 cm. The
-// figures are printed; the physical assertions come with the coupling fix (issue 5).
+// Edit case 1 (DESIGN.md): the device grabs the middle of the hanging sheet, pulls it 10 cm
+// and lets go; the cloth follows the pull (through the simulation's implicit coupling,
+// grab.coupling_stiffness) and then returns to rest.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
@@ -65,7 +61,7 @@ struct FrameLog {
   }
 };
 
-TEST(GrabRelease, ProcessesExchangeGrabsPatchesAndFramesOverMulticast) {
+TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
   if (std::getenv("COSTUME_IN_NETNS") == nullptr) {
     GTEST_SKIP() << "run through ctest: it needs a private network namespace";
   }
@@ -131,7 +127,8 @@ TEST(GrabRelease, ProcessesExchangeGrabsPatchesAndFramesOverMulticast) {
   EXPECT_GT(grabs, 400);
   EXPECT_GT(patches, 100);
   EXPECT_TRUE(std::isfinite(strongest));
-  EXPECT_TRUE(rest.allFinite() && pulled.allFinite() && released.allFinite());
+  EXPECT_GT(pulled.z() - rest.z(), 0.08);                               // followed the 10 cm pull
+  EXPECT_LT((released - rest).norm(), 0.1 * (pulled - rest).norm());  // and came back
 }
 
 }  // namespace
