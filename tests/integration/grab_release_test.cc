@@ -27,6 +27,7 @@
 #include "lcm_types/costume_lcm/cloth_frame.hpp"
 #include "lcm_types/costume_lcm/grab.hpp"
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
+#include "lcm_types/costume_lcm/status.hpp"
 
 extern char** environ;
 
@@ -61,74 +62,136 @@ struct FrameLog {
   }
 };
 
-TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
-  if (std::getenv("COSTUME_IN_NETNS") == nullptr) {
-    GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+/// What the listener saw of one two-process run.
+struct ProcessRun {
+  std::map<int64_t, Eigen::Vector3d> positions;  // watched particle per frame [m]
+  int grabs = 0, patches = 0;
+  double strongest = 0.0;  // largest F_h in a grab message [N]
+  int undo_depth = 0;      // the simulation server's largest reported undo depth
+  int sim_exit = -1, haptic_exit = -1;
+
+  /// The watched particle at a time [s] (the first frame at or after it).
+  Eigen::Vector3d At(double seconds) const {
+    const auto found = positions.lower_bound(static_cast<int64_t>(seconds * 60));
+    return found == positions.end() ? positions.rbegin()->second : found->second;
   }
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "costume_grab_test";
+};
+
+/// Writes `scene` and `trajectory` to a temporary folder, starts costume_sim_server (editing
+/// mode, `frames` frames) and costume_haptic_server (simulated device at `offset`, grab
+/// radius `radius`) and listens to the cloth frames, grabs and patches until both are done.
+ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory, int frames,
+                 const std::vector<std::string>& offset, const std::string& radius, int particle) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("costume_grab_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
-  // A 1 m sheet (33 × 33, stiff cotton) built already hanging in the plane z = −0.5 from its
-  // two top corners, so it is near rest from the start; its middle is near (0, −0.5, −0.5).
-  // The device origin is put there; the trajectory rests 3 s (the sheet settles), presses,
-  // pulls 10 cm along +z (out of the sheet) in 1 s, holds to 5 s, releases and waits to 9 s.
-  const std::filesystem::path scene = dir / "hanging.toml";
-  std::ofstream(scene) << "name = \"hanging\"\nduration = 10.0\n"
-                          "[solver]\nmethod = \"pcg\"\ntolerance = 1e-3\n"
-                          "[[garment]]\nname = \"sheet\"\nmaterial = \"stiff_cotton\"\n"
-                          "pin_points = [[-0.5, 0, -0.5], [0.5, 0, -0.5]]\n"
-                          "[garment.panel]\norigin = [-0.5, 0, -0.5]\nu_axis = [1, 0, 0]\n"
-                          "v_axis = [0, -1, 0]\nsize = [1.0, 1.0]\nresolution = [33, 33]\n";
-  const std::filesystem::path trajectory = dir / "pull.traj";
-  std::ofstream(trajectory) << "# time x y z buttons\n"
-                               "0.0 0 0 0 0\n3.0 0 0 0 0\n3.0 0 0 0 1\n4.0 0 0 0.10 1\n"
-                               "5.0 0 0 0.10 1\n5.0 0 0 0.10 0\n9.0 0 0 0.10 0\n";
+  std::ofstream(dir / "scene.toml") << scene;
+  std::ofstream(dir / "pull.traj") << trajectory;
   bus::LcmBus listener;
   FrameLog log;
-  log.particle = 16 * 33 + 16;  // the middle of the sheet
+  log.particle = particle;
+  ProcessRun run;
   bus::Subscribe<costume_lcm::cloth_frame>(
       listener, bus::kClothFrameChannel,
       [&log](const costume_lcm::cloth_frame& frame) { log.OnFrame(frame); });
-
-  int grabs = 0, patches = 0;
-  double strongest = 0.0;
-  bus::Subscribe<costume_lcm::grab>(listener, bus::kGrabChannel,
-                                    [&](const costume_lcm::grab& grab) {
-                                      if (grab.mode != costume_lcm::grab::MODE_GRAB) return;
-                                      ++grabs;
-                                      strongest = std::max(strongest, Eigen::Vector3d(grab.force[0], grab.force[1], grab.force[2]).norm());
-                                    });
+  bus::Subscribe<costume_lcm::grab>(listener, bus::kGrabChannel, [&run](const costume_lcm::grab& grab) {
+    if (grab.mode != costume_lcm::grab::MODE_GRAB) return;
+    ++run.grabs;
+    run.strongest = std::max(run.strongest,
+                             Eigen::Vector3d(grab.force[0], grab.force[1], grab.force[2]).norm());
+  });
   bus::Subscribe<costume_lcm::haptic_patch>(
-      listener, bus::kHapticPatchChannel, [&](const costume_lcm::haptic_patch&) { ++patches; });
+      listener, bus::kHapticPatchChannel, [&run](const costume_lcm::haptic_patch&) { ++run.patches; });
+  bus::Subscribe<costume_lcm::status>(listener, bus::kSimStatusChannel, [&run](const costume_lcm::status& s) {
+    run.undo_depth = std::max(run.undo_depth, static_cast<int>(s.undo_depth));
+  });
 
   const std::string root = COSTUME_BUILD_DIR;
-  const pid_t sim = Spawn({root + "/sim_core/app/costume_sim_server", "--scene", scene.string(),
-                           "--editing", "--frames", "540"});
+  const pid_t sim = Spawn({root + "/sim_core/app/costume_sim_server", "--scene",
+                           (dir / "scene.toml").string(), "--editing", "--frames",
+                           std::to_string(frames)});
   const pid_t haptic = Spawn({root + "/haptic_server/costume_haptic_server", "--device",
-                              "simulated", "--trajectory", trajectory.string(), "--offset", "0",
-                              "-0.5", "-0.5", "--seconds", "9", "--priority", "0"});
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
-  while (std::chrono::steady_clock::now() < until && log.positions.size() < 540) {
+                              "simulated", "--trajectory", (dir / "pull.traj").string(),
+                              "--offset", offset[0], offset[1], offset[2], "--radius", radius,
+                              "--seconds", std::to_string(frames / 60.0), "--priority", "0"});
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(frames / 60 + 15);
+  while (std::chrono::steady_clock::now() < until &&
+         static_cast<int>(log.positions.size()) < frames) {
     listener.HandleSubscriptions(50);
   }
-  EXPECT_EQ(Wait(haptic), 0);
-  EXPECT_EQ(Wait(sim), 0);
-  ASSERT_GE(log.positions.size(), 500u) << "cloth frames lost";
+  run.haptic_exit = Wait(haptic);
+  run.sim_exit = Wait(sim);
+  run.positions = std::move(log.positions);
+  std::filesystem::remove_all(dir);
+  return run;
+}
 
-  auto at = [&log](double seconds) {  // the watched particle at a time (nearest frame)
-    const auto found = log.positions.lower_bound(static_cast<int64_t>(seconds * 60));
-    return found == log.positions.end() ? log.positions.rbegin()->second : found->second;
-  };
-  const Eigen::Vector3d rest = at(2.9), pulled = at(4.9), released = at(8.9);
-  std::printf("middle particle z: rest %.4f m, pulled %.4f m, 4 s after release %.4f m; "
+/// A 1 m sheet built already hanging in the plane z = −0.5 from its two top corners.
+std::string HangingSheet(int n, const std::string& material) {
+  return "name = \"hanging\"\nduration = 60.0\n"
+         "[solver]\nmethod = \"pcg\"\ntolerance = 1e-3\nstrain_limit = 0.0\n" +
+         material +
+         "[[garment]]\nname = \"sheet\"\nmaterial = \"cloth\"\n"
+         "pin_points = [[-0.5, 0, -0.5], [0.5, 0, -0.5]]\n"
+         "[garment.panel]\norigin = [-0.5, 0, -0.5]\nu_axis = [1, 0, 0]\n"
+         "v_axis = [0, -1, 0]\nsize = [1.0, 1.0]\nresolution = [" +
+         std::to_string(n) + ", " + std::to_string(n) + "]\n";
+}
+
+bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
+
+// Case 1 on stiff cotton (33 × 33): the device rests 3 s at the sheet's middle, presses,
+// pulls 10 cm along +z (out of the sheet) in 1 s, holds to 5 s, releases and waits to 9 s.
+TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
+  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  const ProcessRun run = RunProcesses(
+      HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n"),
+      "0.0 0 0 0 0\n3.0 0 0 0 0\n3.0 0 0 0 1\n4.0 0 0 0.10 1\n5.0 0 0 0.10 1\n"
+      "5.0 0 0 0.10 0\n9.0 0 0 0.10 0\n",
+      540, {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16);
+  EXPECT_EQ(run.haptic_exit, 0);
+  EXPECT_EQ(run.sim_exit, 0);
+  ASSERT_GE(run.positions.size(), 500u) << "cloth frames lost";
+  const Eigen::Vector3d rest = run.At(2.9), pulled = run.At(4.9), released = run.At(8.9);
+  std::printf("case 1, middle particle z: rest %.4f m, pulled %.4f m, 4 s after release %.4f m; "
               "%d grab messages (strongest F_h %.3f N), %d patch chunks\n",
-              rest.z(), pulled.z(), released.z(), grabs, strongest, patches);
+              rest.z(), pulled.z(), released.z(), run.grabs, run.strongest, run.patches);
   // The device held the button 2 s at 250 Hz: ~500 grab messages; the simulation answered
   // every frame of it with a patch (one chunk each for this small selection).
-  EXPECT_GT(grabs, 400);
-  EXPECT_GT(patches, 100);
-  EXPECT_TRUE(std::isfinite(strongest));
+  EXPECT_GT(run.grabs, 400);
+  EXPECT_GT(run.patches, 100);
   EXPECT_GT(pulled.z() - rest.z(), 0.08);                               // followed the 10 cm pull
   EXPECT_LT((released - rest).norm(), 0.1 * (pulled - rest).norm());  // and came back
+}
+
+// Case 2 on a soft sheet (17 × 17, 20 N/m, so the pull stretches it): the device rests 8 s at
+// the middle of the bottom edge, presses, pulls 10 cm down in 1 s, presses the stretch button
+// (bit 1: KIND_ELIMINATE_STRETCH over the grab's sphere) while holding, releases at 10 s and
+// waits to 16 s. The pull stretches the whole height of the sheet, so the sphere (1.5 m)
+// covers it all, pinned corners included; the stretched cloth then stays down instead of
+// springing back.
+TEST(GrabRelease, StretchMadePermanentWhileHeldStaysAfterRelease) {
+  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  const ProcessRun run = RunProcesses(
+      HangingSheet(17, "[[material]]\nname = \"cloth\"\nstretch_stiffness = 20\n"
+                       "shear_stiffness = 20\nbending_rigidity = 1e-6\n"),
+      "0.0 0 0 0 0\n8.0 0 0 0 0\n8.0 0 0 0 1\n9.0 0 -0.10 0 1\n9.4 0 -0.10 0 1\n"
+      "9.4 0 -0.10 0 3\n9.6 0 -0.10 0 3\n9.6 0 -0.10 0 1\n10.0 0 -0.10 0 1\n"
+      "10.0 0 -0.10 0 0\n16.0 0 -0.10 0 0\n",
+      960, {"0", "-1.03", "-0.5"}, "1.5", 16 * 17 + 8);
+  EXPECT_EQ(run.haptic_exit, 0);
+  EXPECT_EQ(run.sim_exit, 0);
+  ASSERT_GE(run.positions.size(), 900u) << "cloth frames lost";
+  const Eigen::Vector3d rest = run.At(7.9), pulled = run.At(9.9), after = run.At(15.9);
+  std::printf("case 2, bottom middle y: rest %.4f m, pulled %.4f m, 6 s after release %.4f m; "
+              "undo depth %d\n", rest.y(), pulled.y(), after.y(), run.undo_depth);
+  EXPECT_EQ(run.undo_depth, 1);  // the stretch button reached the simulation once
+  EXPECT_LT(pulled.y(), rest.y() - 0.05);                                  // stretched down
+  // It stays down: the new rest lengths are the stretched ones, so only gravity's own sag on
+  // the longer sheet (about the 4 cm it sagged at rest) moves it further; case 1 springs all
+  // the way back.
+  EXPECT_LT(after.y(), rest.y() - 0.5 * (rest.y() - pulled.y()));
+  EXPECT_LT(std::abs(after.y() - pulled.y()), 0.5 * (rest.y() - pulled.y()));
 }
 
 }  // namespace
