@@ -48,7 +48,7 @@ void SampleClip(const Clip& clip, double t, Pose& out);
 /// the source rest pose, after the target's rest bone direction has been aligned with the
 /// source's (so a T-pose clip drives an A-pose avatar with the arms where they belong).
 /// Unmapped target joints keep their rest rotation relative to their parent. The root
-/// translation is scaled by the ratio of the two skeletons' hip heights.
+/// translation is scaled by the ratio of the two skeletons' leg lengths (twice hip to knee).
 class Retargeter {
  public:
   /// Precomputes the alignment. Throws InputError if the two skeletons share fewer than
