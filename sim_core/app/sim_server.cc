@@ -123,16 +123,28 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
   SetMode(options_.mode);
   playback_ = options_.start_playing ? Playback::kPlaying : Playback::kStopped;
   commands_.reserve(16);
-  auto on_command = [this](const costume_lcm::command& c) { commands_.push_back(c); };
-  command_counts_ = bus::Subscribe<costume_lcm::command>(bus_, bus::kCommandChannel, on_command,
-                                                         options_.receive_policy);
+  // Each input's seq is kept and stamped on the frames it fed (cloth_frame.grab_seq, ...),
+  // so a recorded session can be replayed frame for frame (tools/replay.cc).
+  command_counts_ = bus::Subscribe<costume_lcm::command>(
+      bus_, bus::kCommandChannel,
+      [this](const costume_lcm::command& c) {
+        commands_.push_back(c);
+        command_seq_ = c.seq;
+      },
+      options_.receive_policy);
   haptic_command_counts_ = bus::Subscribe<costume_lcm::command>(
-      bus_, bus::kHapticCommandChannel, on_command, options_.receive_policy);
+      bus_, bus::kHapticCommandChannel,
+      [this](const costume_lcm::command& c) {
+        commands_.push_back(c);
+        haptic_command_seq_ = c.seq;
+      },
+      options_.receive_policy);
   grab_counts_ = bus::Subscribe<costume_lcm::grab>(
       bus_, bus::kGrabChannel,
       [this](const costume_lcm::grab& g) {
         latest_grab_ = g;
         has_new_grab_ = true;
+        grab_seq_ = g.seq;
       },
       options_.receive_policy);
   period_start_ = std::chrono::steady_clock::now();
@@ -408,6 +420,9 @@ void SimServer::PublishFrame() {
   m.sim_time = simulation_->state().time;
   m.model_revision = model_revision_;
   m.mode = ToLcmMode(mode_);
+  m.grab_seq = grab_seq_;
+  m.command_seq = command_seq_;
+  m.haptic_command_seq = haptic_command_seq_;
   m.total_particles = n;
   m.num_chunks = static_cast<std::int16_t>(num_chunks);
   for (int k = 0; k < num_chunks; ++k) {

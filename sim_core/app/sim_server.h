@@ -156,6 +156,10 @@ class SimServer {
   // Received this Step, applied at its end of the drain.
   std::vector<costume_lcm::command> commands_;
   costume_lcm::grab latest_grab_{};
+  /// seq of the last grab, command and haptic command taken in (−1: none yet).
+  std::int64_t grab_seq_ = -1;
+  std::int64_t command_seq_ = -1;
+  std::int64_t haptic_command_seq_ = -1;
   bool has_new_grab_ = false;
   std::int64_t frames_since_grab_message_ = 0;
   std::int64_t grab_sender_restarts_ = 0;

@@ -381,9 +381,10 @@ TEST(LcmMessages, EncodingIsBigEndianFieldsAfterTheFingerprint) {
 TEST(LcmMessages, FullChunksFitOneDatagram) {
   const int n = costume_lcm::cloth_frame::MAX_PARTICLES_PER_CHUNK;
   const auto frame = MakeFrame(n);
-  // Hand count: hash, utime, seq, frame, sim_time, model_revision 6×8; mode 1; total 4;
-  // chunk_index 2, num_chunks 2; first 4; num 2; x, y, z 12 per particle.
-  EXPECT_EQ(frame.getEncodedSize(), 48 + 1 + 4 + 2 + 2 + 4 + 2 + 12 * n);
+  // Hand count: hash, utime, seq, frame, sim_time, model_revision 6×8; mode 1; the three
+  // input seqs 3×8; total 4; chunk_index 2, num_chunks 2; first 4; num 2; x, y, z 12 per
+  // particle.
+  EXPECT_EQ(frame.getEncodedSize(), 48 + 1 + 24 + 4 + 2 + 2 + 4 + 2 + 12 * n);
   EXPECT_LE(frame.getEncodedSize(), MaxDatagramPayload(kClothFrameChannel));
   EXPECT_EQ(MaxDatagramPayload(kClothFrameChannel), 65'499 - 19 - 1);
 

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -110,11 +111,20 @@ struct ProcessRun {
 /// mode, `frames` frames) and costume_haptic_server (simulated device at `offset`, grab
 /// radius `radius`) and listens to the cloth frames, grabs and patches until both are done.
 ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory, int frames,
-                 const std::vector<std::string>& offset, const std::string& radius, int particle) {
+                        const std::vector<std::string>& offset, const std::string& radius,
+                        int particle, const std::filesystem::path& record = {}) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("costume_grab_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "scene.toml") << scene;
+  // lcm-logger records the session when asked (started first, so it sees every frame).
+  const pid_t logger =
+      record.empty() ? -1
+                  : Spawn({"/usr/bin/lcm-logger", "--lcm-url=" + (LcmUrl().empty()
+                                                                     ? std::string("udpm://239.255.76.67:7667?ttl=0")
+                                                                     : LcmUrl()),
+                           "-f", "--flush-interval=10", record.string()});
+  if (logger > 0) std::this_thread::sleep_for(std::chrono::milliseconds(300));
   std::ofstream(dir / "pull.traj") << trajectory;
   bus::LcmBus listener(LcmUrl(), bus::Reach::kNetwork);
   FrameLog log;
@@ -152,6 +162,11 @@ ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory,
   }
   run.haptic_exit = Wait(haptic);
   run.sim_exit = Wait(sim);
+  if (logger > 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    kill(logger, SIGINT);
+    Wait(logger);
+  }
   run.positions = std::move(log.positions);
   std::filesystem::remove_all(dir);
   return run;
@@ -224,6 +239,32 @@ TEST(GrabRelease, StretchMadePermanentWhileHeldStaysAfterRelease) {
   // the way back.
   EXPECT_LT(after.y(), rest.y() - 0.5 * (rest.y() - pulled.y()));
   EXPECT_LT(std::abs(after.y() - pulled.y()), 0.5 * (rest.y() - pulled.y()));
+}
+
+// Record and replay (issue 5): lcm-logger records case 1; tools/replay feeds the logged grabs
+// and commands to a fresh simulation server frame by frame and must reproduce every recorded
+// cloth frame bit for bit.
+TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
+  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("costume_replay_test_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string scene =
+      HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n");
+  std::ofstream(dir / "scene.toml") << scene;
+  const ProcessRun run = RunProcesses(
+      scene,
+      "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 0 0.10 1\n3.0 0 0 0.10 1\n"
+      "3.0 0 0 0.10 0\n4.0 0 0 0.10 0\n",
+      240, {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16, dir / "session.lcm");
+  ASSERT_EQ(run.sim_exit, 0);
+  ASSERT_GT(run.grabs, 100);
+  const std::string command = std::string(COSTUME_BUILD_DIR) + "/tools/replay " +
+                              (dir / "session.lcm").string() + " --scene " +
+                              (dir / "scene.toml").string();
+  const int status = std::system(command.c_str());
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 0) << command;
 }
 
 // The safety case of issue 5: `kill -9` of the simulation server while the device holds a
