@@ -75,8 +75,9 @@ TEST(TypedBus, DropsMalformedPayloadsWithoutCrashing) {
     bad.push_back(bytes);
   }
   // num_particles (int16, big-endian) sits after hash 8, utime/seq/frame/sim_time/
-  // model_revision 40, mode 1, total 4, chunk_index 2, num_chunks 2, first_particle 4.
-  constexpr int kCountOffset = 8 + 40 + 1 + 4 + 2 + 2 + 4;
+  // model_revision 40, mode 1, the three input seqs 24, total 4, chunk_index 2,
+  // num_chunks 2, first_particle 4.
+  constexpr int kCountOffset = 8 + 40 + 1 + 24 + 4 + 2 + 2 + 4;
   for (std::int16_t count : {std::int16_t{-1}, std::int16_t{-32768}, std::int16_t{32767},
                              std::int16_t{5}}) {
     auto patched = valid;
@@ -142,10 +143,10 @@ TEST(TypedBus, SurvivesRandomlyCorruptedMessages) {
 }
 
 TEST(TypedBus, DropsOversizedMessagesUndecoded) {
-  Fixture limited(ReceivePolicy{.max_bytes = 100});
-  // 63 bytes of header + 12 per particle (lcm_messages_test.cc): 3 particles = 99 bytes.
+  Fixture limited(ReceivePolicy{.max_bytes = 130});
+  // 87 bytes of header + 12 per particle (lcm_messages_test.cc): 3 particles = 123 bytes.
   limited.Deliver(Encode(Frame(kNow, 0, 3)));
-  limited.Deliver(Encode(Frame(kNow, 1, 4)));  // 111 bytes
+  limited.Deliver(Encode(Frame(kNow, 1, 4)));  // 135 bytes
   EXPECT_EQ(limited.counts->accepted, 1);
   EXPECT_EQ(limited.counts->oversized, 1);
 
