@@ -183,7 +183,7 @@ void SimServer::Step() {
     ++frame_;
   }
   PublishFrame();
-  if (grabbing_) PublishPatch();
+  if (grabbing()) PublishPatch();
   ++ticks_;
   const double work_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -207,7 +207,7 @@ std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_fram
 
 void SimServer::Rebuild(const sim::SceneDescription& scene) {
   auto rebuilt = sim::Simulation::Build(scene);  // throws before anything changes
-  if (grabbing_) ReleaseGrab();
+  if (grabbing()) ReleaseGrab();
   simulation_ = std::move(rebuilt);
   simulation_->SetAvatarFrozen(mode_ == Mode::kEditing);
   scene_ = scene;
@@ -266,14 +266,15 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
 void SimServer::SetMode(Mode mode) {
   mode_ = mode;
   simulation_->SetAvatarFrozen(mode == Mode::kEditing);
-  if (mode == Mode::kAnimation && grabbing_) ReleaseGrab();  // modes are exclusive
+  if (mode == Mode::kAnimation && grabbing()) ReleaseGrab();  // modes are exclusive
 }
 
 void SimServer::EliminateStretch(const costume_lcm::command& command) {
   SphereEdit edit{Eigen::Vector3d(command.centre[0], command.centre[1], command.centre[2]),
                   command.radius};
-  if (command.grab_id >= 0 && grabbing_ && command.grab_id == grab_id_) {
-    edit = {grab_.centre, grab_.radius};  // the sphere the designer holds
+  if (command.grab_id >= 0 && grabbing() && command.grab_id == grab_id_) {
+    const sim::Grab& held = simulation_->grab();  // the sphere the designer holds
+    edit = {held.centre, held.radius};
   } else if (command.grab_id >= 0) {
     Warn("command ELIMINATE_STRETCH: grab_id = " + std::to_string(command.grab_id) +
          " is not the active grab (" + std::to_string(active_grab_id()) +
@@ -342,7 +343,6 @@ void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
 
 void SimServer::ReleaseGrab() {
   simulation_->ReleaseGrab();
-  grabbing_ = false;
   last_finished_grab_id_ = std::max(last_finished_grab_id_, grab_id_);
 }
 
@@ -351,10 +351,10 @@ void SimServer::ApplyLatestGrab() {
   if (grab_counts_->sender_restarts != grab_sender_restarts_) {
     grab_sender_restarts_ = grab_counts_->sender_restarts;
     last_finished_grab_id_ = -1;
-    if (grabbing_) ReleaseGrab();
+    if (grabbing()) ReleaseGrab();
   }
   if (!has_new_grab_) {
-    if (grabbing_ && ++frames_since_grab_message_ >
+    if (grabbing() && ++frames_since_grab_message_ >
                          std::llround(options_.grab_timeout * scene_.frame_rate)) {
       ++ignored_.grabs_timed_out;
       Warn("grab " + std::to_string(grab_id_) + ": no grab message for " +
@@ -370,21 +370,21 @@ void SimServer::ApplyLatestGrab() {
     ++ignored_.grabs_in_animation;
     return;
   }
-  if (grabbing_ && message.device_id != grab_device_) {
+  if (grabbing() && message.device_id != grab_device_) {
     ++ignored_.grabs_other_device;
     return;
   }
-  if (grabbing_ && message.grab_id < grab_id_) {
+  if (grabbing() && message.grab_id < grab_id_) {
     ++ignored_.grabs_stale_id;  // a late message of an earlier press
     return;
   }
   const bool pressed = message.mode == costume_lcm::grab::MODE_GRAB &&
                        (message.buttons & kGrabButton) != 0;
   if (!pressed) {
-    if (grabbing_) ReleaseGrab();
+    if (grabbing()) ReleaseGrab();
     return;
   }
-  const bool same_grab = grabbing_ && message.grab_id == grab_id_;
+  const bool same_grab = grabbing() && message.grab_id == grab_id_;
   if (!same_grab && message.grab_id <= last_finished_grab_id_) {
     ++ignored_.grabs_stale_id;  // that press was released; a new press has a new id
     return;
@@ -394,17 +394,15 @@ void SimServer::ApplyLatestGrab() {
     ++ignored_.grabs_invalid;
     return;
   }
-  if (grabbing_ && !same_grab) ReleaseGrab();  // a new press: a new selection
+  if (grabbing() && !same_grab) ReleaseGrab();  // a new press: a new selection
   if (message.gaussian_sigma > 0.0 && !warned_sigma_) {
     warned_sigma_ = true;
     Warn("grab.gaussian_sigma = " + std::to_string(message.gaussian_sigma) +
          " m is not supported: the simulation uses sigma = radius/2 (grab.h)");
   }
   simulation_->SetGrab(grab);
-  grab_ = grab;
   grab_id_ = message.grab_id;
   grab_device_ = message.device_id;
-  grabbing_ = true;
 }
 
 // ---- publishing --------------------------------------------------------------------------
@@ -480,9 +478,10 @@ void SimServer::PublishPatch() {
   m.model_revision = model_revision_;
   m.device_id = grab_device_;
   m.grab_id = grab_id_;
-  for (int i = 0; i < 3; ++i) m.centre[i] = grab_.centre[i];
-  m.radius = grab_.radius;
-  m.gaussian_sigma = 0.5 * grab_.radius;  // grab.h: s = (r/2)²
+  const sim::Grab& grab = simulation_->grab();
+  for (int i = 0; i < 3; ++i) m.centre[i] = grab.centre[i];
+  m.radius = grab.radius;
+  m.gaussian_sigma = 0.5 * grab.radius;  // grab.h: s = (r/2)²
   m.num_chunks = static_cast<std::int16_t>(num_chunks);
   m.total_particles = np;
   m.total_springs = ns;
@@ -514,7 +513,7 @@ void SimServer::PublishPatch() {
       m.vz[i] = static_cast<float>(state.velocities(p, 2));
       m.mass[i] = static_cast<float>(model.masses()[p]);
       m.selected[i] = slot < num_selected;
-      m.weight[i] = slot < num_selected ? static_cast<float>(sim::GrabWeight(grab_, x)) : 0.0f;
+      m.weight[i] = slot < num_selected ? static_cast<float>(sim::GrabWeight(grab, x)) : 0.0f;
     }
     m.num_springs = static_cast<std::int16_t>(count_s);
     for (auto* v : {&m.spring_a, &m.spring_b}) v->resize(count_s);

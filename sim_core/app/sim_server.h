@@ -117,7 +117,7 @@ class SimServer {
   bus::ReceiveCounts grab_counts() const { return *grab_counts_; }
   bus::ReceiveCounts command_counts() const;
   /// The grab being applied: its message id, or -1.
-  std::int64_t active_grab_id() const { return grabbing_ ? grab_id_ : -1; }
+  std::int64_t active_grab_id() const { return grabbing() ? grab_id_ : -1; }
   /// Warnings waiting for the next status.
   const std::vector<std::string>& pending_warnings() const { return warnings_; }
 
@@ -170,13 +170,13 @@ class SimServer {
   std::int64_t model_revision_ = 0;
   int last_iterations_ = -1;
 
-  // The grab being applied.
-  bool grabbing_ = false;
+  // The grab being applied (the grab itself, and whether one is held, are the
+  // simulation's: Simulation::grab(), grabbing()).
+  bool grabbing() const { return simulation_ && simulation_->grabbing(); }
   std::int64_t grab_id_ = -1;
   /// Grab ids at or below this are over (released or superseded): never restarted.
   std::int64_t last_finished_grab_id_ = -1;
   std::int8_t grab_device_ = 0;
-  sim::Grab grab_;
   bool warned_sigma_ = false;
 
   std::vector<SphereEdit> edits_;  ///< applied sphere edits, parallel to the undo stack

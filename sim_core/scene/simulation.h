@@ -87,6 +87,8 @@ class Simulation {
   /// Lets go: the cloth returns to its rest shape unless the stretch was made permanent.
   void ReleaseGrab();
   bool grabbing() const { return grabbing_; }
+  /// The grab last set (meaningful while grabbing()).
+  const Grab& grab() const { return grab_; }
   /// The particles the grab holds.
   const std::vector<int>& grabbed() const { return grabbed_; }
   /// The force for the device after the last step [N]: the spring forces the rest of the
