@@ -308,11 +308,7 @@ void Simulation::StepOnce(FrameReport& report) {
 bool Simulation::SetGrab(const Grab& grab) {
   if (!IsValidGrab(grab)) return false;
   grab_ = grab;
-  if (!grabbing_) {
-    SelectGrabbed(grab_, state_.positions, grabbed_);
-    grab_start_centre_ = grab_.centre;
-    grab_start_positions_ = state_.positions;
-  }
+  if (!grabbing_) StartGrab();
   grabbing_ = true;
   if (grab_.coupling_stiffness > 0.0) {
     stepper_.SetAppliedForces(nullptr);
@@ -332,23 +328,32 @@ void Simulation::ReleaseGrab() {
   grab_feedback_.setZero();
 }
 
-// A force grab applies F_h·g; a coupling grab moves each grabbed particle's anchor with the
-// sphere (weights from the particle's distance to the sphere's start, so the grab's shape
-// travels with it).
+// The selection and what a coupling grab keeps of its start: the grabbed particles' positions
+// and Gaussian weights there, so the grab's shape travels with the sphere.
+void Simulation::StartGrab() {
+  SelectGrabbed(grab_, state_.positions, grabbed_);
+  grab_start_centre_ = grab_.centre;
+  grab_start_positions_.resize(static_cast<Eigen::Index>(grabbed_.size()), 3);
+  grab_start_weights_.resize(grabbed_.size());
+  for (std::size_t k = 0; k < grabbed_.size(); ++k) {
+    grab_start_positions_.row(k) = state_.positions.row(grabbed_[k]);
+    grab_start_weights_[k] = GrabWeight(grab_, grab_start_positions_.row(k).transpose());
+  }
+  anchor_targets_.setZero(model_->num_particles(), 3);
+  anchor_stiffness_.setZero(model_->num_particles());
+}
+
+// A force grab applies F_h·g at the particles' current distance from the sphere; a coupling
+// grab moves each grabbed particle's anchor with the sphere.
 void Simulation::UpdateGrabForces() {
   if (grab_.coupling_stiffness <= 0.0) {
     ApplyGrab(grab_, state_.positions, grabbed_, applied_);
     return;
   }
-  anchor_targets_.setZero(model_->num_particles(), 3);
-  anchor_stiffness_.setZero(model_->num_particles());
-  Grab at_start = grab_;
-  at_start.centre = grab_start_centre_;
   const Eigen::Vector3d moved = grab_.centre - grab_start_centre_;
-  for (int i : grabbed_) {
-    const Eigen::Vector3d start = grab_start_positions_.row(i).transpose();
-    anchor_targets_.row(i) = (start + moved).transpose();
-    anchor_stiffness_[i] = grab_.coupling_stiffness * GrabWeight(at_start, start);
+  for (std::size_t k = 0; k < grabbed_.size(); ++k) {
+    anchor_targets_.row(grabbed_[k]) = grab_start_positions_.row(k) + moved.transpose();
+    anchor_stiffness_[grabbed_[k]] = grab_.coupling_stiffness * grab_start_weights_[k];
   }
 }
 

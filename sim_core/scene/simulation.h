@@ -143,6 +143,7 @@ class Simulation {
              const StepperSettings& settings);
   void StepOnce(FrameReport& report);
   void MoveAvatar(double t, double h);
+  void StartGrab();
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts();
@@ -167,9 +168,11 @@ class Simulation {
   /// The grab and what it does; `applied_` is what the stepper adds (n×3) [N].
   Grab grab_;
   bool grabbing_ = false;
-  /// Where the sphere was when the grab started, and the grabbed particles then [m].
+  /// Where the sphere was when the grab started [m]; each grabbed particle's position then
+  /// [m] and its Gaussian weight there (a coupling grab's springs keep both).
   Eigen::Vector3d grab_start_centre_ = Eigen::Vector3d::Zero();
   Points grab_start_positions_;
+  std::vector<double> grab_start_weights_;
   Points applied_;
   Points anchor_targets_;
   Eigen::VectorXd anchor_stiffness_;
