@@ -4,19 +4,6 @@
 
 namespace costume::haptics {
 
-double GaussianWeight(const Eigen::Vector3d& x, const Eigen::Vector3d& centre, double variance) {
-  return std::exp(-(x - centre).squaredNorm() / (2.0 * variance));
-}
-
-void SelectParticles(const sim::Points& positions, const Eigen::Vector3d& centre, double radius,
-                     std::vector<int>& selected) {
-  selected.clear();
-  const double r2 = radius * radius;
-  for (int i = 0; i < static_cast<int>(positions.rows()); ++i) {
-    if ((positions.row(i).transpose() - centre).squaredNorm() <= r2) selected.push_back(i);
-  }
-}
-
 void AddGrabForces(const sim::Points& positions, const std::vector<int>& selected,
                    const Eigen::Vector3d& centre, double radius,
                    const Eigen::Vector3d& device_force, sim::Points& forces) {

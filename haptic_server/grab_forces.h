@@ -30,21 +30,20 @@
 #include <vector>
 
 #include "sim_core/cloth/cloth_model.h"
+#include "sim_core/scene/grab.h"
 
 namespace costume::haptics {
 
-/// The Gaussian's variance s = (r/2)² [m²] for a selection radius r [m] > 0.
-/// Never throws; never allocates.
-inline double GaussianVariance(double radius) { return 0.25 * radius * radius; }
-
-/// g(x) = exp(−‖x − m‖² / (2 s)) for point x [m], centre m [m], variance s [m²] > 0.
-/// Never throws; never allocates.
-double GaussianWeight(const Eigen::Vector3d& x, const Eigen::Vector3d& centre, double variance);
-
-/// Indices of the rows of `positions` (n×3) [m] within `radius` [m] of `centre` (‖x − m‖ ≤ r),
-/// ascending, written into `selected` (cleared first; allocates only beyond its capacity).
-void SelectParticles(const sim::Points& positions, const Eigen::Vector3d& centre, double radius,
-                     std::vector<int>& selected);
+/// The Gaussian and the selection are the simulation's own (sim_core/scene/grab.h), so the
+/// device and the cloth always agree on which particles a grab holds and how much:
+/// GaussianVariance(r) = (r/2)² [m²], GaussianWeight(x, m, s), and SelectParticles = the
+/// particles within r of m, ascending.
+using sim::GaussianVariance;
+using sim::GaussianWeight;
+inline void SelectParticles(const sim::Points& positions, const Eigen::Vector3d& centre,
+                            double radius, std::vector<int>& selected) {
+  sim::SelectWithin(positions, centre, radius, selected);
+}
 
 /// Adds F(x_i) = F_h · g(x_i) to row i of `forces` (n×3) [N] for every i in `selected`, with
 /// g centred at `centre` [m] with variance GaussianVariance(radius). `device_force` F_h [N] is

@@ -12,19 +12,27 @@ bool IsValidGrab(const Grab& grab) {
          grab.coupling_stiffness >= 0.0;
 }
 
-double GrabWeight(const Grab& grab, const Eigen::Vector3d& x) {
-  const double s = 0.25 * grab.radius * grab.radius;
-  return std::exp(-(x - grab.centre).squaredNorm() / (2.0 * s));
+double GaussianWeight(const Eigen::Vector3d& x, const Eigen::Vector3d& centre, double variance) {
+  return std::exp(-(x - centre).squaredNorm() / (2.0 * variance));
 }
 
-void SelectGrabbed(const Grab& grab, const Points& positions, std::vector<int>& selected) {
+double GrabWeight(const Grab& grab, const Eigen::Vector3d& x) {
+  return GaussianWeight(x, grab.centre, GaussianVariance(grab.radius));
+}
+
+void SelectWithin(const Points& positions, const Eigen::Vector3d& centre, double radius,
+                  std::vector<int>& selected) {
   selected.clear();
-  const double r2 = grab.radius * grab.radius;
+  const double r2 = radius * radius;
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    if ((positions.row(i).transpose() - grab.centre).squaredNorm() <= r2) {
+    if ((positions.row(i).transpose() - centre).squaredNorm() <= r2) {
       selected.push_back(static_cast<int>(i));
     }
   }
+}
+
+void SelectGrabbed(const Grab& grab, const Points& positions, std::vector<int>& selected) {
+  SelectWithin(positions, grab.centre, grab.radius, selected);
 }
 
 void ApplyGrab(const Grab& grab, const Points& positions, const std::vector<int>& selected,

@@ -35,8 +35,22 @@ struct Grab {
 /// Whether every field is finite and the radius positive.
 bool IsValidGrab(const Grab& grab);
 
-/// g(x) = exp(−‖x − m‖²/(2s)), s = (r/2)² [-]. Never throws.
+/// The Gaussian's variance s = (r/2)² [m²] for a selection radius r [m] > 0. The one place
+/// the width is chosen: the haptic server uses it too.
+inline double GaussianVariance(double radius) { return 0.25 * radius * radius; }
+
+/// g(x) = exp(−‖x − m‖²/(2s)) for point x [m], centre m [m], variance s [m²] > 0 [-].
+/// Never throws; never allocates.
+double GaussianWeight(const Eigen::Vector3d& x, const Eigen::Vector3d& centre, double variance);
+
+/// g(x) of the grab's sphere: GaussianWeight with s = GaussianVariance(r) [-]. Never throws.
 double GrabWeight(const Grab& grab, const Eigen::Vector3d& x);
+
+/// Indices of the rows of `positions` (n×3) [m] within `radius` [m] of `centre` (‖x − m‖ ≤ r),
+/// ascending, into `selected` (cleared first). Never throws; allocates only when `selected`
+/// grows.
+void SelectWithin(const Points& positions, const Eigen::Vector3d& centre, double radius,
+                  std::vector<int>& selected);
 
 /// The particles within r of m: what a grab holds from the moment it starts (they stay
 /// held as the sphere moves, so the cloth cannot slip out of the hand). Never throws;
