@@ -396,52 +396,64 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
   Refit();
 }
 
-MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
-  MeshColliderRegions& r = *regions_;
-  const double half = std::max(reach - settings_.thickness, 0.0);
+namespace {
+
+/// A particle's query box: `point` ± (reach − thickness), the region boxes being fattened by
+/// the thickness already.
+btDbvtVolume QueryBox(const Eigen::Vector3d& point, double reach, double thickness) {
+  const double half = std::max(reach - thickness, 0.0);
   const btVector3 center = ToBullet(point);
   const btVector3 extent(half, half, half);
-  const btDbvtVolume query = btDbvtVolume::FromMM(center - extent, center + extent);
-  r.touched.clear();
+  return btDbvtVolume::FromMM(center - extent, center + extent);
+}
+
+/// The body region a leaf of the region tree stands for.
+const MeshColliderRegion& RegionOf(const MeshColliderRegions& r, const btDbvtNode* leaf) {
+  return r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(leaf->data))];
+}
+
+/// Visits, depth first, every leaf of the region tree whose box overlaps `query`, counting
+/// each node examined in `num_tests`. The per-particle and the per-region searches both walk
+/// the tree this way, so a particle meets its regions (and ties between equally close
+/// triangles break) in the same order in both.
+template <class Visit>
+void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
+                            long long& num_tests, Visit&& visit) {
   r.stack.clear();
   if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
   while (!r.stack.empty()) {
     const btDbvtNode* node = r.stack.back();
     r.stack.pop_back();
-    ++num_tests_;
+    ++num_tests;
     if (!Intersect(node->volume, query)) continue;
     if (node->isinternal()) {
       r.stack.push_back(node->childs[0]);
       r.stack.push_back(node->childs[1]);
       continue;
     }
-    SearchRegion(r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(node->data))],
-                 point, reach);
+    visit(node);
   }
+}
+
+}  // namespace
+
+MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
+  MeshColliderRegions& r = *regions_;
+  r.touched.clear();
+  VisitOverlappingLeaves(r, QueryBox(point, reach, settings_.thickness), num_tests_,
+                         [&](const btDbvtNode* leaf) {
+                           SearchRegion(RegionOf(r, leaf), point, reach);
+                         });
   return Resolve(point);
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
                                    const Eigen::Vector3d& box_max) {
   MeshColliderRegions& r = *regions_;
-  const btDbvtVolume query = btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max));
   int count = 0;
-  r.stack.clear();
-  if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
-  // The same depth-first order as FindNearest, so each particle meets its regions (and
-  // ties between equally close triangles break) exactly as there.
-  while (!r.stack.empty()) {
-    const btDbvtNode* node = r.stack.back();
-    r.stack.pop_back();
-    ++num_tests_;
-    if (!Intersect(node->volume, query)) continue;
-    if (node->isinternal()) {
-      r.stack.push_back(node->childs[0]);
-      r.stack.push_back(node->childs[1]);
-      continue;
-    }
-    r.candidates[count++] = node;
-  }
+  VisitOverlappingLeaves(r, btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max)),
+                         num_tests_,
+                         [&](const btDbvtNode* leaf) { r.candidates[count++] = leaf; });
   return count;
 }
 
@@ -449,17 +461,13 @@ MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vect
                                                                double reach, int first,
                                                                int count) {
   MeshColliderRegions& r = *regions_;
-  const double half = std::max(reach - settings_.thickness, 0.0);
-  const btVector3 center = ToBullet(point);
-  const btVector3 extent(half, half, half);
-  const btDbvtVolume query = btDbvtVolume::FromMM(center - extent, center + extent);
+  const btDbvtVolume query = QueryBox(point, reach, settings_.thickness);
   r.touched.clear();
   for (int c = first; c < first + count; ++c) {
     const btDbvtNode* node = r.candidates[c];
     ++num_tests_;
     if (!Intersect(node->volume, query)) continue;
-    SearchRegion(r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(node->data))],
-                 point, reach);
+    SearchRegion(RegionOf(r, node), point, reach);
   }
   return Resolve(point);
 }
