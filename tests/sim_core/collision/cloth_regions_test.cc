@@ -16,16 +16,7 @@
 #include "sim_core/common/input_error.h"
 #include "tests/sim_core/collision/test_meshes.h"
 
-// Counts heap allocations while `g_count_allocations` is set (as in mesh_collider_test).
-extern "C" void* __libc_malloc(std::size_t size);
-namespace {
-bool g_count_allocations = false;
-long long g_num_allocations = 0;
-}  // namespace
-extern "C" void* malloc(std::size_t size) {
-  if (g_count_allocations) ++g_num_allocations;
-  return __libc_malloc(size);
-}
+#include "tests/support/count_mallocs.h"
 
 namespace costume::sim {
 namespace {
@@ -41,21 +32,7 @@ const Eigen::Vector3d kHalf(0.35, 0.2, 0.35);
 const double kTop = kCenter.y() + kHalf.y();
 const std::vector<Eigen::Isometry3d> kJoints = {Eigen::Isometry3d::Identity()};
 
-std::shared_ptr<const Avatar> RigidAvatar(const TestMesh& mesh) {
-  Joint root;
-  root.name = "root";
-  AvatarData data;
-  data.name = "box body";
-  data.skeleton = Skeleton::Create("one joint", {root});
-  data.rest_vertices = mesh.vertices;
-  data.triangles = mesh.triangles;
-  const Eigen::Index n = mesh.vertices.rows();
-  data.influence_joints.setConstant(n, kMaxInfluences, -1);
-  data.influence_joints.col(0).setZero();
-  data.influence_weights.setZero(n, kMaxInfluences);
-  data.influence_weights.col(0).setOnes();
-  return Avatar::Create(std::move(data));
-}
+using test::RigidAvatar;
 
 // A size × size lattice sheet, 0.5 m square; `lattice` false drops the lattice shape so
 // the regions are grown over the triangles instead.

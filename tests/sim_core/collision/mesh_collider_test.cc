@@ -14,18 +14,7 @@
 #include "sim_core/collision/surface_geometry.h"
 #include "tests/sim_core/collision/test_meshes.h"
 
-// Counts heap allocations while `g_count_allocations` is set (as drake's limit_malloc): the
-// executable's malloc takes precedence over libc's, so std::vector, Eigen and Bullet all
-// come through here.
-extern "C" void* __libc_malloc(std::size_t size);
-namespace {
-bool g_count_allocations = false;
-long long g_num_allocations = 0;
-}  // namespace
-extern "C" void* malloc(std::size_t size) {
-  if (g_count_allocations) ++g_num_allocations;
-  return __libc_malloc(size);
-}
+#include "tests/support/count_mallocs.h"
 
 namespace costume::sim {
 namespace {
@@ -36,22 +25,7 @@ constexpr double kH = 1.0 / 60.0;
 const Eigen::Vector3d kCenter(0.0, 1.0, 0.0);
 const Eigen::Vector3d kHalf(0.2, 0.2, 0.2);
 
-// An avatar whose only joint carries every vertex of `mesh`.
-std::shared_ptr<const Avatar> RigidAvatar(const TestMesh& mesh) {
-  Joint root;
-  root.name = "root";
-  AvatarData data;
-  data.name = "test body";
-  data.skeleton = Skeleton::Create("one joint", {root});
-  data.rest_vertices = mesh.vertices;
-  data.triangles = mesh.triangles;
-  const Eigen::Index n = mesh.vertices.rows();
-  data.influence_joints.setConstant(n, kMaxInfluences, -1);
-  data.influence_joints.col(0).setZero();
-  data.influence_weights.setZero(n, kMaxInfluences);
-  data.influence_weights.col(0).setOnes();
-  return Avatar::Create(std::move(data));
-}
+using test::RigidAvatar;
 
 const std::vector<Eigen::Isometry3d> kJoints = {Eigen::Isometry3d::Identity()};
 

@@ -12,16 +12,7 @@
 #include "sim_core/avatar/skeleton.h"
 #include "sim_core/common/input_error.h"
 
-// Counts heap allocations (operator new and Eigen both end in malloc) while `g_counting`.
-namespace {
-bool g_counting = false;
-long g_allocations = 0;
-}  // namespace
-extern "C" void* __libc_malloc(std::size_t size);
-extern "C" void* malloc(std::size_t size) {
-  if (g_counting) ++g_allocations;
-  return __libc_malloc(size);
-}
+#include "tests/support/count_mallocs.h"
 
 namespace costume::sim {
 namespace {
@@ -291,20 +282,20 @@ TEST_F(Fixture, FindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
   collider.ProjectOut(positions, velocities);
   world[1] = Eigen::Translation3d(0.01, 0.0, 0.0) * world[1];
-  g_allocations = 0;
-  g_counting = true;
+  g_num_allocations = 0;
+  g_count_allocations = true;
   {  // The counter sees Eigen's heap and operator new.
     Eigen::VectorXd probe(64);
     probe.setZero();
-    EXPECT_GE(g_allocations, 1);
+    EXPECT_GE(g_num_allocations, 1);
   }
-  g_allocations = 0;
+  g_num_allocations = 0;
   collider.Update(world, unused_skin, 0.01);
   contacts.clear();
   collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
   collider.ProjectOut(positions, velocities);
-  g_counting = false;
-  EXPECT_EQ(g_allocations, 0);
+  g_count_allocations = false;
+  EXPECT_EQ(g_num_allocations, 0);
 }
 
 TEST(SuperquadricCollider, RefusesBadInput) {

@@ -9,6 +9,7 @@
 #include <map>
 #include <vector>
 
+#include "sim_core/avatar/avatar.h"
 #include "sim_core/cloth/cloth_model.h"
 
 namespace costume::sim::test {
@@ -80,6 +81,23 @@ inline double BoxSignedDistance(const Eigen::Vector3d& p, const Eigen::Vector3d&
 inline TestMesh Translated(TestMesh mesh, const Eigen::Vector3d& offset) {
   mesh.vertices.rowwise() += offset.transpose();
   return mesh;
+}
+
+/// An avatar whose only joint carries every vertex of `mesh`.
+inline std::shared_ptr<const Avatar> RigidAvatar(const TestMesh& mesh) {
+  Joint root;
+  root.name = "root";
+  AvatarData data;
+  data.name = "test body";
+  data.skeleton = Skeleton::Create("one joint", {root});
+  data.rest_vertices = mesh.vertices;
+  data.triangles = mesh.triangles;
+  const Eigen::Index n = mesh.vertices.rows();
+  data.influence_joints.setConstant(n, kMaxInfluences, -1);
+  data.influence_joints.col(0).setZero();
+  data.influence_weights.setZero(n, kMaxInfluences);
+  data.influence_weights.col(0).setOnes();
+  return Avatar::Create(std::move(data));
 }
 
 }  // namespace costume::sim::test
