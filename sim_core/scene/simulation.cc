@@ -17,6 +17,12 @@ namespace costume::sim {
 
 namespace {
 
+/// Wall-clock time since `start` [ms], for the frame report.
+double MillisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
 std::string GarmentContext(const SceneDescription& scene, const GarmentSpec& garment) {
   std::string where = scene.source;
   if (garment.source_line > 0) where += ":" + std::to_string(garment.source_line);
@@ -254,8 +260,7 @@ void Simulation::FindContacts(double h, FrameReport& report) {
     const auto start = std::chrono::steady_clock::now();
     body_->FindContacts(state_.positions, state_.velocities, h, 0.5 * scene_.avatar->thickness,
                         contacts_);
-    report.collision_ms +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    report.collision_ms += MillisecondsSince(start);
   }
 }
 
@@ -292,16 +297,14 @@ void Simulation::StepOnce(FrameReport& report) {
     for (const BodyAttachment& a : attachments_) {
       state_.positions.row(a.particle) = (avatar_->joint_world()[a.joint] * a.local).transpose();
     }
-    report.collision_ms +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    report.collision_ms += MillisecondsSince(start);
   }
   if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
   if (self_collision_) {
     const auto start = std::chrono::steady_clock::now();
     const SelfCollisionReport self = self_collision_->Resolve(start_positions_, h, state_);
     report.unresolved_self_collisions += self.remaining_collisions;
-    report.self_collision_ms +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    report.self_collision_ms += MillisecondsSince(start);
   }
 }
 
@@ -414,8 +417,7 @@ FrameReport Simulation::AdvanceFrame() {
   const auto start = std::chrono::steady_clock::now();
   FrameReport report;
   for (int s = 0; s < scene_.solver.substeps; ++s) StepOnce(report);
-  report.wall_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  report.wall_ms = MillisecondsSince(start);
   return report;
 }
 
