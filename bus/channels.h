@@ -22,6 +22,8 @@ inline const std::string kHapticPatchChannel = "COSTUME_HAPTIC_PATCH";
 inline const std::string kCommandChannel = "COSTUME_COMMAND";
 /// costume_lcm::command, from haptic_server (device buttons, e.g. eliminate stretch).
 inline const std::string kHapticCommandChannel = "COSTUME_COMMAND_HAPTIC";
+/// costume_lcm::pointer_sample, from the GUI (the mouse as a haptic device).
+inline const std::string kPointerChannel = "COSTUME_POINTER";
 /// costume_lcm::status, one channel per process.
 inline const std::string kSimStatusChannel = "COSTUME_STATUS_SIM";
 inline const std::string kHapticStatusChannel = "COSTUME_STATUS_HAPTIC";
