@@ -1,0 +1,83 @@
+#include "frontend/catalog_source.h"
+
+#include "sim_core/avatar/procedural_clips.h"
+#include "sim_core/common/input_error.h"
+#ifdef COSTUME_HAVE_CATALOG
+#include "catalog/catalog.h"
+#endif
+
+namespace costume::frontend {
+namespace {
+
+class BuiltInCatalog final : public CatalogSource {
+ public:
+  std::vector<CatalogItem> List(EntryKind kind) override {
+    std::vector<std::string> names;
+    switch (kind) {
+      case EntryKind::kAvatar: names = {"humanoid"}; break;
+      case EntryKind::kCostume: names = {"cape", "dress", "skirt"}; break;
+      case EntryKind::kAnimation: names = sim::BuiltInClipNames(); break;
+    }
+    std::vector<CatalogItem> items;
+    for (const std::string& name : names) {
+      items.push_back({0, name, kind == EntryKind::kAnimation ? "basic" : "", {}});
+    }
+    return items;
+  }
+  std::string Describe() const override { return "built-in assets (no catalogue database)"; }
+};
+
+#ifdef COSTUME_HAVE_CATALOG
+catalog::Kind CatalogKind(EntryKind kind) {
+  switch (kind) {
+    case EntryKind::kAvatar: return catalog::Kind::kAvatar;
+    case EntryKind::kCostume: return catalog::Kind::kGarment;
+    case EntryKind::kAnimation: return catalog::Kind::kAnimation;
+  }
+  return catalog::Kind::kAvatar;
+}
+
+class DatabaseCatalog final : public CatalogSource {
+ public:
+  explicit DatabaseCatalog(std::unique_ptr<catalog::Catalog> db) : db_(std::move(db)) {}
+  std::vector<CatalogItem> List(EntryKind kind) override {
+    std::vector<CatalogItem> items;
+    for (const catalog::EntryInfo& entry : db_->List(CatalogKind(kind))) {
+      items.push_back({entry.id, entry.name, entry.category, db_->Thumbnail(entry.id)});
+    }
+    return items;
+  }
+  std::string Describe() const override { return db_->url(); }
+
+ private:
+  std::unique_ptr<catalog::Catalog> db_;
+};
+#endif
+
+}  // namespace
+
+std::unique_ptr<CatalogSource> MakeBuiltInCatalog() { return std::make_unique<BuiltInCatalog>(); }
+
+std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::string* warning) {
+#ifdef COSTUME_HAVE_CATALOG
+  try {
+    return std::make_unique<DatabaseCatalog>(
+        catalog::Catalog::Open(url.empty() ? catalog::DefaultCatalogUrl() : url));
+  } catch (const sim::InputError& error) {
+    if (warning) *warning = std::string("catalogue not opened: ") + error.what();
+  }
+#else
+  if (warning && !url.empty()) *warning = "this build has no catalogue library; showing built-ins";
+#endif
+  return MakeBuiltInCatalog();
+}
+
+std::vector<FabricPreset> FabricPresets() {
+  std::vector<FabricPreset> presets;
+  for (const char* name : {"stiff_cotton", "blender_cotton"}) {
+    presets.push_back({name, sim::NamedMaterial(name)});
+  }
+  return presets;
+}
+
+}  // namespace costume::frontend

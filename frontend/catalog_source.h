@@ -1,0 +1,54 @@
+#pragma once
+/// @file
+/// What the three thumbnail lists show: costumes, avatars and animations with their
+/// thumbnails. From the catalogue database (catalog/catalog.h) when the build has it; from
+/// the built-in assets otherwise (names only, no thumbnails), so the GUI runs either way.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "frontend/command_sender.h"
+#include "sim_core/cloth/material.h"
+
+namespace costume::frontend {
+
+/// One entry of a list.
+struct CatalogItem {
+  std::int64_t id = 0;                 ///< database id (> 0), or 0 for a built-in by name
+  std::string name;
+  std::string category;                ///< animations: "basic" or "choreography"
+  std::vector<std::uint8_t> thumbnail_png;  ///< empty: no thumbnail
+};
+
+/// A named fabric for the preset combo.
+struct FabricPreset {
+  std::string name;
+  sim::Material material;
+};
+
+/// The lists' source.
+class CatalogSource {
+ public:
+  virtual ~CatalogSource() = default;
+  /// Every entry of `kind`, by name. May throw sim::InputError (database errors).
+  virtual std::vector<CatalogItem> List(EntryKind kind) = 0;
+  /// Where the entries come from, for the window title and the status bar.
+  virtual std::string Describe() const = 0;
+};
+
+/// The built-in assets: the humanoid; the clips of sim::BuiltInClipNames; the skirt, cape and
+/// dress patterns. No thumbnails; ids 0 (LOAD_* by name).
+std::unique_ptr<CatalogSource> MakeBuiltInCatalog();
+
+/// The catalogue at `url` ("" = catalog::DefaultCatalogUrl()) when the build has the
+/// catalogue library and it opens; otherwise the built-in assets, with the reason in
+/// `*warning` (when not null).
+std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::string* warning);
+
+/// The fabric presets for the material panel: the catalogue's fabric presets when the build
+/// has them, the simulation's named materials otherwise.
+std::vector<FabricPreset> FabricPresets();
+
+}  // namespace costume::frontend

@@ -1,0 +1,130 @@
+#include "frontend/child_processes.h"
+
+#include <QDir>
+#include <QFileInfo>
+
+namespace costume::frontend {
+
+QStringList DeviceNames() { return {"simulated", "mouse", "openhaptics", "cybergrasp"}; }
+
+ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
+    : QObject(parent), options_(std::move(options)) {
+  Forward(sim_, "sim_server");
+  Forward(haptic_, "haptic_server");
+  connect(&sim_, &QProcess::finished, this, [this](int code) { emit simServerExited(code); });
+  connect(&haptic_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
+    const QString device = device_;
+    emit deviceChanged(device, false);
+    if (stopping_haptic_) return;
+    // Exited on its own: a device it could not open, an SDK this build lacks (exit 1 or 2).
+    QString message = haptic_output_.trimmed();
+    if (message.isEmpty()) {
+      message = QString("costume_haptic_server exited (%1 %2)")
+                    .arg(status == QProcess::CrashExit ? "crash" : "code")
+                    .arg(code);
+    }
+    emit deviceError(device, message);
+  });
+  connect(&haptic_, &QProcess::errorOccurred, this, [this](QProcess::ProcessError error) {
+    if (error == QProcess::FailedToStart) {
+      emit deviceError(device_, "cannot start " + HapticServerPath() + ": " + haptic_.errorString());
+    }
+  });
+}
+
+ChildProcesses::~ChildProcesses() { StopAll(); }
+
+void ChildProcesses::Forward(QProcess& process, const QString& name) {
+  process.setProcessChannelMode(QProcess::MergedChannels);
+  connect(&process, &QProcess::readyRead, this, [this, &process, name] {
+    while (process.canReadLine()) {
+      const QString line = QString::fromUtf8(process.readLine()).trimmed();
+      if (&process == &haptic_) haptic_output_ += line + "\n";
+      emit output(name, line);
+    }
+  });
+}
+
+QString ChildProcesses::SimServerPath() const {
+  return QDir(options_.bin_dir).filePath("sim_core/app/costume_sim_server");
+}
+
+QString ChildProcesses::HapticServerPath() const {
+  return QDir(options_.bin_dir).filePath("haptic_server/costume_haptic_server");
+}
+
+QStringList ChildProcesses::SimServerArguments() const {
+  QStringList args;
+  if (options_.scene_file.isEmpty()) {
+    args << "--builtin" << options_.builtin;
+  } else {
+    args << "--scene" << options_.scene_file;
+  }
+  if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
+  if (options_.editing) args << "--editing";
+  return args;
+}
+
+QStringList ChildProcesses::HapticServerArguments(const QString& device) const {
+  QStringList args{"--device", device, "--radius", QString::number(options_.radius)};
+  if (device == "simulated") args << "--trajectory" << options_.trajectory;
+  if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
+  return args;
+}
+
+bool ChildProcesses::StartSimServer(QString* error) {
+  if (sim_running()) return true;
+  if (!QFileInfo(SimServerPath()).isExecutable()) {
+    if (error) *error = "no simulation server at " + SimServerPath() + " (build it first)";
+    return false;
+  }
+  sim_.start(SimServerPath(), SimServerArguments());
+  if (!sim_.waitForStarted(5000)) {
+    if (error) *error = "cannot start " + SimServerPath() + ": " + sim_.errorString();
+    return false;
+  }
+  return true;
+}
+
+bool ChildProcesses::ConnectDevice(const QString& device, QString* error) {
+  DisconnectDevice();
+  if (!DeviceNames().contains(device)) {
+    if (error) *error = "unknown device '" + device + "': allowed " + DeviceNames().join(", ");
+    return false;
+  }
+  if (!QFileInfo(HapticServerPath()).isExecutable()) {
+    if (error) *error = "no haptic server at " + HapticServerPath() + " (build it first)";
+    return false;
+  }
+  device_ = device;
+  haptic_output_.clear();
+  stopping_haptic_ = false;
+  haptic_.start(HapticServerPath(), HapticServerArguments(device));
+  if (!haptic_.waitForStarted(5000)) {
+    if (error) *error = "cannot start " + HapticServerPath() + ": " + haptic_.errorString();
+    return false;
+  }
+  emit deviceChanged(device, true);
+  return true;
+}
+
+void ChildProcesses::Stop(QProcess& process) {
+  if (process.state() == QProcess::NotRunning) return;
+  process.terminate();  // SIGTERM: both servers stop cleanly (the grab fades out first)
+  if (!process.waitForFinished(3000)) {
+    process.kill();
+    process.waitForFinished(1000);
+  }
+}
+
+void ChildProcesses::DisconnectDevice() {
+  stopping_haptic_ = true;
+  Stop(haptic_);
+}
+
+void ChildProcesses::StopAll() {
+  DisconnectDevice();
+  Stop(sim_);
+}
+
+}  // namespace costume::frontend

@@ -1,0 +1,81 @@
+#pragma once
+/// @file
+/// The processes the GUI owns: the simulation server and the haptic server, started as child
+/// QProcesses and stopped (SIGTERM, then SIGKILL after 3 s) when the window closes. The
+/// device menu connects a device by starting `costume_haptic_server --device <x>` and
+/// disconnects it by stopping that process; a device whose SDK this build lacks makes the
+/// server exit at once with its error, which is reported (deviceError).
+
+#include <QObject>
+#include <QProcess>
+#include <QString>
+#include <QStringList>
+
+namespace costume::frontend {
+
+/// Where the programs are and what they are told.
+struct ServerOptions {
+  QString bin_dir;           ///< build directory holding sim_core/app/ and haptic_server/
+  QString lcm_url;           ///< passed as --lcm-url
+  QString builtin = "garment";  ///< --builtin for the simulation server (when scene_file is empty)
+  QString scene_file;        ///< --scene for the simulation server
+  QString trajectory;        ///< --trajectory for the simulated device
+  double radius = 0.05;      ///< --radius of the haptic grab [m]
+  bool editing = false;      ///< start the simulation server in mode B
+};
+
+/// The device menu's devices, as `--device` names them.
+QStringList DeviceNames();
+
+class ChildProcesses : public QObject {
+  Q_OBJECT
+
+ public:
+  explicit ChildProcesses(ServerOptions options, QObject* parent = nullptr);
+  ~ChildProcesses() override;
+
+  /// The programs' paths.
+  QString SimServerPath() const;
+  QString HapticServerPath() const;
+  /// The simulation server's arguments.
+  QStringList SimServerArguments() const;
+  /// The haptic server's arguments for `device` ("simulated", "mouse", "openhaptics",
+  /// "cybergrasp").
+  QStringList HapticServerArguments(const QString& device) const;
+
+  /// Starts the simulation server (once). False with the reason in `*error`.
+  bool StartSimServer(QString* error = nullptr);
+  /// Starts the haptic server for `device`, stopping a running one first.
+  bool ConnectDevice(const QString& device, QString* error = nullptr);
+  /// Stops the haptic server.
+  void DisconnectDevice();
+  /// Stops both (SIGTERM, waits up to 3 s each, then SIGKILL).
+  void StopAll();
+
+  bool sim_running() const { return sim_.state() != QProcess::NotRunning; }
+  bool device_running() const { return haptic_.state() != QProcess::NotRunning; }
+  const QString& device() const { return device_; }
+  ServerOptions& options() { return options_; }
+
+ signals:
+  /// A line the simulation server or haptic server printed (stdout or stderr).
+  void output(const QString& process, const QString& line);
+  /// The haptic server exited on its own (SDK missing, device not found) with its message.
+  void deviceError(const QString& device, const QString& message);
+  /// The haptic server started / stopped.
+  void deviceChanged(const QString& device, bool connected);
+  void simServerExited(int exit_code);
+
+ private:
+  void Forward(QProcess& process, const QString& name);
+  static void Stop(QProcess& process);
+
+  ServerOptions options_;
+  QProcess sim_;
+  QProcess haptic_;
+  QString device_;
+  QString haptic_output_;
+  bool stopping_haptic_ = false;
+};
+
+}  // namespace costume::frontend

@@ -1,0 +1,155 @@
+#include "frontend/command_sender.h"
+
+#include "bus/channels.h"
+#include "bus/receive_filter.h"
+
+namespace costume::frontend {
+namespace {
+
+using Command = costume_lcm::command;
+
+/// A command of `kind` with every other field zero, except grab_id (-1: "no grab", the
+/// value ELIMINATE_STRETCH reads as "use the sphere").
+Command Blank(std::int8_t kind) {
+  Command message{};
+  message.kind = kind;
+  message.grab_id = -1;
+  message.num_joints = 0;
+  return message;
+}
+
+std::int8_t MethodOf(sim::SolverMethod method) {
+  switch (method) {
+    case sim::SolverMethod::kPcg: return costume_lcm::solver_parameters::METHOD_PCG;
+    case sim::SolverMethod::kHierarchical: return costume_lcm::solver_parameters::METHOD_HIERARCHICAL;
+    case sim::SolverMethod::kMultigrid: return costume_lcm::solver_parameters::METHOD_MULTIGRID;
+    case sim::SolverMethod::kDirect: return costume_lcm::solver_parameters::METHOD_DIRECT;
+  }
+  return costume_lcm::solver_parameters::METHOD_PCG;
+}
+
+}  // namespace
+
+costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings) {
+  costume_lcm::solver_parameters p{};
+  p.method = MethodOf(settings.method);
+  p.levels = settings.levels;
+  p.tolerance = settings.tolerance;
+  p.max_iterations = settings.max_iterations;
+  p.substeps = settings.substeps;
+  p.strain_limit = settings.strain_limit;
+  return p;
+}
+
+costume_lcm::material_parameters ToMessage(const sim::Material& material) {
+  costume_lcm::material_parameters p{};
+  p.name = material.name;
+  p.density = material.density;
+  p.stretch_stiffness = material.stretch_stiffness;
+  p.shear_stiffness = material.shear_stiffness;
+  p.bending_rigidity = material.bending_rigidity;
+  p.damping = material.damping;
+  p.air_drag = material.air_drag;
+  p.friction = material.friction;
+  p.structural_spring_k = material.structural_spring_k;
+  p.shear_spring_k = material.shear_spring_k;
+  p.bending_spring_k = material.bending_spring_k;
+  return p;
+}
+
+CommandSender::CommandSender(bus::MessageBus& bus)
+    : commands_(bus, bus::kCommandChannel), pointer_(bus, bus::kPointerChannel) {}
+
+bool CommandSender::Send(Command& message) {
+  message.utime = bus::NowUtime();
+  return commands_.Publish(message);
+}
+
+bool CommandSender::Load(EntryKind kind, std::int64_t database_id, const std::string& name) {
+  static constexpr std::int8_t kKinds[] = {Command::KIND_LOAD_AVATAR, Command::KIND_LOAD_COSTUME,
+                                           Command::KIND_LOAD_ANIMATION};
+  Command message = Blank(kKinds[static_cast<int>(kind)]);
+  message.database_id = database_id > 0 ? database_id : 0;
+  message.name = name;
+  return Send(message);
+}
+
+bool CommandSender::SetMode(bool editing) {
+  Command message = Blank(Command::KIND_SET_MODE);
+  message.mode = editing ? Command::MODE_EDITING : Command::MODE_ANIMATION;
+  return Send(message);
+}
+
+bool CommandSender::Play() {
+  Command message = Blank(Command::KIND_PLAY);
+  return Send(message);
+}
+
+bool CommandSender::Pause() {
+  Command message = Blank(Command::KIND_PAUSE);
+  return Send(message);
+}
+
+bool CommandSender::Stop() {
+  Command message = Blank(Command::KIND_STOP);
+  return Send(message);
+}
+
+bool CommandSender::SetMaterial(int garment, const sim::Material& material) {
+  Command message = Blank(Command::KIND_SET_MATERIAL);
+  message.garment = garment;
+  message.material = ToMessage(material);
+  return Send(message);
+}
+
+bool CommandSender::SetSolver(const sim::SolverSettings& settings) {
+  Command message = Blank(Command::KIND_SET_SOLVER);
+  message.solver = ToMessage(settings);
+  return Send(message);
+}
+
+bool CommandSender::EliminateStretch(const Eigen::Vector3d& centre, double radius) {
+  Command message = Blank(Command::KIND_ELIMINATE_STRETCH);
+  for (int i = 0; i < 3; ++i) message.centre[i] = centre[i];
+  message.radius = radius;
+  return Send(message);
+}
+
+bool CommandSender::Undo() {
+  Command message = Blank(Command::KIND_UNDO);
+  return Send(message);
+}
+
+bool CommandSender::Redo() {
+  Command message = Blank(Command::KIND_REDO);
+  return Send(message);
+}
+
+bool CommandSender::SaveVersion(const std::string& label) {
+  Command message = Blank(Command::KIND_SAVE_VERSION);
+  message.name = label;
+  return Send(message);
+}
+
+bool CommandSender::SetPosture(const std::vector<JointAngles>& joints, double heading_degrees) {
+  Command message = Blank(Command::KIND_SET_POSTURE);
+  message.num_joints = static_cast<std::int16_t>(joints.size());
+  for (const JointAngles& joint : joints) {
+    message.joint_names.push_back(joint.joint);
+    message.joint_angles.push_back({joint.degrees.x(), joint.degrees.y(), joint.degrees.z()});
+  }
+  message.heading_degrees = heading_degrees;
+  return Send(message);
+}
+
+bool CommandSender::Pointer(const Eigen::Vector3d& position, std::int32_t buttons,
+                            bool inside_view) {
+  costume_lcm::pointer_sample sample{};
+  sample.utime = bus::NowUtime();
+  for (int i = 0; i < 3; ++i) sample.position[i] = position[i];
+  sample.buttons = buttons;
+  sample.inside_view = inside_view;
+  return pointer_.Publish(sample);
+}
+
+}  // namespace costume::frontend

@@ -1,0 +1,77 @@
+#pragma once
+/// @file
+/// Everything the GUI sends: commands to the simulation server on COSTUME_COMMAND
+/// (lcm_types/command.lcm) and the mouse as a haptic device on COSTUME_POINTER
+/// (lcm_types/pointer_sample.lcm). One method per command, filling exactly the fields its
+/// kind reads and leaving the others zero. Call from the GUI thread only (the publishers
+/// number their messages).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bus/message_bus.h"
+#include "bus/typed_bus.h"
+#include "lcm_types/costume_lcm/command.hpp"
+#include "lcm_types/costume_lcm/pointer_sample.hpp"
+#include "sim_core/cloth/material.h"
+#include "sim_core/scene/scene_description.h"
+
+namespace costume::frontend {
+
+/// What the lists load (command KIND_LOAD_AVATAR / _COSTUME / _ANIMATION).
+enum class EntryKind { kAvatar, kCostume, kAnimation };
+
+/// One joint's rotation of the avatar's posture: about the joint's rest x, y, z axes, in
+/// that order [degrees], as [avatar.posture] in scene files.
+struct JointAngles {
+  std::string joint;  ///< H-Anim joint name, e.g. "l_shoulder"
+  Eigen::Vector3d degrees = Eigen::Vector3d::Zero();
+};
+
+/// The solver fields of command.solver, as sim::SolverSettings.
+costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings);
+/// The fabric fields of command.material, as sim::Material.
+costume_lcm::material_parameters ToMessage(const sim::Material& material);
+
+/// Publishes the GUI's commands and pointer samples on `bus`.
+class CommandSender {
+ public:
+  /// `bus` must outlive the sender.
+  explicit CommandSender(bus::MessageBus& bus);
+
+  /// LOAD_*: by database id (> 0), else by name. False when the bus refused the message.
+  bool Load(EntryKind kind, std::int64_t database_id, const std::string& name);
+  /// SET_MODE: `editing` false = MODE_ANIMATION (mode A), true = MODE_EDITING (mode B).
+  bool SetMode(bool editing);
+  bool Play();
+  bool Pause();
+  bool Stop();
+  /// SET_MATERIAL for garment `garment` (-1 = every garment).
+  bool SetMaterial(int garment, const sim::Material& material);
+  bool SetSolver(const sim::SolverSettings& settings);
+  /// ELIMINATE_STRETCH over the sphere (`centre` [m], `radius` [m] > 0), grab_id = -1.
+  bool EliminateStretch(const Eigen::Vector3d& centre, double radius);
+  bool Undo();
+  bool Redo();
+  /// SAVE_VERSION with `label` as the version's label.
+  bool SaveVersion(const std::string& label);
+  /// SET_POSTURE: the listed joints' rotations and the avatar's heading about +y [degrees].
+  bool SetPosture(const std::vector<JointAngles>& joints, double heading_degrees);
+
+  /// A pointer sample: `position` [m] in the scene frame, `buttons` bit 0 grab, bit 1
+  /// eliminate stretch; `inside_view` false when the pointer left the view.
+  bool Pointer(const Eigen::Vector3d& position, std::int32_t buttons, bool inside_view);
+
+  /// Commands published so far (the next command's seq).
+  std::int64_t commands_sent() const { return commands_.next_seq(); }
+
+ private:
+  bool Send(costume_lcm::command& message);
+
+  bus::Publisher<costume_lcm::command> commands_;
+  bus::Publisher<costume_lcm::pointer_sample> pointer_;
+};
+
+}  // namespace costume::frontend

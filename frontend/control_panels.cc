@@ -1,0 +1,238 @@
+#include "frontend/control_panels.h"
+
+#include <QFormLayout>
+#include <QGridLayout>
+#include <QLabel>
+#include <cmath>
+
+namespace costume::frontend {
+namespace {
+
+QDoubleSpinBox* Field(const FieldRange& range, int decimals, const QString& unit,
+                      const QString& tip) {
+  auto* box = new QDoubleSpinBox;
+  box->setDecimals(decimals);
+  box->setRange(range.minimum, range.maximum);
+  box->setSuffix(" " + unit);
+  box->setToolTip(tip + QString(" [%1 … %2 %3]").arg(range.minimum).arg(range.maximum).arg(unit));
+  box->setKeyboardTracking(false);
+  return box;
+}
+
+/// True when `value` is finite and inside the box's range; else the reason in `*reason`.
+bool Fits(const QDoubleSpinBox* box, double value, const QString& field, QString* reason) {
+  if (std::isfinite(value) && value >= box->minimum() && value <= box->maximum()) return true;
+  if (reason) {
+    *reason = QString("%1 = %2: allowed range [%3, %4]%5")
+                  .arg(field)
+                  .arg(value)
+                  .arg(box->minimum())
+                  .arg(box->maximum())
+                  .arg(box->suffix());
+  }
+  return false;
+}
+
+bool FitsInt(const QSpinBox* box, int value, const QString& field, QString* reason) {
+  if (value >= box->minimum() && value <= box->maximum()) return true;
+  if (reason) {
+    *reason = QString("%1 = %2: allowed range [%3, %4]")
+                  .arg(field)
+                  .arg(value)
+                  .arg(box->minimum())
+                  .arg(box->maximum());
+  }
+  return false;
+}
+
+}  // namespace
+
+// ---- MaterialPanel --------------------------------------------------------------------------
+
+MaterialPanel::MaterialPanel(std::vector<FabricPreset> presets, QWidget* parent)
+    : QGroupBox("Fabric", parent), presets_(std::move(presets)) {
+  const FabricRanges r = ranges();
+  density = Field(r.density, 3, "kg/m²", "Mass per area");
+  stretch = Field(r.stretch, 1, "N/m", "Sheet stretch stiffness");
+  shear = Field(r.shear, 1, "N/m", "Sheet shear stiffness");
+  bending = Field(r.bending, 8, "N·m", "Bending rigidity");
+  damping = Field(r.damping, 5, "s", "Spring damping time (c = damping · k)");
+  friction = Field(r.friction, 2, "", "Coulomb friction against the body");
+  air_drag = Field(r.air_drag, 3, "N·s/m³", "Air drag per m² of cloth");
+  preset = new QComboBox;
+  preset->addItem("custom");
+  for (const FabricPreset& p : presets_) preset->addItem(QString::fromStdString(p.name));
+  apply = new QPushButton("Apply fabric");
+  auto* form = new QFormLayout(this);
+  form->addRow("Preset", preset);
+  form->addRow("Mass per area", density);
+  form->addRow("Stretch stiffness", stretch);
+  form->addRow("Shear stiffness", shear);
+  form->addRow("Bending rigidity", bending);
+  form->addRow("Damping", damping);
+  form->addRow("Friction", friction);
+  form->addRow("Air drag", air_drag);
+  form->addRow(apply);
+  SetMaterial(sim::Material{});
+  connect(preset, &QComboBox::currentIndexChanged, this, [this](int index) {
+    if (index >= 1) {
+      SetMaterial(presets_[static_cast<std::size_t>(index - 1)].material);
+      name_ = QString::fromStdString(presets_[static_cast<std::size_t>(index - 1)].name);
+    }
+  });
+  connect(apply, &QPushButton::clicked, this, [this] { emit materialRequested(material()); });
+}
+
+sim::Material MaterialPanel::material() const {
+  sim::Material m;
+  m.name = name_.toStdString();
+  m.density = density->value();
+  m.stretch_stiffness = stretch->value();
+  m.shear_stiffness = shear->value();
+  m.bending_rigidity = bending->value();
+  m.damping = damping->value();
+  m.friction = friction->value();
+  m.air_drag = air_drag->value();
+  return m;
+}
+
+bool MaterialPanel::SetMaterial(const sim::Material& m, QString* reason) {
+  if (!Fits(density, m.density, "density", reason) ||
+      !Fits(stretch, m.stretch_stiffness, "stretch_stiffness", reason) ||
+      !Fits(shear, m.shear_stiffness, "shear_stiffness", reason) ||
+      !Fits(bending, m.bending_rigidity, "bending_rigidity", reason) ||
+      !Fits(damping, m.damping, "damping", reason) ||
+      !Fits(friction, m.friction, "friction", reason) ||
+      !Fits(air_drag, m.air_drag, "air_drag", reason)) {
+    return false;
+  }
+  density->setValue(m.density);
+  stretch->setValue(m.stretch_stiffness);
+  shear->setValue(m.shear_stiffness);
+  bending->setValue(m.bending_rigidity);
+  damping->setValue(m.damping);
+  friction->setValue(m.friction);
+  air_drag->setValue(m.air_drag);
+  name_ = QString::fromStdString(m.name);
+  return true;
+}
+
+// ---- SolverPanel ----------------------------------------------------------------------------
+
+SolverPanel::SolverPanel(QWidget* parent) : QGroupBox("Solver", parent) {
+  method = new QComboBox;
+  method->addItems({"Flat PCG", "Hierarchical (pyramid)", "Multigrid PCG", "Direct (Cholesky)"});
+  levels = new QSpinBox;
+  levels->setRange(0, 12);
+  levels->setSpecialValueText("all");
+  levels->setToolTip("Pyramid levels counting level 0; 'all' = as many as the cloth allows");
+  tolerance = Field({1e-6, 0.5}, 6, "", "PCG relative residual tolerance");
+  max_iterations = new QSpinBox;
+  max_iterations->setRange(1, 100000);
+  substeps = new QSpinBox;
+  substeps->setRange(1, 64);
+  substeps->setToolTip("Implicit steps per 1/60 s frame");
+  strain_limit = Field({0.0, 10.0}, 3, "", "Largest strain after a step; 0 = off");
+  apply = new QPushButton("Apply solver");
+  auto* form = new QFormLayout(this);
+  form->addRow("Method", method);
+  form->addRow("Levels", levels);
+  form->addRow("Tolerance", tolerance);
+  form->addRow("Iteration cap", max_iterations);
+  form->addRow("Substeps", substeps);
+  form->addRow("Strain limit", strain_limit);
+  form->addRow(apply);
+  SetSettings(sim::SolverSettings{});
+  connect(method, &QComboBox::currentIndexChanged, this, [this] { UpdateEnabled(); });
+  connect(apply, &QPushButton::clicked, this, [this] { emit solverRequested(settings()); });
+}
+
+void SolverPanel::UpdateEnabled() {
+  const auto m = static_cast<sim::SolverMethod>(method->currentIndex());
+  levels->setEnabled(m == sim::SolverMethod::kHierarchical || m == sim::SolverMethod::kMultigrid);
+  tolerance->setEnabled(m != sim::SolverMethod::kDirect);
+  max_iterations->setEnabled(m != sim::SolverMethod::kDirect);
+}
+
+sim::SolverSettings SolverPanel::settings() const {
+  sim::SolverSettings s;
+  s.method = static_cast<sim::SolverMethod>(method->currentIndex());
+  s.levels = levels->value();
+  s.tolerance = tolerance->value();
+  s.max_iterations = max_iterations->value();
+  s.substeps = substeps->value();
+  s.strain_limit = strain_limit->value();
+  return s;
+}
+
+bool SolverPanel::SetSettings(const sim::SolverSettings& s, QString* reason) {
+  if (!FitsInt(levels, s.levels, "levels", reason) ||
+      !Fits(tolerance, s.tolerance, "tolerance", reason) ||
+      !FitsInt(max_iterations, s.max_iterations, "max_iterations", reason) ||
+      !FitsInt(substeps, s.substeps, "substeps", reason) ||
+      !Fits(strain_limit, s.strain_limit, "strain_limit", reason)) {
+    return false;
+  }
+  method->setCurrentIndex(static_cast<int>(s.method));
+  levels->setValue(s.levels);
+  tolerance->setValue(s.tolerance);
+  max_iterations->setValue(s.max_iterations);
+  substeps->setValue(s.substeps);
+  strain_limit->setValue(s.strain_limit);
+  UpdateEnabled();
+  return true;
+}
+
+// ---- PosturePanel ---------------------------------------------------------------------------
+
+const std::vector<std::string>& PostureJoints() {
+  static const std::vector<std::string> joints = {
+      "l_shoulder", "r_shoulder", "l_elbow", "r_elbow", "l_hip",
+      "r_hip",      "l_knee",     "r_knee",  "vl5",     "skullbase"};
+  return joints;
+}
+
+PosturePanel::PosturePanel(QWidget* parent) : QGroupBox("Avatar posture", parent) {
+  auto* grid = new QGridLayout(this);
+  grid->addWidget(new QLabel("joint"), 0, 0);
+  grid->addWidget(new QLabel("about x"), 0, 1);
+  grid->addWidget(new QLabel("about y"), 0, 2);
+  grid->addWidget(new QLabel("about z"), 0, 3);
+  int row = 1;
+  for (const std::string& joint : PostureJoints()) {
+    grid->addWidget(new QLabel(QString::fromStdString(joint)), row, 0);
+    std::array<QDoubleSpinBox*, 3> boxes{};
+    for (int axis = 0; axis < 3; ++axis) {
+      boxes[axis] = Field({-180.0, 180.0}, 1, "°", "Rotation about the joint's rest axis");
+      grid->addWidget(boxes[axis], row, axis + 1);
+    }
+    angles_.push_back(boxes);
+    ++row;
+  }
+  heading_ = Field({-180.0, 180.0}, 1, "°", "The avatar's turn about the vertical axis");
+  grid->addWidget(new QLabel("heading"), row, 0);
+  grid->addWidget(heading_, row, 1);
+  apply = new QPushButton("Apply posture");
+  grid->addWidget(apply, row + 1, 0, 1, 4);
+  connect(apply, &QPushButton::clicked, this,
+          [this] { emit postureRequested(joints(), heading()); });
+}
+
+std::vector<JointAngles> PosturePanel::joints() const {
+  std::vector<JointAngles> out;
+  for (std::size_t i = 0; i < angles_.size(); ++i) {
+    out.push_back({PostureJoints()[i], Eigen::Vector3d(angles_[i][0]->value(),
+                                                       angles_[i][1]->value(),
+                                                       angles_[i][2]->value())});
+  }
+  return out;
+}
+
+QDoubleSpinBox* PosturePanel::angle(const std::string& joint, int axis) const {
+  for (std::size_t i = 0; i < angles_.size(); ++i) {
+    if (PostureJoints()[i] == joint) return angles_[i][static_cast<std::size_t>(axis)];
+  }
+  return nullptr;
+}
+
+}  // namespace costume::frontend

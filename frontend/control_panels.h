@@ -1,0 +1,123 @@
+#pragma once
+/// @file
+/// The parameter panels of the main window: fabric, solver and the avatar's posture. Each
+/// holds validated fields with units and emits one request signal when the designer applies
+/// it; the window turns requests into commands (command_sender.h). Ranges are physical
+/// ranges (docs/frontend.md): a spin box refuses a typed value outside its range, and the
+/// Set* methods refuse (returning false with the reason) values outside it too.
+
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QGroupBox>
+#include <QPushButton>
+#include <QSpinBox>
+#include <QString>
+#include <vector>
+
+#include "frontend/catalog_source.h"
+#include "frontend/command_sender.h"
+#include "sim_core/cloth/material.h"
+#include "sim_core/scene/scene_description.h"
+
+namespace costume::frontend {
+
+/// Range of one physical field [its unit].
+struct FieldRange {
+  double minimum = 0.0;
+  double maximum = 1.0;
+};
+
+/// The fabric's ranges: mass per area, stretch, shear, bending, damping, friction, air drag.
+struct FabricRanges {
+  FieldRange density{0.01, 2.0};              ///< [kg/m²]: organza 0.02 … heavy leather 1.5
+  FieldRange stretch{1.0, 1e6};               ///< [N/m]
+  FieldRange shear{1.0, 1e6};                 ///< [N/m]
+  FieldRange bending{0.0, 1e-2};              ///< [N·m]
+  FieldRange damping{0.0, 0.1};               ///< [s]
+  FieldRange friction{0.0, 2.0};              ///< [-]
+  FieldRange air_drag{0.0, 1.0};              ///< [N·s/m per m²]
+};
+
+/// Fabric fields, a preset combo and Apply (KIND_SET_MATERIAL for every garment).
+class MaterialPanel : public QGroupBox {
+  Q_OBJECT
+
+ public:
+  MaterialPanel(std::vector<FabricPreset> presets, QWidget* parent = nullptr);
+  /// The fabric the fields show.
+  sim::Material material() const;
+  /// Shows `material`; false (fields unchanged) with the reason when a value is outside its
+  /// range or not finite.
+  bool SetMaterial(const sim::Material& material, QString* reason = nullptr);
+  static FabricRanges ranges() { return {}; }
+
+  QDoubleSpinBox* density = nullptr;
+  QDoubleSpinBox* stretch = nullptr;
+  QDoubleSpinBox* shear = nullptr;
+  QDoubleSpinBox* bending = nullptr;
+  QDoubleSpinBox* damping = nullptr;
+  QDoubleSpinBox* friction = nullptr;
+  QDoubleSpinBox* air_drag = nullptr;
+  QComboBox* preset = nullptr;
+  QPushButton* apply = nullptr;
+
+ signals:
+  void materialRequested(const sim::Material& material);
+
+ private:
+  std::vector<FabricPreset> presets_;
+  QString name_ = "custom";
+};
+
+/// Solver method, pyramid levels, tolerance, iteration cap, substeps; Apply (KIND_SET_SOLVER).
+class SolverPanel : public QGroupBox {
+  Q_OBJECT
+
+ public:
+  explicit SolverPanel(QWidget* parent = nullptr);
+  sim::SolverSettings settings() const;
+  /// Shows `settings`; false with the reason for a value outside the fields' ranges.
+  bool SetSettings(const sim::SolverSettings& settings, QString* reason = nullptr);
+
+  QComboBox* method = nullptr;
+  QSpinBox* levels = nullptr;
+  QDoubleSpinBox* tolerance = nullptr;
+  QSpinBox* max_iterations = nullptr;
+  QSpinBox* substeps = nullptr;
+  QDoubleSpinBox* strain_limit = nullptr;
+  QPushButton* apply = nullptr;
+
+ signals:
+  void solverRequested(const sim::SolverSettings& settings);
+
+ private:
+  void UpdateEnabled();
+};
+
+/// The H-Anim joints the posture panel offers.
+const std::vector<std::string>& PostureJoints();
+
+/// Angles of a few major joints and the heading; Apply (KIND_SET_POSTURE).
+class PosturePanel : public QGroupBox {
+  Q_OBJECT
+
+ public:
+  explicit PosturePanel(QWidget* parent = nullptr);
+  /// Every offered joint with its angles (zero rows included: they reset the joint).
+  std::vector<JointAngles> joints() const;
+  double heading() const { return heading_->value(); }
+  /// The spin box of `joint`'s rotation about rest axis `axis` (0 x, 1 y, 2 z).
+  QDoubleSpinBox* angle(const std::string& joint, int axis) const;
+  QDoubleSpinBox* heading_box() const { return heading_; }
+  QPushButton* apply = nullptr;
+
+ signals:
+  void postureRequested(const std::vector<costume::frontend::JointAngles>& joints,
+                        double heading_degrees);
+
+ private:
+  std::vector<std::array<QDoubleSpinBox*, 3>> angles_;
+  QDoubleSpinBox* heading_ = nullptr;
+};
+
+}  // namespace costume::frontend

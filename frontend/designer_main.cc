@@ -1,0 +1,98 @@
+/// @file
+/// costume_designer: the Qt front-end (docs/frontend.md). Starts the simulation server and
+/// the haptic server with the chosen device as child processes (unless --no-servers), talks
+/// to them over LCM, and stops them when the window closes.
+
+#include <CLI/CLI.hpp>
+#include <QApplication>
+#include <QMessageBox>
+#include <cstdio>
+#include <memory>
+
+#include "bus/lcm_bus.h"
+#include "frontend/main_window.h"
+#include "sim_core/common/input_error.h"
+
+namespace {
+
+struct Arguments {
+  std::string lcm_url = costume::bus::kDefaultLcmUrl;
+  std::string builtin = "garment";
+  std::string scene;
+  std::string device = "mouse";
+  std::string catalog;
+  std::string bin_dir = COSTUME_BUILD_DIR;
+  std::string trajectory = std::string(COSTUME_SOURCE_DIR) + "/scenes/haptics/press_and_pull.traj";
+  double radius = 0.05;
+  bool no_servers = false;
+  bool editing = false;
+  bool allow_network = false;
+};
+
+int Run(QApplication& app, const Arguments& args) {
+  using namespace costume;
+  bus::LcmBus bus(args.lcm_url,
+                  args.allow_network ? bus::Reach::kNetwork : bus::Reach::kThisHost);
+  frontend::FrontendOptions options;
+  options.builtin = args.builtin;
+  options.scene_file = args.scene;
+  options.start_sim_server = !args.no_servers;
+  options.device = args.no_servers || args.device == "none" ? QString()
+                                                            : QString::fromStdString(args.device);
+  options.servers.bin_dir = QString::fromStdString(args.bin_dir);
+  options.servers.lcm_url = QString::fromStdString(bus.url());
+  options.servers.builtin = QString::fromStdString(args.builtin);
+  options.servers.scene_file = QString::fromStdString(args.scene);
+  options.servers.trajectory = QString::fromStdString(args.trajectory);
+  options.servers.radius = args.radius;
+  options.servers.editing = args.editing;
+  std::string warning;
+  auto catalog = frontend::OpenCatalogSource(args.catalog, &warning);
+  frontend::MainWindow window(bus, options, std::move(catalog));
+  if (!warning.empty()) window.Log(QString::fromStdString(warning));
+  window.resize(1280, 860);
+  window.show();
+  window.StartBusThread();
+  window.StartChildren();
+  return app.exec();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  QApplication app(argc, argv);
+  CLI::App cli{"costume_designer: the Costume Designer workstation GUI (docs/frontend.md)"};
+  Arguments args;
+  cli.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
+  cli.add_flag("--allow-network", args.allow_network,
+               "Accept a URL whose traffic leaves this machine (udpm ttl >= 1)");
+  auto* scene = cli.add_option("--scene", args.scene, "Scene TOML file (server and view)");
+  cli.add_option("--builtin", args.builtin, "Built-in scene: garment, demo, hang, drape")
+      ->excludes(scene)
+      ->capture_default_str();
+  cli.add_option("--device", args.device,
+                 "Device to connect at start: none, simulated, mouse, openhaptics, cybergrasp")
+      ->check(CLI::IsMember({"none", "simulated", "mouse", "openhaptics", "cybergrasp"}))
+      ->capture_default_str();
+  cli.add_option("--trajectory", args.trajectory, "Trajectory of the simulated device")
+      ->capture_default_str();
+  cli.add_option("--radius", args.radius, "Grab radius [m]")->check(CLI::Range(0.005, 0.5));
+  cli.add_option("--catalog", args.catalog, "Catalogue URL (default: $COSTUME_CATALOG or the "
+                                            "per-user SQLite file)");
+  cli.add_option("--bin-dir", args.bin_dir, "Build directory holding the server programs")
+      ->capture_default_str();
+  cli.add_flag("--no-servers", args.no_servers,
+               "Start no server: connect to processes already on the bus");
+  cli.add_flag("--editing", args.editing, "Start in editing mode (mode B)");
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    return cli.exit(error);
+  }
+  try {
+    return Run(app, args);
+  } catch (const costume::sim::InputError& error) {
+    std::fprintf(stderr, "costume_designer: %s\n", error.what());
+    return 2;
+  }
+}

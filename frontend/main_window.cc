@@ -1,0 +1,475 @@
+#include "frontend/main_window.h"
+
+#include <QButtonGroup>
+#include <QCloseEvent>
+#include <QDateTime>
+#include <QDockWidget>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QMenuBar>
+#include <QPixmap>
+#include <QScrollArea>
+#include <QStatusBar>
+#include <QTabWidget>
+#include <QToolBar>
+#include <QVBoxLayout>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::frontend {
+namespace {
+
+using Status = costume_lcm::status;
+
+const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
+constexpr int kIdRole = Qt::UserRole;
+constexpr int kNameRole = Qt::UserRole + 1;
+
+QString PlaybackName(std::int8_t playback) {
+  switch (playback) {
+    case Status::PLAYBACK_PLAYING: return "playing";
+    case Status::PLAYBACK_PAUSED: return "paused";
+    default: return "stopped";
+  }
+}
+
+QListWidget* MakeThumbnailList() {
+  auto* list = new QListWidget;
+  list->setViewMode(QListView::IconMode);
+  list->setFlow(QListView::LeftToRight);
+  list->setWrapping(false);  // one row that scrolls sideways
+  list->setIconSize(QSize(96, 96));
+  list->setGridSize(QSize(112, 128));
+  list->setMovement(QListView::Static);
+  list->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOn);
+  list->setFixedHeight(160);
+  return list;
+}
+
+}  // namespace
+
+QString FormatSimStatus(const Status& s) {
+  QString text = QString("sim %1 Hz · %2 it · %3 ms (max %4) · frame %5, %6 s · %7 · %8")
+                     .arg(s.measured_rate, 0, 'f', 1)
+                     .arg(s.solver_iterations)
+                     .arg(s.frame_time_ms, 0, 'f', 1)
+                     .arg(s.max_frame_time_ms, 0, 'f', 1)
+                     .arg(s.frame)
+                     .arg(s.sim_time, 0, 'f', 2)
+                     .arg(PlaybackName(s.playback))
+                     .arg(s.mode == Status::MODE_EDITING ? "editing" : "animation");
+  if (s.undo_depth > 0 || s.redo_depth > 0) {
+    text += QString(" · undo %1 redo %2").arg(s.undo_depth).arg(s.redo_depth);
+  }
+  if (s.overruns > 0) text += QString(" · %1 overruns").arg(s.overruns);
+  return text;
+}
+
+QString FormatHapticStatus(const Status& s) {
+  QString text = QString("haptic %1 Hz · tick %2 ms")
+                     .arg(s.measured_rate, 0, 'f', 0)
+                     .arg(s.frame_time_ms, 0, 'f', 3);
+  if (s.period_p99_us > 0.0) text += QString(" · p99 %1 µs").arg(s.period_p99_us, 0, 'f', 0);
+  if (s.missed_ticks > 0) text += QString(" · %1 missed").arg(s.missed_ticks);
+  return text;
+}
+
+MainWindow::MainWindow(bus::MessageBus& bus, FrontendOptions options,
+                       std::unique_ptr<CatalogSource> catalog, QWidget* parent)
+    : QMainWindow(parent), options_(std::move(options)), catalog_(std::move(catalog)) {
+  mirror_ = std::make_unique<SceneMirror>(LoadScene(options_.builtin, options_.scene_file));
+  sender_ = std::make_unique<CommandSender>(bus);
+  link_ = std::make_unique<BusLink>(bus);
+  setWindowTitle("Costume Designer — " + QString::fromStdString(mirror_->scene().name));
+
+  view_ = new ViewWidget;
+  view_->SetMirror(mirror_.get());
+  setCentralWidget(view_);
+  children_ = new ChildProcesses(options_.servers, this);
+  exporter_ = new FrameExporter(*view_, this);
+
+  auto* lists_dock = new QDockWidget("Catalogue", this);
+  lists_dock->setWidget(BuildLists());
+  lists_dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  addDockWidget(Qt::BottomDockWidgetArea, lists_dock);
+
+  auto* tabs = new QTabWidget;
+  material_ = new MaterialPanel(FabricPresets());
+  solver_ = new SolverPanel;
+  posture_ = new PosturePanel;
+  tabs->addTab(BuildEditing(), "Editing");
+  tabs->addTab(material_, "Fabric");
+  tabs->addTab(solver_, "Solver");
+  tabs->addTab(posture_, "Posture");
+  auto* controls_dock = new QDockWidget("Controls", this);
+  auto* scroll = new QScrollArea;
+  scroll->setWidget(tabs);
+  scroll->setWidgetResizable(true);
+  controls_dock->setWidget(scroll);
+  controls_dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  addDockWidget(Qt::RightDockWidgetArea, controls_dock);
+
+  log_ = new QPlainTextEdit;
+  log_->setReadOnly(true);
+  log_->setMaximumBlockCount(500);
+  auto* log_dock = new QDockWidget("Messages", this);
+  log_dock->setWidget(log_);
+  addDockWidget(Qt::RightDockWidgetArea, log_dock);
+
+  BuildMenus();
+  BuildStatusBar();
+  ConnectSignals();
+  FillLists();
+  if (solver_->SetSettings(mirror_->scene().solver)) {
+    // The fields start at the scene's solver, so Apply without changes is a no-op request.
+  }
+  Log("scene '" + QString::fromStdString(mirror_->scene().name) + "' mirrored: " +
+      QString::number(mirror_->num_particles()) + " particles; catalogue: " +
+      QString::fromStdString(catalog_->Describe()));
+}
+
+MainWindow::~MainWindow() {
+  if (thread_) thread_->Stop();
+}
+
+void MainWindow::StartBusThread() {
+  if (thread_) return;
+  thread_ = std::make_unique<BusThread>(*link_);
+  thread_->start();
+}
+
+void MainWindow::StartChildren() {
+  QString error;
+  if (options_.start_sim_server && !children_->StartSimServer(&error)) Log("error: " + error);
+  if (!options_.device.isEmpty()) {
+    if (QAction* action = device_action(options_.device)) action->setChecked(true);
+    if (!children_->ConnectDevice(options_.device, &error)) Log("error: " + error);
+  }
+}
+
+QWidget* MainWindow::BuildLists() {
+  auto* box = new QWidget;
+  auto* layout = new QHBoxLayout(box);
+  for (int k = 0; k < 3; ++k) {
+    auto* column = new QVBoxLayout;
+    column->addWidget(new QLabel(kListTitles[k]));
+    lists_[k] = MakeThumbnailList();
+    column->addWidget(lists_[k]);
+    load_buttons_[k] = new QPushButton(QString("Load ") + kListTitles[k]);
+    column->addWidget(load_buttons_[k]);
+    layout->addLayout(column);
+  }
+  return box;
+}
+
+void MainWindow::FillLists() {
+  for (int k = 0; k < 3; ++k) {
+    lists_[k]->clear();
+    std::vector<CatalogItem> items;
+    try {
+      items = catalog_->List(static_cast<EntryKind>(k));
+    } catch (const sim::InputError& error) {
+      Log(QString("catalogue: ") + error.what());
+    }
+    for (const CatalogItem& item : items) {
+      QPixmap thumbnail;
+      if (!item.thumbnail_png.empty()) {
+        thumbnail.loadFromData(item.thumbnail_png.data(),
+                               static_cast<uint>(item.thumbnail_png.size()), "PNG");
+      }
+      if (thumbnail.isNull()) {
+        thumbnail = QPixmap(96, 96);
+        thumbnail.fill(QColor(200, 200, 210));
+      }
+      auto* entry = new QListWidgetItem(QIcon(thumbnail), QString::fromStdString(item.name));
+      entry->setData(kIdRole, QVariant::fromValue<qlonglong>(item.id));
+      entry->setData(kNameRole, QString::fromStdString(item.name));
+      if (!item.category.empty()) entry->setToolTip(QString::fromStdString(item.category));
+      lists_[k]->addItem(entry);
+    }
+  }
+}
+
+void MainWindow::LoadSelected(EntryKind kind) {
+  const QListWidgetItem* item = list(kind)->currentItem();
+  if (!item) return;
+  const qlonglong id = item->data(kIdRole).toLongLong();
+  const QString name = item->data(kNameRole).toString();
+  sender_->Load(kind, id, name.toStdString());
+  Log(QString("load %1 '%2' sent").arg(kListTitles[static_cast<int>(kind)]).arg(name));
+}
+
+QWidget* MainWindow::BuildEditing() {
+  auto* box = new QWidget;
+  auto* form = new QFormLayout(box);
+  animation_mode_ = new QRadioButton("Animation (mode A)");
+  editing_mode_ = new QRadioButton("Editing (mode B)");
+  animation_mode_->setChecked(!options_.servers.editing);
+  editing_mode_->setChecked(options_.servers.editing);
+  auto* modes = new QButtonGroup(box);
+  modes->addButton(animation_mode_);
+  modes->addButton(editing_mode_);
+  auto* mode_row = new QHBoxLayout;
+  mode_row->addWidget(animation_mode_);
+  mode_row->addWidget(editing_mode_);
+  form->addRow("Mode", mode_row);
+  radius_ = new QDoubleSpinBox;
+  radius_->setRange(0.005, 0.5);
+  radius_->setDecimals(3);
+  radius_->setSingleStep(0.01);
+  radius_->setSuffix(" m");
+  radius_->setValue(options_.servers.radius);
+  radius_->setKeyboardTracking(false);
+  radius_->setToolTip("Selection sphere radius [0.005 … 0.5 m]; a connected device takes it "
+                      "at its next connect");
+  form->addRow("Selection radius", radius_);
+  stretch_ = new QPushButton("Eliminate stretch energy");
+  form->addRow(stretch_);
+  undo_ = new QPushButton("Undo edit");
+  redo_ = new QPushButton("Redo edit");
+  auto* undo_row = new QHBoxLayout;
+  undo_row->addWidget(undo_);
+  undo_row->addWidget(redo_);
+  form->addRow(undo_row);
+  version_label_ = new QLineEdit;
+  version_label_->setPlaceholderText("label of the new version");
+  save_ = new QPushButton("Save as new version");
+  form->addRow("Version label", version_label_);
+  form->addRow(save_);
+  view_->SetSelectionRadius(radius_->value());
+  view_->SetSelectionVisible(editing_mode_->isChecked());
+  return box;
+}
+
+void MainWindow::BuildMenus() {
+  QMenu* file = menuBar()->addMenu("&File");
+  export_ = file->addAction("Export animation (PNG frames)");
+  export_->setCheckable(true);
+  QAction* shot = file->addAction("Save screenshot");
+  file->addSeparator();
+  QAction* quit = file->addAction("Quit");
+  connect(export_, &QAction::triggered, this, [this] { ToggleExport(); });
+  connect(shot, &QAction::triggered, this, [this] {
+    const QString path = QString("out/screenshot_%1.png")
+                             .arg(QDateTime::currentDateTime().toString("yyyyMMdd_hhmmss"));
+    QDir().mkpath("out");
+    Log(FrameExporter::Screenshot(*view_, path) ? "screenshot " + path
+                                                : "error: cannot write " + path);
+  });
+  connect(quit, &QAction::triggered, this, &QWidget::close);
+
+  QMenu* edit = menuBar()->addMenu("&Edit");
+  connect(edit->addAction("Undo edit"), &QAction::triggered, undo_, &QPushButton::click);
+  connect(edit->addAction("Redo edit"), &QAction::triggered, redo_, &QPushButton::click);
+
+  QToolBar* playback = addToolBar("Playback");
+  play_ = playback->addAction("▶ Play");
+  pause_ = playback->addAction("⏸ Pause");
+  stop_ = playback->addAction("⏹ Stop");
+  QMenu* sim = menuBar()->addMenu("&Simulation");
+  sim->addAction(play_);
+  sim->addAction(pause_);
+  sim->addAction(stop_);
+
+  QMenu* device = menuBar()->addMenu("&Device");
+  devices_ = new QActionGroup(this);
+  const QStringList labels = {"Simulated", "Mouse", "OpenHaptics (Phantom/Touch)", "CyberGrasp"};
+  for (int i = 0; i < DeviceNames().size(); ++i) {
+    QAction* action = device->addAction(labels[i]);
+    action->setCheckable(true);
+    action->setData(DeviceNames()[i]);
+    devices_->addAction(action);
+  }
+  devices_->actions()[1]->setChecked(true);  // the mouse: always there
+  device->addSeparator();
+  connect_device_ = device->addAction("Connect");
+  disconnect_device_ = device->addAction("Disconnect");
+}
+
+QAction* MainWindow::device_action(const QString& device) const {
+  for (QAction* action : devices_->actions()) {
+    if (action->data().toString() == device) return action;
+  }
+  return nullptr;
+}
+
+void MainWindow::BuildStatusBar() {
+  sim_label_ = new QLabel("sim: no status yet");
+  haptic_label_ = new QLabel("haptic: no status yet");
+  device_label_ = new QLabel("device: disconnected");
+  warning_label_ = new QLabel;
+  warning_label_->setStyleSheet("color: #a05000");
+  statusBar()->addWidget(sim_label_);
+  statusBar()->addWidget(haptic_label_);
+  statusBar()->addWidget(device_label_);
+  statusBar()->addWidget(warning_label_, 1);
+}
+
+void MainWindow::ConnectSignals() {
+  connect(link_.get(), &BusLink::clothChunk, this, &MainWindow::OnClothChunk);
+  connect(link_.get(), &BusLink::simStatus, this, &MainWindow::OnSimStatus);
+  connect(link_.get(), &BusLink::hapticStatus, this, &MainWindow::OnHapticStatus);
+  connect(link_.get(), &BusLink::deviceState, this, &MainWindow::OnDeviceState);
+
+  for (int k = 0; k < 3; ++k) {
+    const auto kind = static_cast<EntryKind>(k);
+    connect(lists_[k], &QListWidget::itemDoubleClicked, this, [this, kind] { LoadSelected(kind); });
+    connect(load_buttons_[k], &QPushButton::clicked, this, [this, kind] { LoadSelected(kind); });
+  }
+  connect(material_, &MaterialPanel::materialRequested, this, [this](const sim::Material& m) {
+    sender_->SetMaterial(-1, m);
+  });
+  connect(solver_, &SolverPanel::solverRequested, this, [this](const sim::SolverSettings& s) {
+    sender_->SetSolver(s);
+    Log("solver sent: the server restarts the scene from frame 0 with it");
+  });
+  connect(posture_, &PosturePanel::postureRequested, this,
+          [this](const std::vector<JointAngles>& joints, double heading) {
+            sender_->SetPosture(joints, heading);
+            mirror_->SetPosture(joints, heading);
+            view_->update();
+          });
+  connect(play_, &QAction::triggered, this, [this] { sender_->Play(); });
+  connect(pause_, &QAction::triggered, this, [this] { sender_->Pause(); });
+  connect(stop_, &QAction::triggered, this, [this] { sender_->Stop(); });
+  connect(animation_mode_, &QRadioButton::toggled, this, [this](bool on) {
+    if (!on) return;
+    sender_->SetMode(false);
+    view_->SetSelectionVisible(false);
+  });
+  connect(editing_mode_, &QRadioButton::toggled, this, [this](bool on) {
+    if (!on) return;
+    sender_->SetMode(true);
+    view_->SetSelectionVisible(true);
+  });
+  connect(radius_, &QDoubleSpinBox::valueChanged, this, [this](double r) {
+    view_->SetSelectionRadius(r);
+    children_->options().radius = r;
+  });
+  connect(stretch_, &QPushButton::clicked, this,
+          [this] { sender_->EliminateStretch(StretchCentre(), radius_->value()); });
+  connect(undo_, &QPushButton::clicked, this, [this] { sender_->Undo(); });
+  connect(redo_, &QPushButton::clicked, this, [this] { sender_->Redo(); });
+  connect(save_, &QPushButton::clicked, this, [this] {
+    QString label = version_label_->text().trimmed();
+    if (label.isEmpty()) {
+      label = "edit " + QDateTime::currentDateTime().toString("yyyy-MM-dd hh:mm");
+    }
+    sender_->SaveVersion(label.toStdString());
+    Log("save version '" + label + "' sent");
+  });
+  connect(view_, &ViewWidget::pointerSample, this,
+          [this](const Eigen::Vector3d& p, int buttons, bool inside) {
+            sender_->Pointer(p, buttons, inside);
+          });
+  connect(view_, &ViewWidget::grabStarted, this, [this](const Eigen::Vector3d& p) {
+    last_grab_ = p;
+    if (!editing_mode_->isChecked()) Log("grabs act in editing mode (mode B) only");
+  });
+  connect(view_, &ViewWidget::grabEnded, this, [this](const Eigen::Vector3d& p) { last_grab_ = p; });
+  connect(connect_device_, &QAction::triggered, this, [this] {
+    QString error;
+    const QString device = devices_->checkedAction()->data().toString();
+    if (!children_->ConnectDevice(device, &error)) Log("error: " + error);
+  });
+  connect(disconnect_device_, &QAction::triggered, this, [this] { children_->DisconnectDevice(); });
+  connect(children_, &ChildProcesses::deviceChanged, this,
+          [this](const QString& device, bool connected) {
+            device_label_->setText("device: " + device + (connected ? " connected" : " disconnected"));
+            if (!connected) view_->HideCursor();
+          });
+  connect(children_, &ChildProcesses::deviceError, this,
+          [this](const QString& device, const QString& message) {
+            device_label_->setText("device: " + device + " failed");
+            warning_label_->setText(message.section('\n', -1));
+            Log("device " + device + ": " + message);
+          });
+  connect(children_, &ChildProcesses::output, this,
+          [this](const QString& process, const QString& line) { Log(process + ": " + line); });
+  connect(children_, &ChildProcesses::simServerExited, this,
+          [this](int code) { Log(QString("simulation server exited with code %1").arg(code)); });
+  connect(exporter_, &FrameExporter::videoDone, this, &MainWindow::Log);
+}
+
+void MainWindow::ToggleExport() {
+  if (exporter_->recording()) {
+    Log(exporter_->Finish());
+    export_->setChecked(false);
+    return;
+  }
+  const QString folder = QString("out/export_%1")
+                             .arg(QDateTime::currentDateTime().toString("yyyyMMdd_hhmmss"));
+  QString error;
+  if (!exporter_->Start(folder, &error)) {
+    Log("error: " + error);
+    export_->setChecked(false);
+    return;
+  }
+  export_->setChecked(true);
+  Log("exporting frames to " + folder + " (choose the menu item again to stop)");
+}
+
+Eigen::Vector3d MainWindow::StretchCentre() const {
+  if (last_grab_) return *last_grab_;
+  if (last_cursor_) return *last_cursor_;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  const auto& cloth = view_->cloth_positions();
+  for (const Eigen::Vector3f& p : cloth) sum += p.cast<double>();
+  return cloth.empty() ? sum : Eigen::Vector3d(sum / static_cast<double>(cloth.size()));
+}
+
+void MainWindow::OnClothChunk(const costume_lcm::cloth_frame& chunk) {
+  std::optional<ClothFrame> frame = assembler_.Add(chunk);
+  if (!frame) return;
+  if (static_cast<int>(frame->positions.size()) != mirror_->num_particles()) {
+    if (!warned_mismatch_) {
+      warned_mismatch_ = true;
+      Log(QString("the server runs %1 particles, the view mirrors %2 ('%3'): the cloth is not "
+                  "drawn until the scenes match")
+              .arg(frame->positions.size())
+              .arg(mirror_->num_particles())
+              .arg(QString::fromStdString(mirror_->scene().name)));
+    }
+    return;
+  }
+  mirror_->Follow(*frame);
+  view_->SetFrame(*frame);
+  last_frame_ = std::move(frame);
+}
+
+void MainWindow::ShowWarnings(const Status& status, const QString& process) {
+  for (const std::string& warning : status.warnings) {
+    warning_label_->setText(process + ": " + QString::fromStdString(warning));
+    Log(process + " warning: " + QString::fromStdString(warning));
+  }
+}
+
+void MainWindow::OnSimStatus(const Status& status) {
+  sim_label_->setText(FormatSimStatus(status));
+  ShowWarnings(status, "sim");
+}
+
+void MainWindow::OnHapticStatus(const Status& status) {
+  haptic_label_->setText(FormatHapticStatus(status));
+  ShowWarnings(status, "haptic");
+}
+
+void MainWindow::OnDeviceState(const costume_lcm::device_state& state) {
+  const Eigen::Vector3d position(state.position[0], state.position[1], state.position[2]);
+  const Eigen::Quaterniond q(state.orientation[0], state.orientation[1], state.orientation[2],
+                             state.orientation[3]);
+  if (!position.allFinite() || !q.coeffs().allFinite() || q.norm() < 0.5) return;
+  last_cursor_ = position;
+  view_->SetCursor(position, q.normalized(),
+                   state.model == costume_lcm::device_state::MODEL_CYBERGRASP);
+}
+
+void MainWindow::Log(const QString& line) { log_->appendPlainText(line); }
+
+void MainWindow::closeEvent(QCloseEvent* event) {
+  if (exporter_->recording()) Log(exporter_->Finish());
+  children_->StopAll();
+  QMainWindow::closeEvent(event);
+}
+
+}  // namespace costume::frontend

@@ -1,0 +1,111 @@
+#include "frontend/scene_mirror.h"
+
+#include <cmath>
+#include <numbers>
+
+#include "assets/scene_file.h"
+#include "sim_core/avatar/hanim.h"
+#include "sim_core/scene/simulation.h"
+
+namespace costume::frontend {
+namespace {
+
+template <class Triangles>
+std::vector<std::uint32_t> Flatten(const Triangles& triangles) {
+  std::vector<std::uint32_t> indices;
+  indices.reserve(3 * triangles.size());
+  for (const Eigen::Vector3i& t : triangles) {
+    for (int k = 0; k < 3; ++k) indices.push_back(static_cast<std::uint32_t>(t[k]));
+  }
+  return indices;
+}
+
+template <class Points>
+std::vector<Eigen::Vector3f> ToFloat(const Points& points) {
+  std::vector<Eigen::Vector3f> out(static_cast<std::size_t>(points.rows()));
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    out[static_cast<std::size_t>(i)] = points.row(i).transpose().template cast<float>();
+  }
+  return out;
+}
+
+}  // namespace
+
+sim::SceneDescription LoadScene(const std::string& builtin, const std::string& file) {
+  return file.empty() ? assets::LoadBuiltInScene(builtin) : assets::LoadSceneFile(file);
+}
+
+SceneMirror::SceneMirror(sim::SceneDescription scene) : scene_(std::move(scene)) {
+  sim::ValidateScene(scene_);
+  std::vector<sim::GarmentRange> garments;
+  std::vector<sim::BodyAttachment> attachments;
+  const auto model = sim::BuildSceneModel(scene_, &garments, &attachments);
+  num_particles_ = model->num_particles();
+  cloth_indices_ = Flatten(model->triangles());
+  rest_positions_ = ToFloat(model->rest_positions());
+  if (scene_.avatar) {
+    const sim::AvatarSpec& spec = *scene_.avatar;
+    motion_ = std::make_unique<sim::AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+    avatar_indices_ = Flatten(spec.avatar->triangles());
+    PoseAvatar();
+  }
+}
+
+void SceneMirror::PoseAvatar() {
+  if (!motion_) return;
+  motion_->Evaluate(avatar_time_);
+  avatar_vertices_ = ToFloat(motion_->vertices());
+}
+
+void SceneMirror::Follow(const ClothFrame& frame) {
+  // A lower frame number is a rebuilt scene (STOP, SET_SOLVER): the clock starts again.
+  if (!has_frame_ || frame.frame < last_frame_) {
+    avatar_time_ = frame.editing ? 0.0 : frame.sim_time;
+  } else if (!frame.editing) {
+    avatar_time_ += frame.sim_time - last_sim_time_;
+  }
+  has_frame_ = true;
+  last_frame_ = frame.frame;
+  last_sim_time_ = frame.sim_time;
+  PoseAvatar();
+}
+
+std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>& joints,
+                                                 double heading_degrees) {
+  std::vector<std::string> unknown;
+  if (!scene_.avatar) return unknown;
+  sim::AvatarSpec& spec = *scene_.avatar;
+  const sim::Skeleton& skeleton = spec.avatar->skeleton();
+  sim::Pose& posture = spec.motion.posture;
+  if (posture.rotations.empty()) {
+    posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  }
+  constexpr double kDegree = std::numbers::pi / 180.0;
+  for (const JointAngles& joint : joints) {
+    const std::optional<sim::HAnimJoint> hanim = sim::ParseHAnimName(joint.joint);
+    const int index = hanim ? skeleton.Find(*hanim) : -1;
+    if (index < 0) {
+      unknown.push_back(joint.joint);
+      continue;
+    }
+    // As [avatar.posture] in scene files: about rest x, then y, then z.
+    posture.rotations[index] =
+        Eigen::AngleAxisd(joint.degrees.x() * kDegree, Eigen::Vector3d::UnitX()) *
+        Eigen::AngleAxisd(joint.degrees.y() * kDegree, Eigen::Vector3d::UnitY()) *
+        Eigen::AngleAxisd(joint.degrees.z() * kDegree, Eigen::Vector3d::UnitZ());
+  }
+  posture.orientation = Eigen::AngleAxisd(heading_degrees * kDegree, Eigen::Vector3d::UnitY());
+  motion_ = std::make_unique<sim::AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+  PoseAvatar();
+  return unknown;
+}
+
+Eigen::AlignedBox3d SceneMirror::Bounds() const {
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3f& p : rest_positions_) box.extend(p.cast<double>());
+  for (const Eigen::Vector3f& p : avatar_vertices_) box.extend(p.cast<double>());
+  if (box.isEmpty()) box.extend(Eigen::Vector3d::Zero());
+  return box;
+}
+
+}  // namespace costume::frontend
