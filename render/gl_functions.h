@@ -26,7 +26,7 @@ struct GlFunctions {
   PFNGLCLEARPROC Clear = nullptr;
   PFNGLENABLEPROC Enable = nullptr;
   PFNGLDISABLEPROC Disable = nullptr;
-  PFNGLBLENDFUNCPROC BlendFunc = nullptr;
+  PFNGLBLENDFUNCSEPARATEPROC BlendFuncSeparate = nullptr;
   PFNGLDEPTHMASKPROC DepthMask = nullptr;
   PFNGLCULLFACEPROC CullFace = nullptr;
   PFNGLFINISHPROC Finish = nullptr;
@@ -49,6 +49,7 @@ struct GlFunctions {
   PFNGLUSEPROGRAMPROC UseProgram = nullptr;
   PFNGLGETUNIFORMLOCATIONPROC GetUniformLocation = nullptr;
   PFNGLUNIFORMMATRIX4FVPROC UniformMatrix4fv = nullptr;
+  PFNGLUNIFORMMATRIX3FVPROC UniformMatrix3fv = nullptr;
   PFNGLUNIFORM3FPROC Uniform3f = nullptr;
   PFNGLUNIFORM4FPROC Uniform4f = nullptr;
   PFNGLUNIFORM1IPROC Uniform1i = nullptr;
