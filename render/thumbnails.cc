@@ -15,8 +15,10 @@ namespace {
 // Thumbnails are rendered this many times larger and box-filtered down: OSMesa's default
 // framebuffer has no multisampling, and jagged edges look poor in a list of small images.
 constexpr int kSupersampling = 2;
-// Seen from the front (the avatar faces +z), a little from above.
+// Avatars are seen from the front (they face +z), a little from above; poses and garments
+// from the front right, where a stride or a drape reads better.
 const Eigen::Vector3d kFrontView(0.0, -0.15, -1.0);
+const Eigen::Vector3d kThreeQuarterView(-0.6, -0.2, -1.0);
 // Simulated fit of garment thumbnails [s]: the cloth falls and settles enough to show its
 // shape (tools/render_thumbnail reports the time this takes).
 constexpr double kGarmentFitTime = 0.5;
@@ -55,10 +57,10 @@ Eigen::AlignedBox3d BoundsOf(const RenderScene& scene) {
 }
 
 // A thumbnail of the meshes, framed from the front; no floor, so the silhouette stands out.
-Thumbnail Frame(RenderScene scene, int size) {
+Thumbnail Frame(RenderScene scene, const Eigen::Vector3d& view_direction, int size) {
   Thumbnail thumbnail;
   scene.floor = false;
-  thumbnail.camera = FrameBox(BoundsOf(scene), kFrontView);
+  thumbnail.camera = FrameBox(BoundsOf(scene), view_direction);
   thumbnail.scene = std::move(scene);
   thumbnail.size = size;
   return thumbnail;
@@ -88,6 +90,21 @@ Image Downsample(const Image& large, int factor) {
   return small;
 }
 
+// The three-quarter view from the front, or from the back when the cloth hangs mostly behind
+// the avatar (a cape): its centroid lies further back (-z) than the body's by over 2 cm.
+Eigen::Vector3d GarmentView(const RenderScene& scene) {
+  if (scene.meshes.size() < 2) return kThreeQuarterView;
+  const auto mean_z = [](const DrawMesh& mesh) {
+    double sum = 0.0;
+    for (const Eigen::Vector3f& p : mesh.positions) sum += p.z();
+    return mesh.positions.empty() ? 0.0 : sum / mesh.positions.size();
+  };
+  const bool behind = mean_z(scene.meshes.back()) < mean_z(scene.meshes.front()) - 0.02;
+  return behind ? Eigen::Vector3d(kThreeQuarterView.x(), kThreeQuarterView.y(),
+                                  -kThreeQuarterView.z())
+                : kThreeQuarterView;
+}
+
 // A shared_ptr that does not own: sim_core's motion classes take shared pointers, the
 // thumbnail functions take references whose owner outlives the call.
 template <typename T>
@@ -111,7 +128,7 @@ Thumbnail BuildAvatarThumbnail(const sim::Avatar& avatar, int size) {
   RenderScene scene;
   scene.meshes.push_back(
       MakeDrawMesh(avatar.rest_vertices(), avatar.triangles(), kSkinColour, false));
-  return Frame(std::move(scene), size);
+  return Frame(std::move(scene), kFrontView, size);
 }
 
 Image RenderAvatarThumbnail(const sim::Avatar& avatar, int size) {
@@ -129,7 +146,7 @@ Thumbnail BuildClipThumbnail(const sim::Avatar& avatar, const sim::Clip& clip, i
   motion.Evaluate(0.5 * clip.duration());
   RenderScene scene;
   scene.meshes.push_back(MakeDrawMesh(motion.vertices(), avatar.triangles(), kSkinColour, false));
-  return Frame(std::move(scene), size);
+  return Frame(std::move(scene), kThreeQuarterView, size);
 }
 
 Image RenderClipThumbnail(const sim::Avatar& avatar, const sim::Clip& clip, int size) {
@@ -155,7 +172,7 @@ Thumbnail BuildGarmentThumbnail(const sim::SceneDescription& scene, int size) {
   }
   render_scene.meshes.push_back(MakeDrawMesh(simulation->state().positions,
                                              simulation->model().triangles(), kClothColour, true));
-  return Frame(std::move(render_scene), size);
+  return Frame(std::move(render_scene), GarmentView(render_scene), size);
 }
 
 Image RenderGarmentThumbnail(const sim::SceneDescription& scene, int size) {
@@ -184,11 +201,12 @@ sim::SceneDescription BuiltInGarmentScene(const std::string& pattern) {
   garment.name = pattern;
   garment.material = cotton.name;
   garment.pattern = pattern;
-  garment.pattern_resolution = 48;
+  garment.pattern_resolution = 64;
   scene.garments.push_back(garment);
   sim::AvatarSpec avatar;
   avatar.avatar = sim::MakeHumanoid();
-  avatar.collision = sim::BodyCollisionMethod::kSuperquadric;
+  // The skinned mesh: the superquadrics let the dress's bodice slip (seen in its thumbnail).
+  avatar.collision = sim::BodyCollisionMethod::kMesh;
   avatar.motion.fit_time = kGarmentFitTime;
   scene.avatar = avatar;
   return scene;
