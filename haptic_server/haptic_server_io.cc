@@ -432,7 +432,7 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
     const RealtimeStatus rt = loop_->realtime_status();
     if (!rt.reason.empty()) warnings.push_back("real-time: " + rt.reason);
     const LoopCounters c = loop_->counters();
-    // status.lcm has no fields for these: they travel as text, every period.
+    // The fields carry totals since start and the period figures; the per-period counts as text.
     std::snprintf(line, sizeof line,
                   "loop: %lld missed and %lld overruns in the last %.1f s; period p99 %.1f us, "
                   "p99.9 %.1f us, max %.1f us",
@@ -493,12 +493,21 @@ void HapticServerIo::PublishStatus() {
   status.utime = ToUtime(now);
   status.process = "haptic_server";
   status.pid = static_cast<std::int32_t>(::getpid());
-  const PeriodStatistics periods = loop_ != nullptr ? loop_->Statistics() : PeriodStatistics{};
+  // The periods of this status period only (the ring holds the last minute).
+  const std::int64_t recorded = loop_ != nullptr ? loop_->num_recorded() : 0;
+  const PeriodStatistics periods =
+      loop_ != nullptr ? loop_->StatisticsSince(last_status_recorded_) : PeriodStatistics{};
+  last_status_recorded_ = recorded;
+  status.period_p50_us = 1e-3 * static_cast<double>(periods.p50);
+  status.period_p99_us = 1e-3 * static_cast<double>(periods.p99);
+  status.period_p999_us = 1e-3 * static_cast<double>(periods.p999);
+  status.period_max_us = 1e-3 * static_cast<double>(periods.max);
   status.target_rate = periods.nominal > 0 ? 1e9 / static_cast<double>(periods.nominal) : 1000.0;
   if (loop_ != nullptr) {
     const LoopCounters c = loop_->counters();
     status.ticks = c.num_ticks;
     status.overruns = c.num_overruns;
+    status.missed_ticks = c.num_missed;
     status.measured_rate = static_cast<double>(c.num_ticks - last_status_ticks_) / elapsed;
     last_status_ticks_ = c.num_ticks;
   }

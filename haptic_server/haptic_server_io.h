@@ -348,6 +348,7 @@ class HapticServerIo {
   TimedTickHandler* timing_ = nullptr;
   std::int64_t last_status_ns_ = 0;
   std::int64_t last_status_ticks_ = 0;
+  std::int64_t last_status_recorded_ = 0;  // loop periods recorded at the last status
   LoopCounters last_loop_counters_;
   std::int64_t last_dropped_outgoing_ = 0;
   PatchAssemblyCounts last_patch_counts_;

@@ -364,6 +364,41 @@ TEST_F(IoFixture, MalformedStaleAndInvalidMessagesAreCountedWithoutACrash) {
   EXPECT_EQ(io_->counts().num_patches_handed, 1);
 }
 
+// Status carries the loop's period figures of its own status period. Scripted wake-up
+// latencies (as haptic_loop_test): 40 µs late on ticks 100..109 and 300 µs late on tick 500
+// give periods 1.04/0.96 ms and 1.3/0.7 ms among 1,999 of 1 ms: by hand, p50 = p99 = 1 ms,
+// p99.9 (rank 1998 of 1999) = 1.04 ms, max 1.3 ms. Then a wake-up 2.5 ms late: two deadlines
+// skipped (missed_ticks 2), a 3.5 ms period, then 0.5 ms, in the second period only.
+TEST_F(IoFixture, StatusCarriesTheLoopPeriodFiguresOfEachStatusPeriod) {
+  Build(kHoldGrab);
+  std::vector<std::int64_t> latency(2000, 0);
+  latency[500] = 300'000;
+  for (int k = 100; k < 110; ++k) latency[k] = 40'000;
+  clock_.ScriptLatencies(latency.data(), 2000);
+  loop_->Run(2000);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_EQ(status_.size(), 1u);
+  EXPECT_DOUBLE_EQ(status_[0].period_p50_us, 1000.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_p99_us, 1000.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_p999_us, 1040.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_max_us, 1300.0);
+  EXPECT_EQ(status_[0].missed_ticks, 0);
+
+  std::vector<std::int64_t> late(200, 0);
+  late[50] = 2'500'000;
+  clock_.ScriptLatencies(late.data(), 200);
+  loop_->Run(200);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_EQ(status_.size(), 2u);
+  EXPECT_EQ(status_[1].missed_ticks, 2);
+  EXPECT_DOUBLE_EQ(status_[1].period_max_us, 3500.0);
+  EXPECT_DOUBLE_EQ(status_[1].period_p999_us, 3500.0);  // rank 199 of 199
+  EXPECT_DOUBLE_EQ(status_[1].period_p99_us, 1000.0);   // rank 198: below the 3.5 ms one
+  EXPECT_DOUBLE_EQ(status_[1].period_p50_us, 1000.0);
+}
+
 TEST(GrabTracker, RisingEdgesNumberGrabsAndStretchReliefIsAnEdge) {
   GrabTracker t;
   EXPECT_EQ(t.Update(0).grab_id, -1);
