@@ -96,6 +96,22 @@ std::string CommandName(std::int8_t kind) {
 
 }  // namespace
 
+PeriodFigures ComputePeriodFigures(std::vector<std::int64_t>& periods) {
+  PeriodFigures figures;
+  if (periods.empty()) return figures;
+  std::sort(periods.begin(), periods.end());
+  const auto n = static_cast<double>(periods.size());
+  auto rank = [&](double q) {  // nearest rank: element ceil(q·n) − 1
+    const auto k = static_cast<std::size_t>(std::max(1.0, std::ceil(q * n))) - 1;
+    return 1e-3 * static_cast<double>(periods[std::min(k, periods.size() - 1)]);
+  };
+  figures.p50_us = rank(0.50);
+  figures.p99_us = rank(0.99);
+  figures.p999_us = rank(0.999);
+  figures.max_us = 1e-3 * static_cast<double>(periods.back());
+  return figures;
+}
+
 Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period) {
   Deadline result{deadline + period, 0};
   if (period <= 0 || result.next >= now) return result;
@@ -147,6 +163,9 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
         grab_seq_ = g.seq;
       },
       options_.receive_policy);
+  // An hour of statuses every second at 60 Hz never needs more.
+  frame_periods_.reserve(static_cast<std::size_t>(
+      std::clamp(4.0 * options_.status_period * scene_.frame_rate, 64.0, 1e6)));
   period_start_ = std::chrono::steady_clock::now();
 }
 
@@ -192,15 +211,25 @@ void SimServer::Step() {
 
 std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_frames) {
   const auto period = static_cast<std::int64_t>(std::llround(1e9 / scene_.frame_rate));
-  std::int64_t deadline = MonotonicNow();
+  const auto now = options_.clock_now ? options_.clock_now : MonotonicNow;
+  const auto sleep_until = options_.clock_sleep_until
+                               ? options_.clock_sleep_until
+                               : std::function<void(std::int64_t)>(SleepUntil);
+  std::int64_t deadline = now();
+  std::int64_t previous_wake = -1;
   std::int64_t steps = 0;
   while (!stop.load(std::memory_order_relaxed) && (max_frames <= 0 || steps < max_frames)) {
+    const std::int64_t wake = now();
+    if (previous_wake >= 0 && frame_periods_.size() < frame_periods_.capacity()) {
+      frame_periods_.push_back(wake - previous_wake);
+    }
+    previous_wake = wake;
     Step();
     ++steps;
-    const Deadline next = NextDeadline(deadline, MonotonicNow(), period);
+    const Deadline next = NextDeadline(deadline, now(), period);
     overruns_ += next.missed;
     deadline = next.next;
-    SleepUntil(deadline);
+    sleep_until(deadline);
   }
   return steps;
 }
@@ -554,6 +583,13 @@ void SimServer::PublishStatus() {
   m.max_frame_time_ms = period_max_work_ms_;
   m.ticks = ticks_;
   m.overruns = overruns_;
+  m.missed_ticks = overruns_;
+  const PeriodFigures periods = ComputePeriodFigures(frame_periods_);
+  frame_periods_.clear();
+  m.period_p50_us = periods.p50_us;
+  m.period_p99_us = periods.p99_us;
+  m.period_p999_us = periods.p999_us;
+  m.period_max_us = periods.max_us;
   m.solver_iterations = last_iterations_;
   m.mode = ToLcmMode(mode_);
   m.playback = ToLcmPlayback(playback_);

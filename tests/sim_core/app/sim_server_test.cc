@@ -485,7 +485,8 @@ namespace {
 // hang scene's frames are far shorter than a period, so none overruns on an idle machine.
 TEST(SimServerRun, StepsAtTheFrameRate) {
   bus::LcmBus bus("memq://");
-  SimServer server(bus, SoftHang());
+  const SimServerOptions options;
+  SimServer server(bus, SoftHang(), options);
   std::atomic<bool> stop{false};
   const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(server.Run(stop, 6), 6);
@@ -495,6 +496,65 @@ TEST(SimServerRun, StepsAtTheFrameRate) {
   EXPECT_EQ(server.ticks(), 6);
   std::printf("6 frames in %.1f ms, %lld overruns\n", 1e3 * elapsed,
               static_cast<long long>(server.overruns()));
+}
+
+}  // namespace
+}  // namespace costume::sim_app
+
+namespace costume::sim_app {
+namespace {
+
+// Run on a scripted clock: every wake-up on time except the 60th, 40 ms late. By hand, with
+// P = 16,666,667 ns: that frame's period is P + 40 ms; NextDeadline then skips two deadlines
+// (missed = 2) and the next wake is 3P after the late frame's deadline, a period of
+// 3P − 40 ms; the other 118 of the 120 periods are P.
+TEST(SimServerRun, StatusCarriesTheFramePeriodFiguresOfAScriptedLoop) {
+  bus::LcmBus bus("memq://");
+  std::vector<costume_lcm::status> statuses;
+  bus::Subscribe<costume_lcm::status>(bus, bus::kSimStatusChannel,
+                                      [&](const costume_lcm::status& m) { statuses.push_back(m); });
+  std::int64_t now = 5'000'000'000;
+  int sleeps = 0;
+  SimServerOptions options;
+  options.status_period = 1e6;  // status only when the test asks
+  options.clock_now = [&] { return now; };
+  options.clock_sleep_until = [&](std::int64_t deadline) {
+    now = std::max(now, deadline) + (++sleeps == 60 ? 40'000'000 : 0);
+  };
+  SimServer server(bus, SoftHang(), options);
+  std::atomic<bool> stop{false};
+  ASSERT_EQ(server.Run(stop, 121), 121);
+  server.PublishStatus();
+  bus.HandleSubscriptions(0);
+  ASSERT_EQ(statuses.size(), 1u);
+  const costume_lcm::status& s = statuses[0];
+  const double period_us = 16'666.667;
+  EXPECT_NEAR(s.period_p50_us, period_us, 1e-6);
+  EXPECT_NEAR(s.period_p99_us, period_us, 1e-6);  // rank 119 of 120: still P
+  EXPECT_NEAR(s.period_p999_us, period_us + 40'000.0, 1e-6);  // rank 120: the late one
+  EXPECT_NEAR(s.period_max_us, period_us + 40'000.0, 1e-6);
+  EXPECT_EQ(s.missed_ticks, 2);
+  EXPECT_EQ(s.overruns, 2);
+  // The next status covers only the frames after the first: 10 on-time periods.
+  ASSERT_EQ(server.Run(stop, 11), 11);
+  server.PublishStatus();
+  bus.HandleSubscriptions(0);
+  ASSERT_EQ(statuses.size(), 2u);
+  EXPECT_NEAR(statuses[1].period_max_us, period_us, 1e-6);
+  EXPECT_NEAR(statuses[1].period_p50_us, period_us, 1e-6);
+  EXPECT_EQ(statuses[1].missed_ticks, 2);
+}
+
+TEST(ComputePeriodFigures, NearestRanksOfAKnownSet) {
+  std::vector<std::int64_t> periods;
+  for (int i = 1000; i >= 1; --i) periods.push_back(1000 * i);  // 1 .. 1000 µs, descending
+  const PeriodFigures f = ComputePeriodFigures(periods);
+  EXPECT_DOUBLE_EQ(f.p50_us, 500.0);
+  EXPECT_DOUBLE_EQ(f.p99_us, 990.0);
+  EXPECT_DOUBLE_EQ(f.p999_us, 999.0);
+  EXPECT_DOUBLE_EQ(f.max_us, 1000.0);
+  std::vector<std::int64_t> none;
+  EXPECT_EQ(ComputePeriodFigures(none).max_us, 0.0);
 }
 
 }  // namespace
