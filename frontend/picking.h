@@ -6,7 +6,7 @@
 /// rays onto the plane through the grabbed point facing the camera, so the grabbed point
 /// stays under the pointer.
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 #include <cstdint>
 #include <optional>
 #include <vector>

@@ -8,6 +8,11 @@
 /// the view emits pointer samples (pointerSample) which the window sends on COSTUME_POINTER
 /// for the haptic server's mouse device.
 
+// The renderer's GL declarations (glcorearb.h) must come before Qt's (qopengl.h includes
+// GL/gl.h, after which glcorearb.h would skip the GL 1.x function-pointer types).
+#include "render/camera.h"
+#include "render/scene_renderer.h"
+
 #include <QOpenGLWidget>
 #include <memory>
 #include <optional>
@@ -15,8 +20,6 @@
 
 #include "frontend/cloth_frame_assembler.h"
 #include "frontend/scene_mirror.h"
-#include "render/camera.h"
-#include "render/scene_renderer.h"
 
 namespace costume::frontend {
 
