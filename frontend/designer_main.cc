@@ -5,7 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <QApplication>
-#include <QMessageBox>
+#include <QTimer>
 #include <cstdio>
 #include <memory>
 
@@ -27,6 +27,8 @@ struct Arguments {
   bool no_servers = false;
   bool editing = false;
   bool allow_network = false;
+  std::string screenshot;
+  double quit_after = 0.0;
 };
 
 int Run(QApplication& app, const Arguments& args) {
@@ -54,6 +56,15 @@ int Run(QApplication& app, const Arguments& args) {
   window.show();
   window.StartBusThread();
   window.StartChildren();
+  if (args.quit_after > 0.0) {
+    // For scripted runs: a screenshot of the view, then close (children stopped).
+    QTimer::singleShot(static_cast<int>(args.quit_after * 1000.0), &window, [&] {
+      if (!args.screenshot.empty()) {
+        frontend::FrameExporter::Screenshot(window.view(), QString::fromStdString(args.screenshot));
+      }
+      window.close();
+    });
+  }
   return app.exec();
 }
 
@@ -84,6 +95,9 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-servers", args.no_servers,
                "Start no server: connect to processes already on the bus");
   cli.add_flag("--editing", args.editing, "Start in editing mode (mode B)");
+  cli.add_option("--quit-after", args.quit_after, "Close the window after this many seconds")
+      ->check(CLI::NonNegativeNumber);
+  cli.add_option("--screenshot", args.screenshot, "With --quit-after: save the 3D view as PNG");
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
