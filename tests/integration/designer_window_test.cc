@@ -1,0 +1,193 @@
+// The workstation in a real window (label integration): under Xvfb (X11, Mesa's OpenGL 3.3
+// core), inside a private network namespace, the GUI starts the real simulation server on
+// the garment scene and the haptic server with the mouse device; the test plays 2 s of the
+// walk, switches to editing, grabs the skirt with synthesized mouse events, drags and
+// releases it, presses "eliminate stretch energy", saves a screenshot of the 3D view and
+// checks that the avatar and the cloth are where the view's camera projects them.
+// Run through ctest (tests/integration/designer_window.sh sets up Xvfb and the namespace).
+#include <QTest>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+
+#include "bus/lcm_bus.h"
+#include "frontend/main_window.h"
+#include "render/camera.h"
+#include "tests/support/qt_app.h"
+
+namespace costume::frontend {
+namespace {
+
+bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
+
+/// The colour at `pixel` of `image` as RGB in [0, 1].
+Eigen::Vector3f ColourAt(const QImage& image, const Eigen::Vector2d& pixel) {
+  const QColor c = image.pixelColor(static_cast<int>(pixel.x()), static_cast<int>(pixel.y()));
+  return Eigen::Vector3f(c.redF(), c.greenF(), c.blueF());
+}
+
+/// Lit skin: red well above blue. Lit cloth: blue well above red. Background: light grey.
+bool LooksLikeSkin(const Eigen::Vector3f& c) { return c.x() > c.z() + 0.1f; }
+bool LooksLikeCloth(const Eigen::Vector3f& c) { return c.z() > c.x() + 0.2f; }
+bool LooksLikeBackground(const Eigen::Vector3f& c, const Eigen::Vector3f& background) {
+  return (c - background).cwiseAbs().maxCoeff() < 0.06f;
+}
+
+/// Fraction of `points` [m] whose pixel in `image` passes `test`.
+template <class Test>
+double FractionMatching(const QImage& image, const render::Camera& camera,
+                        const std::vector<Eigen::Vector3d>& points, Test test) {
+  int inside = 0, matching = 0;
+  for (const Eigen::Vector3d& p : points) {
+    const auto pixel = render::ProjectToPixel(camera, p, image.width(), image.height());
+    if (!pixel || pixel->x() < 0 || pixel->y() < 0 || pixel->x() >= image.width() ||
+        pixel->y() >= image.height()) {
+      continue;
+    }
+    ++inside;
+    if (test(ColourAt(image, *pixel))) ++matching;
+  }
+  return inside == 0 ? 0.0 : static_cast<double>(matching) / inside;
+}
+
+/// Centre of the avatar's head: the mean of the vertices within 12 cm of the top [m].
+Eigen::Vector3d HeadCentre(const std::vector<Eigen::Vector3f>& vertices) {
+  float top = -1e9f;
+  for (const auto& v : vertices) top = std::max(top, v.y());
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (const auto& v : vertices) {
+    if (v.y() > top - 0.12f) {
+      sum += v.cast<double>();
+      ++n;
+    }
+  }
+  return sum / std::max(1, n);
+}
+
+TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
+  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
+  costume::testing::TestApp();
+  bus::LcmBus bus(bus::kDefaultLcmUrl);
+  FrontendOptions options;
+  options.builtin = "garment";
+  options.start_sim_server = true;
+  options.device = "mouse";
+  options.servers.bin_dir = COSTUME_BUILD_DIR;
+  options.servers.lcm_url = QString::fromStdString(bus.url());
+  options.servers.builtin = "garment";
+  options.servers.radius = 0.06;
+  MainWindow window(bus, options, MakeBuiltInCatalog());
+  window.resize(1280, 780);
+  window.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&window));
+  window.StartBusThread();
+  window.StartChildren();
+  ViewWidget& view = window.view();
+  ASSERT_TRUE(view.gl_info().startsWith("3.") || view.gl_info().startsWith("4."))
+      << view.gl_info().toStdString();
+
+  // 2 s of the walk after the 0.5 s fitting.
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame().has_value(), 60000);
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 2.5, 120000);
+  EXPECT_FALSE(window.last_frame()->editing);
+  const double walked = window.mirror().avatar_time();
+  EXPECT_GE(walked, 2.5);
+
+  // Mode B: the avatar stops, the cloth keeps simulating and takes grabs.
+  window.editing_mode()->click();
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->editing, 10000);
+  QTest::qWait(500);
+  EXPECT_NEAR(window.mirror().avatar_time(), walked, 0.2);
+
+  // Grab the skirt's front, at the particle nearest the camera at the middle of the skirt.
+  const std::vector<Eigen::Vector3f> before = view.cloth_positions();
+  float y_min = 1e9f, y_max = -1e9f;
+  for (const auto& p : before) {
+    y_min = std::min(y_min, p.y());
+    y_max = std::max(y_max, p.y());
+  }
+  const float y_mid = 0.5f * (y_min + y_max);
+  int front = -1;
+  double nearest = 1e9;
+  for (int i = 0; i < static_cast<int>(before.size()); ++i) {
+    if (std::abs(before[i].y() - y_mid) > 0.05f) continue;
+    const double d = (before[i].cast<double>() - view.camera().eye).norm();
+    if (d < nearest) {
+      nearest = d;
+      front = i;
+    }
+  }
+  ASSERT_GE(front, 0);
+  const auto pixel =
+      render::ProjectToPixel(view.camera(), before[front].cast<double>(), view.width(), view.height());
+  ASSERT_TRUE(pixel);
+  const QPoint at(static_cast<int>(pixel->x()), static_cast<int>(pixel->y()));
+  QTest::mouseMove(&view, at);
+  QTest::qWait(200);
+  QTest::mousePress(&view, Qt::LeftButton, Qt::NoModifier, at);
+  ASSERT_TRUE(view.grab_point()) << "the press did not hit the cloth";
+  const Eigen::Vector3d grabbed = *view.grab_point();
+  for (int step = 1; step <= 10; ++step) {  // 40 px to the right, slowly
+    QTest::mouseMove(&view, at + QPoint(4 * step, 0));
+    QTest::qWait(60);
+  }
+  QTest::qWait(1000);
+  const Eigen::Vector3d pulled_to = *view.grab_point();
+  const std::vector<Eigen::Vector3f> held = view.cloth_positions();
+  QTest::mouseRelease(&view, Qt::LeftButton, Qt::NoModifier, at + QPoint(40, 0));
+  // The grabbed particle followed the pointer along the drag.
+  const Eigen::Vector3d drag = pulled_to - grabbed;
+  ASSERT_GT(drag.norm(), 0.02);
+  const double moved = (held[front] - before[front]).cast<double>().dot(drag.normalized());
+  EXPECT_GT(moved, 0.3 * drag.norm()) << "drag " << drag.norm() << " m, particle moved " << moved;
+  std::printf("walked %.2f s; pointer dragged %.1f cm, grabbed particle moved %.1f cm along it\n",
+              walked, 100.0 * drag.norm(), 100.0 * moved);
+
+  // "Eliminate stretch energy" at the grab: an edit the server can undo.
+  window.stretch_button()->click();
+  QTRY_VERIFY_WITH_TIMEOUT(window.sim_label()->text().contains("undo 1"), 10000);
+  QTest::qWait(300);
+
+  // The screenshot: the avatar's head and the skirt where the camera puts them.
+  const QImage shot = view.grabFramebuffer();
+  const QString path = QString(COSTUME_BUILD_DIR) + "/designer_window_test.png";
+  ASSERT_TRUE(shot.save(path)) << path.toStdString();
+  const render::Camera& camera = view.camera();
+  ASSERT_EQ(shot.width(), static_cast<int>(std::lround(view.width() * view.devicePixelRatioF())));
+  const auto& avatar = window.mirror().avatar_vertices();
+  const Eigen::Vector3d head = HeadCentre(avatar);
+  EXPECT_EQ(FractionMatching(shot, camera, {head}, LooksLikeSkin), 1.0) << "head at "
+      << head.transpose();
+  // Skirt points facing the camera at several heights and sides (away from the grab).
+  const std::vector<Eigen::Vector3f> cloth = view.cloth_positions();
+  std::vector<Eigen::Vector3d> skirt;
+  for (float t : {0.25f, 0.5f, 0.75f}) {
+    const float y = y_min + t * (y_max - y_min);
+    int best = -1;
+    double best_d = 1e9;
+    for (int i = 0; i < static_cast<int>(cloth.size()); ++i) {
+      if (std::abs(cloth[i].y() - y) > 0.03f) continue;
+      if ((cloth[i].cast<double>() - grabbed).norm() < 0.15) continue;
+      const double d = (cloth[i].cast<double>() - camera.eye).norm();
+      if (d < best_d) {
+        best_d = d;
+        best = i;
+      }
+    }
+    if (best >= 0) skirt.push_back(cloth[best].cast<double>());
+  }
+  ASSERT_GE(skirt.size(), 2u);
+  EXPECT_EQ(FractionMatching(shot, camera, skirt, LooksLikeCloth), 1.0);
+  // The top corners show the background.
+  const Eigen::Vector3f background = ViewColours{}.background;
+  EXPECT_TRUE(LooksLikeBackground(ColourAt(shot, {4, 4}), background));
+  EXPECT_TRUE(LooksLikeBackground(ColourAt(shot, {shot.width() - 5.0, 4}), background));
+  window.close();
+  EXPECT_FALSE(window.children().sim_running());
+  EXPECT_FALSE(window.children().device_running());
+}
+
+}  // namespace
+}  // namespace costume::frontend
