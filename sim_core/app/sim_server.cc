@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
+#include <optional>
 #include <utility>
 
 #include "bus/channels.h"
+#include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim_app {
@@ -133,6 +136,10 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
     throw sim::InputError("SimServerOptions: status_period = " +
                           std::to_string(options_.status_period) + " s, grab_timeout = " +
                           std::to_string(options_.grab_timeout) + " s: both must be > 0");
+  }
+  if (!(options_.posture_transition >= 0.0) || !std::isfinite(options_.posture_transition)) {
+    throw sim::InputError("SimServerOptions: posture_transition = " +
+                          std::to_string(options_.posture_transition) + " s: must be >= 0");
   }
   Rebuild(scene_);
   mode_ = options_.mode;
@@ -277,6 +284,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_UNDO: Undo(); return;
     case C::KIND_REDO: Redo(); return;
     case C::KIND_SET_SOLVER: SetSolver(command.solver); return;
+    case C::KIND_SET_POSTURE: SetPosture(command); return;
     case C::KIND_LOAD_AVATAR:
     case C::KIND_LOAD_COSTUME:
     case C::KIND_LOAD_ANIMATION:
@@ -288,7 +296,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
       return;
     default:
       ++ignored_.commands_refused;
-      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 13); ignored");
+      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 14); ignored");
   }
 }
 
@@ -366,6 +374,78 @@ void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
   }
   Warn("command SET_SOLVER: simulation rebuilt with the new solver from frame 0; edits and "
        "state were not carried over");
+}
+
+namespace {
+
+std::string FormatAngles(const std::vector<double>& angles) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%g, %g, %g)", angles[0], angles[1], angles[2]);
+  return text;
+}
+
+/// The posture a SET_POSTURE command names for `skeleton`: the named joints rotated by their
+/// angles (degrees about the joint's rest x, y, z axes, applied in that order, as
+/// assets/scene_file.cc ParsePosture), every other joint at rest, the avatar turned by
+/// heading_degrees about +y and left at `root_translation`. Throws InputError naming the
+/// field for an unknown or unmapped joint name, non-finite angles or heading.
+sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& skeleton,
+                    const Eigen::Vector3d& root_translation) {
+  const double degree = std::acos(-1.0) / 180.0;
+  sim::Pose pose;
+  pose.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  pose.root_translation = root_translation;
+  if (!std::isfinite(command.heading_degrees) || std::abs(command.heading_degrees) > 360.0) {
+    throw sim::InputError("command SET_POSTURE: heading_degrees = " +
+                          std::to_string(command.heading_degrees) +
+                          ": must be finite, within [-360, 360]");
+  }
+  pose.orientation = Eigen::AngleAxisd(command.heading_degrees * degree, Eigen::Vector3d::UnitY());
+  for (int i = 0; i < command.num_joints; ++i) {
+    const std::string field = "command SET_POSTURE: joint_names[" + std::to_string(i) + "] = '" +
+                              command.joint_names[i] + "'";
+    const std::optional<sim::HAnimJoint> joint = sim::ParseHAnimName(command.joint_names[i]);
+    if (!joint) throw sim::InputError(field + ": not an H-Anim joint name (e.g. 'l_shoulder')");
+    const int index = skeleton.Find(*joint);
+    if (index < 0) throw sim::InputError(field + ": the avatar maps no joint onto it");
+    const std::vector<double>& a = command.joint_angles[i];
+    if (a.size() != 3) {
+      throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) +
+                            "] holds " + std::to_string(a.size()) + " values: must be 3");
+    }
+    if (!std::isfinite(a[0]) || !std::isfinite(a[1]) || !std::isfinite(a[2])) {
+      throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) + "] = " +
+                            FormatAngles(a) + " degrees for '" + command.joint_names[i] +
+                            "': must be finite");
+    }
+    pose.rotations[index] = Eigen::AngleAxisd(a[0] * degree, Eigen::Vector3d::UnitX()) *
+                            Eigen::AngleAxisd(a[1] * degree, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(a[2] * degree, Eigen::Vector3d::UnitZ());
+  }
+  return pose;
+}
+
+}  // namespace
+
+// The cloth keeps its state: only the body moves, gradually (posture_transition), and the
+// cloth follows it through contacts and attachments. The server's scene takes the posture
+// too, so a STOP rebuilds in it.
+void SimServer::SetPosture(const costume_lcm::command& command) {
+  const sim::AvatarMotion* avatar = simulation_->avatar();
+  if (avatar == nullptr || !scene_.avatar) {
+    ++ignored_.commands_refused;
+    Warn("command SET_POSTURE: the scene has no avatar; ignored");
+    return;
+  }
+  try {
+    const sim::Pose posture = PostureOf(command, avatar->avatar().skeleton(),
+                                        avatar->settings().posture.root_translation);
+    simulation_->SetPosture(posture, options_.posture_transition);
+    scene_.avatar->motion.posture = posture;
+  } catch (const sim::InputError& error) {
+    ++ignored_.commands_refused;
+    Warn(std::string(error.what()) + "; posture unchanged");
+  }
 }
 
 // ---- grabs -------------------------------------------------------------------------------

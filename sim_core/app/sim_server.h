@@ -60,6 +60,9 @@ struct SimServerOptions {
   double status_period = 1.0;
   /// A grab whose messages stop for this long is released (the haptic server died) [s] > 0.
   double grab_timeout = 0.25;
+  /// SET_POSTURE moves the avatar to the new posture over this much simulated time [s] >= 0,
+  /// so the cloth follows the body instead of being thrown off by a jump.
+  double posture_transition = 0.5;
   /// Acceptance of grab and command messages (size, age, order).
   bus::ReceivePolicy receive_policy = {};
   /// Process name in status.
@@ -119,6 +122,8 @@ class SimServer {
   void Warn(std::string warning);
 
   const sim::Simulation& simulation() const { return *simulation_; }
+  /// The scene a STOP rebuilds (with the postures and solver set since start).
+  const sim::SceneDescription& scene() const { return scene_; }
   Mode mode() const { return mode_; }
   Playback playback() const { return playback_; }
   /// Frames advanced since the scene was (re)built: cloth_frame.frame.
@@ -154,6 +159,7 @@ class SimServer {
   void Undo();
   void Redo();
   void SetSolver(const costume_lcm::solver_parameters& solver);
+  void SetPosture(const costume_lcm::command& command);
   void ApplyLatestGrab();
   void ReleaseGrab();
   void PublishFrame();

@@ -240,7 +240,12 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
 // The avatar moves to where it will be at the end of the step first, so contacts target the
 // body's new surface and attached particles land where the body takes them.
 void Simulation::MoveAvatar(double t, double h) {
-  avatar_->Evaluate(t);
+  double blend = 1.0;  // no transition: exactly the pose at t
+  if (posture_duration_ > 0.0) {
+    blend = std::min(1.0, (state_.time + h - posture_start_) / posture_duration_);
+    if (blend >= 1.0) posture_duration_ = 0.0;
+  }
+  avatar_->Evaluate(t, blend);
   body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
   for (const BodyAttachment& a : attachments_) {
     const Eigen::Vector3d target = avatar_->joint_world()[a.joint] * a.local;
@@ -396,6 +401,19 @@ bool Simulation::UndoEdit() {
   model_ = models.front();
   stepper_.ReplaceModel(model_);
   if (pyramid_) pyramid_->RestoreLevelModels(models);
+  return true;
+}
+
+bool Simulation::SetPosture(const Pose& posture, double transition_time) {
+  if (!avatar_) return false;
+  if (!(transition_time >= 0.0) || !std::isfinite(transition_time)) {
+    throw InputError(scene_.source + ": posture transition_time = " +
+                     std::to_string(transition_time) + " s: must be finite and >= 0");
+  }
+  avatar_->SetPosture(posture);  // throws before anything changes
+  scene_.avatar->motion.posture = posture;
+  posture_start_ = state_.time;
+  posture_duration_ = transition_time;
   return true;
 }
 

@@ -119,6 +119,14 @@ class Simulation {
   /// simulated time spent frozen.
   double avatar_time() const;
 
+  /// The designer poses the avatar (paper §6) while the cloth keeps its state: the body
+  /// moves from its current pose to `posture` (rotations per joint, placement) over
+  /// `transition_time` [s] >= 0 of simulated time, frozen avatar clock or not, and the cloth
+  /// follows it through contacts and attachments. The scene's posture becomes `posture` (a
+  /// later rebuild uses it). Returns false and changes nothing without an avatar. Throws
+  /// InputError for a posture of the wrong size, non-finite values or a negative time.
+  bool SetPosture(const Pose& posture, double transition_time);
+
   const SceneDescription& scene() const { return scene_; }
   const ClothModel& model() const { return stepper_.model(); }
   std::shared_ptr<const ClothModel> shared_model() const { return model_; }
@@ -186,6 +194,10 @@ class Simulation {
   bool avatar_frozen_ = false;
   double frozen_avatar_time_ = 0.0;
   double avatar_lag_ = 0.0;
+  /// The posture transition (SetPosture): started at simulated time `posture_start_` [s],
+  /// lasting `posture_duration_` [s] (0: none under way).
+  double posture_start_ = 0.0;
+  double posture_duration_ = 0.0;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
   std::vector<double> normal_impulse_;
