@@ -73,6 +73,9 @@ std::string ForDialect(std::string sql, Dialect dialect) {
   return sql;
 }
 
+/// "an " or "a ", for messages.
+const char* Article(Kind kind) { return kind == Kind::kAvatar || kind == Kind::kAnimation ? "an " : "a "; }
+
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -219,7 +222,7 @@ std::vector<NewEntry> BuiltInEntries(const OpenOptions& options) {
     add(Kind::kAnimation, clip, clip == "dance" ? "choreography" : "basic", std::nullopt);
   }
   for (const std::string& garment : sim::BuiltInGarmentNames()) {
-    add(Kind::kGarment, garment, "built-in pattern", BuiltInGarmentFabric());
+    add(Kind::kGarment, garment, "pattern", BuiltInGarmentFabric());
   }
   return entries;
 }
@@ -417,7 +420,7 @@ std::vector<VersionInfo> Catalog::Versions(std::int64_t garment_id) {
     const EntryInfo entry = Get(garment_id);
     if (entry.kind != Kind::kGarment) {
       throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is a " + KindName(entry.kind) +
+                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments have versions");
     }
     std::vector<VersionInfo> versions;
@@ -450,7 +453,7 @@ int Catalog::SaveGarmentVersion(std::int64_t garment_id, const AssetData& data,
     if (rows.empty()) {
       const EntryInfo entry = Get(garment_id);  // throws for an unknown id
       throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is a " + KindName(entry.kind) +
+                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments take new versions");
     }
     const std::int64_t version = AsInt(rows[0][0]);
@@ -468,12 +471,21 @@ std::int64_t Catalog::Add(const NewEntry& entry) {
   return InTransaction(*db_, true, [&] { return InsertEntry(*db_, entry, url_); });
 }
 
+std::vector<std::int64_t> Catalog::AddAll(const std::vector<NewEntry>& entries) {
+  for (const NewEntry& entry : entries) CheckNewEntry(entry, url_);
+  return InTransaction(*db_, true, [&] {
+    std::vector<std::int64_t> ids;
+    for (const NewEntry& entry : entries) ids.push_back(InsertEntry(*db_, entry, url_));
+    return ids;
+  });
+}
+
 void Catalog::SetFabric(std::int64_t garment_id, const FabricParameters& fabric) {
   InTransaction(*db_, true, [&] {
     const EntryInfo entry = Get(garment_id);
     if (entry.kind != Kind::kGarment) {
       throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is a " + KindName(entry.kind) +
+                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments have a fabric");
     }
     ValidateFabric(fabric, "garment '" + entry.name + "'");

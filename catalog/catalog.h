@@ -196,6 +196,8 @@ class Catalog {
   /// sim::InputError when the kind already has an entry of that name, the name is empty, an
   /// animation's category is not "basic" or "choreography", or a garment has no fabric.
   std::int64_t Add(const NewEntry& entry);
+  /// Adds several entries in one transaction: all of them or, when one is refused, none.
+  std::vector<std::int64_t> AddAll(const std::vector<NewEntry>& entries);
   /// Sets a garment's fabric parameters (validated first).
   void SetFabric(std::int64_t garment_id, const FabricParameters& fabric);
   /// Replaces the thumbnail of entry `id` (garments: of its latest version).

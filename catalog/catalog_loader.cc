@@ -45,16 +45,46 @@ class TempDir {
   TempDir& operator=(const TempDir&) = delete;
 
   /// Writes `bytes` to the file `name` (a plain name) in the folder; returns its path.
-  std::string Write(const std::string& name, const std::vector<std::uint8_t>& bytes) const {
+  /// Messages quoting that path will quote `label` instead (see Clean); empty: the name.
+  std::string Write(const std::string& name, const std::vector<std::uint8_t>& bytes,
+                    const std::string& label = "") {
     const fs::path file = path_ / name;
+    labels_.emplace_back(file.string(), label.empty() ? name : label);
     std::ofstream out(file, std::ios::binary);
     out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
     if (!out) throw sim::InputError("cannot write the temporary file " + file.string());
     return file.string();
   }
 
+  /// `message` with the temporary paths replaced by their labels: an importer's error then
+  /// names the user's file or the catalogue entry, not a path that no longer exists.
+  std::string Clean(std::string message) const {
+    for (const auto& [path, label] : labels_) Replace(message, path, label);
+    Replace(message, path_.string() + "/", "");
+    return message;
+  }
+
+  /// Runs `load`, cleaning the message of any InputError it throws.
+  template <typename Load>
+  auto Guard(Load&& load) const {
+    try {
+      return load();
+    } catch (const sim::InputError& error) {
+      throw sim::InputError(Clean(error.what()));
+    } catch (const std::exception& error) {  // a library's own error on malformed input
+      throw sim::InputError(Clean(error.what()));
+    }
+  }
+
  private:
+  static void Replace(std::string& text, const std::string& from, const std::string& to) {
+    for (auto at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) {
+      text.replace(at, from.size(), to);
+    }
+  }
+
   fs::path path_;
+  std::vector<std::pair<std::string, std::string>> labels_;
 };
 
 std::string BuiltInName(const AssetData& data) {
@@ -91,7 +121,8 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
   if (IsMeshFormat(data.format)) {
     assets::AvatarImportOptions options;
     options.name = name;
-    return assets::LoadAvatar(dir.Write("avatar." + data.format, data.bytes), options);
+    const std::string path = dir.Write("avatar." + data.format, data.bytes, what);
+    return dir.Guard([&] { return assets::LoadAvatar(path, options); });
   }
   if (data.format == "makehuman") {
     const auto files = UnpackBundle(data.bytes, what);
@@ -100,9 +131,14 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
     const BundleFile& obj = Member(files, ".obj", what);
     const BundleFile& skeleton = Member(files, ".mhskel", what);
     const BundleFile& weights = Member(files, ".mhw", what);
-    return assets::LoadMakeHumanAvatar(dir.Write(obj.name, obj.bytes),
-                                       dir.Write(skeleton.name, skeleton.bytes),
-                                       dir.Write(weights.name, weights.bytes), options);
+    const std::string obj_path = dir.Write(obj.name, obj.bytes, what + " (" + obj.name + ")");
+    const std::string skeleton_path =
+        dir.Write(skeleton.name, skeleton.bytes, what + " (" + skeleton.name + ")");
+    const std::string weights_path =
+        dir.Write(weights.name, weights.bytes, what + " (" + weights.name + ")");
+    return dir.Guard([&] {
+      return assets::LoadMakeHumanAvatar(obj_path, skeleton_path, weights_path, options);
+    });
   }
   throw sim::InputError(what + ": format '" + data.format +
                         "' is not an avatar format: allowed are builtin, glb, gltf, fbx, dae, "
@@ -125,16 +161,17 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
   options.category = category;
   TempDir dir;
   if (data.format == "bvh" || (IsMeshFormat(data.format) && data.format != "obj")) {
-    return std::make_shared<sim::Clip>(
-        assets::LoadClip(dir.Write("clip." + data.format, data.bytes), options));
+    const std::string path = dir.Write("clip." + data.format, data.bytes, what);
+    return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }
   if (data.format == "deepmimic") {
     const auto files = UnpackBundle(data.bytes, what);
     const BundleFile& motion = Member(files, "motion.txt", what);
     const BundleFile& character = Member(files, "character.txt", what);
-    options.deepmimic_character = dir.Write(character.name, character.bytes);
-    return std::make_shared<sim::Clip>(
-        assets::LoadClip(dir.Write(motion.name, motion.bytes), options));
+    options.deepmimic_character =
+        dir.Write(character.name, character.bytes, what + " (character file)");
+    const std::string path = dir.Write(motion.name, motion.bytes, what);
+    return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }
   throw sim::InputError(what + ": format '" + data.format +
                         "' is not an animation format: allowed are builtin, bvh, glb, gltf, "
@@ -155,20 +192,15 @@ sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
     std::string path;
     if (IsBundle(data.bytes)) {
       const auto files = UnpackBundle(data.bytes, what);
-      for (const BundleFile& file : files) dir.Write(file.name, file.bytes);
-      path = dir.Write(Member(files, ".toml", what).name, Member(files, ".toml", what).bytes);
+      const BundleFile& toml = Member(files, ".toml", what);
+      for (const BundleFile& file : files) {
+        if (&file != &toml) dir.Write(file.name, file.bytes, what + " (" + file.name + ")");
+      }
+      path = dir.Write(toml.name, toml.bytes, what);
     } else {
-      path = dir.Write("garment.toml", data.bytes);
+      path = dir.Write("garment.toml", data.bytes, what);
     }
-    sim::SceneDescription scene;
-    try {
-      scene = assets::LoadSceneFile(path);
-    } catch (const sim::InputError& error) {
-      // The temporary path means nothing to the user: name the entry or file instead.
-      std::string message = error.what();
-      if (message.rfind(path, 0) == 0) message = what + message.substr(path.size());
-      throw sim::InputError(message);
-    }
+    const sim::SceneDescription scene = dir.Guard([&] { return assets::LoadSceneFile(path); });
     if (scene.garments.size() != 1) {
       throw sim::InputError(what + ": a garment file holds exactly one [[garment]] table, found " +
                             std::to_string(scene.garments.size()));
@@ -192,8 +224,9 @@ sim::ClipCategory CategoryOf(const EntryInfo& entry) {
 EntryInfo EntryOfKind(Catalog& catalog, std::int64_t id, Kind kind) {
   EntryInfo entry = catalog.Get(id);
   if (entry.kind != kind) {
-    throw sim::InputError("catalog entry " + std::to_string(id) + " ('" + entry.name + "') is a " +
-                          KindName(entry.kind) + ", not a " + KindName(kind));
+    throw sim::InputError("catalog entry " + std::to_string(id) + " ('" + entry.name + "') is " +
+                          (entry.kind == Kind::kGarment ? "a " : "an ") + KindName(entry.kind) +
+                          ", not " + (kind == Kind::kGarment ? "a " : "an ") + KindName(kind));
   }
   return entry;
 }
