@@ -4,6 +4,8 @@
 #include "sim_core/common/input_error.h"
 #ifdef COSTUME_HAVE_CATALOG
 #include "catalog/catalog.h"
+#include "catalog/fabric_presets.h"
+#include "catalog/rendered_thumbnails.h"
 #endif
 
 namespace costume::frontend {
@@ -62,7 +64,8 @@ std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::st
 #ifdef COSTUME_HAVE_CATALOG
   try {
     return std::make_unique<DatabaseCatalog>(
-        catalog::Catalog::Open(url.empty() ? catalog::DefaultCatalogUrl() : url));
+        catalog::Catalog::Open(url.empty() ? catalog::DefaultCatalogUrl() : url,
+                               catalog::WithRenderedThumbnails()));
   } catch (const sim::InputError& error) {
     if (warning) *warning = std::string("catalogue not opened: ") + error.what();
   }
@@ -74,6 +77,11 @@ std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::st
 
 std::vector<FabricPreset> FabricPresets() {
   std::vector<FabricPreset> presets;
+#ifdef COSTUME_HAVE_CATALOG
+  for (const catalog::FabricPreset& preset : catalog::FabricPresets()) {
+    presets.push_back({preset.name, catalog::MaterialFromFabric(preset.fabric, preset.name)});
+  }
+#endif
   for (const char* name : {"stiff_cotton", "blender_cotton"}) {
     presets.push_back({name, sim::NamedMaterial(name)});
   }

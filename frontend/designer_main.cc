@@ -60,7 +60,11 @@ int Run(QApplication& app, const Arguments& args) {
     // For scripted runs: a screenshot of the view, then close (children stopped).
     QTimer::singleShot(static_cast<int>(args.quit_after * 1000.0), &window, [&] {
       if (!args.screenshot.empty()) {
-        frontend::FrameExporter::Screenshot(window.view(), QString::fromStdString(args.screenshot));
+        const QString path = QString::fromStdString(args.screenshot);
+        frontend::FrameExporter::Screenshot(window.view(), path);
+        QString whole = path;
+        whole.replace(".png", "_window.png");
+        window.grab().save(whole, "PNG");  // the whole window beside the view alone
       }
       window.close();
     });
@@ -97,7 +101,7 @@ int main(int argc, char** argv) {
   cli.add_flag("--editing", args.editing, "Start in editing mode (mode B)");
   cli.add_option("--quit-after", args.quit_after, "Close the window after this many seconds")
       ->check(CLI::NonNegativeNumber);
-  cli.add_option("--screenshot", args.screenshot, "With --quit-after: save the 3D view as PNG");
+  cli.add_option("--screenshot", args.screenshot, "With --quit-after: save the 3D view as PNG (and the window as *_window.png)");
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

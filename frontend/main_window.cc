@@ -11,6 +11,7 @@
 #include <QPixmap>
 #include <QScrollArea>
 #include <QStatusBar>
+#include <QStyle>
 #include <QTabWidget>
 #include <QToolBar>
 #include <QVBoxLayout>
@@ -264,9 +265,10 @@ void MainWindow::BuildMenus() {
   connect(edit->addAction("Redo edit"), &QAction::triggered, redo_, &QPushButton::click);
 
   QToolBar* playback = addToolBar("Playback");
-  play_ = playback->addAction("▶ Play");
-  pause_ = playback->addAction("⏸ Pause");
-  stop_ = playback->addAction("⏹ Stop");
+  playback->setToolButtonStyle(Qt::ToolButtonTextBesideIcon);
+  play_ = playback->addAction(style()->standardIcon(QStyle::SP_MediaPlay), "Play");
+  pause_ = playback->addAction(style()->standardIcon(QStyle::SP_MediaPause), "Pause");
+  stop_ = playback->addAction(style()->standardIcon(QStyle::SP_MediaStop), "Stop");
   QMenu* sim = menuBar()->addMenu("&Simulation");
   sim->addAction(play_);
   sim->addAction(pause_);
@@ -438,10 +440,23 @@ void MainWindow::OnClothChunk(const costume_lcm::cloth_frame& chunk) {
   last_frame_ = std::move(frame);
 }
 
+bool IsPeriodicFigure(const std::string& warning) {
+  return warning.rfind("loop:", 0) == 0 || warning.rfind("safety:", 0) == 0;
+}
+
 void MainWindow::ShowWarnings(const Status& status, const QString& process) {
+  QStringList figures;
   for (const std::string& warning : status.warnings) {
-    warning_label_->setText(process + ": " + QString::fromStdString(warning));
-    Log(process + " warning: " + QString::fromStdString(warning));
+    const QString text = QString::fromStdString(warning);
+    if (IsPeriodicFigure(warning)) {
+      figures << text;  // the haptic server's once-a-second figures: a tooltip, not a warning
+      continue;
+    }
+    warning_label_->setText(process + ": " + text);
+    Log(process + " warning: " + text);
+  }
+  if (!figures.isEmpty()) {
+    (process == "haptic" ? haptic_label_ : sim_label_)->setToolTip(figures.join("\n"));
   }
 }
 

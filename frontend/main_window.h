@@ -50,6 +50,9 @@ struct FrontendOptions {
 QString FormatSimStatus(const costume_lcm::status& status);
 /// "haptic 1000 Hz · tick 0.02 ms · p99 1019 µs" from a haptic server status.
 QString FormatHapticStatus(const costume_lcm::status& status);
+/// True for the haptic server's once-a-second figures it sends as warnings ("loop: ...",
+/// "safety: ..."): shown as the status label's tooltip, not as warnings.
+bool IsPeriodicFigure(const std::string& warning);
 
 class MainWindow : public QMainWindow {
   Q_OBJECT

@@ -1,5 +1,6 @@
 #include "frontend/scene_mirror.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -53,7 +54,13 @@ SceneMirror::SceneMirror(sim::SceneDescription scene) : scene_(std::move(scene))
 
 void SceneMirror::PoseAvatar() {
   if (!motion_) return;
-  motion_->Evaluate(avatar_time_);
+  // The server moves the body to a new posture over kPostureTransition of simulated time.
+  double blend = 1.0;
+  if (posture_blending_) {
+    blend = std::clamp((last_sim_time_ - posture_start_) / kPostureTransition, 0.0, 1.0);
+    if (blend >= 1.0) posture_blending_ = false;
+  }
+  motion_->Evaluate(avatar_time_, blend);
   avatar_vertices_ = ToFloat(motion_->vertices());
 }
 
@@ -73,29 +80,30 @@ void SceneMirror::Follow(const ClothFrame& frame) {
 std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>& joints,
                                                  double heading_degrees) {
   std::vector<std::string> unknown;
-  if (!scene_.avatar) return unknown;
-  sim::AvatarSpec& spec = *scene_.avatar;
-  const sim::Skeleton& skeleton = spec.avatar->skeleton();
-  sim::Pose& posture = spec.motion.posture;
-  if (posture.rotations.empty()) {
-    posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
-  }
+  if (!motion_) return unknown;
+  // As the server's SET_POSTURE: the listed joints rotated, every other joint at rest, the
+  // avatar turned about +y and left where it stands.
+  const sim::Skeleton& skeleton = motion_->avatar().skeleton();
+  sim::Pose posture;
+  posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  posture.root_translation = motion_->settings().posture.root_translation;
   constexpr double kDegree = std::numbers::pi / 180.0;
   for (const JointAngles& joint : joints) {
     const std::optional<sim::HAnimJoint> hanim = sim::ParseHAnimName(joint.joint);
     const int index = hanim ? skeleton.Find(*hanim) : -1;
-    if (index < 0) {
+    if (index < 0 || !joint.degrees.allFinite()) {
       unknown.push_back(joint.joint);
       continue;
     }
-    // As [avatar.posture] in scene files: about rest x, then y, then z.
     posture.rotations[index] =
         Eigen::AngleAxisd(joint.degrees.x() * kDegree, Eigen::Vector3d::UnitX()) *
         Eigen::AngleAxisd(joint.degrees.y() * kDegree, Eigen::Vector3d::UnitY()) *
         Eigen::AngleAxisd(joint.degrees.z() * kDegree, Eigen::Vector3d::UnitZ());
   }
   posture.orientation = Eigen::AngleAxisd(heading_degrees * kDegree, Eigen::Vector3d::UnitY());
-  motion_ = std::make_unique<sim::AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+  motion_->SetPosture(posture);
+  posture_start_ = last_sim_time_;
+  posture_blending_ = true;
   PoseAvatar();
   return unknown;
 }

@@ -50,8 +50,9 @@ class SceneMirror {
   const std::vector<Eigen::Vector3f>& avatar_vertices() const { return avatar_vertices_; }
   const std::vector<std::uint32_t>& avatar_indices() const { return avatar_indices_; }
 
-  /// Applies a posture as KIND_SET_POSTURE does: each listed joint's rotation (unknown names
-  /// ignored, their names returned) and the heading about +y [degrees]; re-poses the avatar.
+  /// Applies a posture as the server's KIND_SET_POSTURE does: the listed joints' rotations,
+  /// every other joint at rest (unknown names ignored and returned), the heading about +y
+  /// [degrees]; the body moves there over kPostureTransition of the frames' simulated time.
   std::vector<std::string> SetPosture(const std::vector<JointAngles>& joints,
                                       double heading_degrees);
 
@@ -68,6 +69,10 @@ class SceneMirror {
   std::unique_ptr<sim::AvatarMotion> motion_;
   std::vector<Eigen::Vector3f> avatar_vertices_;
   std::vector<std::uint32_t> avatar_indices_;
+  /// The server's posture transition (SimServerOptions::posture_transition) [s].
+  static constexpr double kPostureTransition = 0.5;
+  double posture_start_ = 0.0;
+  bool posture_blending_ = false;
   bool has_frame_ = false;
   std::int64_t last_frame_ = -1;
   double last_sim_time_ = 0.0;
