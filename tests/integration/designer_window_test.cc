@@ -5,6 +5,8 @@
 // releases it, presses "eliminate stretch energy", saves a screenshot of the 3D view and
 // checks that the avatar and the cloth are where the view's camera projects them.
 // Run through ctest (tests/integration/designer_window.sh sets up Xvfb and the namespace).
+#include <QDir>
+#include <QFileInfo>
 #include <QTest>
 #include <gtest/gtest.h>
 
@@ -88,9 +90,19 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   ASSERT_TRUE(view.gl_info().startsWith("3.") || view.gl_info().startsWith("4."))
       << view.gl_info().toStdString();
 
-  // 2 s of the walk after the 0.5 s fitting.
+  // 2 s of the walk after the 0.5 s fitting, exported as PNG frames from 1 s on.
   QTRY_VERIFY_WITH_TIMEOUT(window.last_frame().has_value(), 60000);
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 1.0, 120000);
+  const QString export_dir = QString(COSTUME_BUILD_DIR) + "/designer_window_export";
+  QDir(export_dir).removeRecursively();
+  ASSERT_TRUE(window.exporter().Start(export_dir));
   QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 2.5, 120000);
+  window.exporter().Finish();
+  const int exported = window.exporter().frames_written();
+  EXPECT_GE(exported, 10);  // 1.5 s of frames; fewer drawn than received on a loaded machine
+  EXPECT_TRUE(QFileInfo(export_dir + "/frame_00000.png").isFile());
+  EXPECT_TRUE(QFileInfo(export_dir + QString("/frame_%1.png").arg(exported - 1, 5, 10, QChar('0')))
+                  .isFile());
   EXPECT_FALSE(window.last_frame()->editing);
   const double walked = window.mirror().avatar_time();
   EXPECT_GE(walked, 2.5);
@@ -142,8 +154,8 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   ASSERT_GT(drag.norm(), 0.02);
   const double moved = (held[front] - before[front]).cast<double>().dot(drag.normalized());
   EXPECT_GT(moved, 0.3 * drag.norm()) << "drag " << drag.norm() << " m, particle moved " << moved;
-  std::printf("walked %.2f s; pointer dragged %.1f cm, grabbed particle moved %.1f cm along it\n",
-              walked, 100.0 * drag.norm(), 100.0 * moved);
+  std::printf("exported %d PNG frames; walked %.2f s; pointer dragged %.1f cm, grabbed particle moved %.1f cm along it\n",
+              exported, walked, 100.0 * drag.norm(), 100.0 * moved);
 
   // "Eliminate stretch energy" at the grab: an edit the server can undo.
   window.stretch_button()->click();
