@@ -1,15 +1,26 @@
 #include "frontend/catalog_source.h"
 
 #include "sim_core/avatar/procedural_clips.h"
+#include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
 #ifdef COSTUME_HAVE_CATALOG
 #include "catalog/catalog.h"
+#include "catalog/catalog_loader.h"
 #include "catalog/fabric_presets.h"
 #include "catalog/rendered_thumbnails.h"
 #endif
 
 namespace costume::frontend {
 namespace {
+
+/// The scene's avatar; throws when there is none (the item needs one).
+sim::AvatarSpec& RequireAvatar(sim::SceneDescription& scene, const CatalogItem& item) {
+  if (!scene.avatar) {
+    throw sim::InputError("'" + item.name + "' needs a scene with an avatar; scene '" +
+                          scene.name + "' has none");
+  }
+  return *scene.avatar;
+}
 
 class BuiltInCatalog final : public CatalogSource {
  public:
@@ -27,6 +38,29 @@ class BuiltInCatalog final : public CatalogSource {
     return items;
   }
   std::string Describe() const override { return "built-in assets (no catalogue database)"; }
+
+  void ApplyToScene(EntryKind kind, const CatalogItem& item, sim::SceneDescription& scene) override {
+    switch (kind) {
+      case EntryKind::kAvatar:
+        RequireAvatar(scene, item).avatar = sim::MakeHumanoid();
+        return;
+      case EntryKind::kAnimation: {
+        sim::AvatarSpec& avatar = RequireAvatar(scene, item);
+        avatar.clip = std::make_shared<const sim::Clip>(
+            sim::MakeBuiltInClip(item.name, avatar.avatar->shared_skeleton()));
+        return;
+      }
+      case EntryKind::kCostume: {
+        RequireAvatar(scene, item);
+        sim::GarmentSpec garment;
+        garment.name = item.name;
+        garment.pattern = item.name;
+        if (!scene.garments.empty()) garment.material = scene.garments.front().material;
+        scene.garments = {garment};
+        return;
+      }
+    }
+  }
 };
 
 #ifdef COSTUME_HAVE_CATALOG
@@ -50,6 +84,23 @@ class DatabaseCatalog final : public CatalogSource {
     return items;
   }
   std::string Describe() const override { return db_->url(); }
+
+  void ApplyToScene(EntryKind kind, const CatalogItem& item, sim::SceneDescription& scene) override {
+    switch (kind) {
+      case EntryKind::kAvatar:
+        RequireAvatar(scene, item).avatar = catalog::LoadAvatar(*db_, item.id);
+        return;
+      case EntryKind::kAnimation: {
+        sim::AvatarSpec& avatar = RequireAvatar(scene, item);
+        avatar.clip = catalog::LoadClip(*db_, item.id, avatar.avatar->shared_skeleton());
+        return;
+      }
+      case EntryKind::kCostume:
+        scene.garments.clear();
+        catalog::AddGarmentToScene(*db_, item.id, 0, scene);
+        return;
+    }
+  }
 
  private:
   std::unique_ptr<catalog::Catalog> db_;

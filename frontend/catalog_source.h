@@ -11,6 +11,7 @@
 
 #include "frontend/command_sender.h"
 #include "sim_core/cloth/material.h"
+#include "sim_core/scene/scene_description.h"
 
 namespace costume::frontend {
 
@@ -36,6 +37,13 @@ class CatalogSource {
   virtual std::vector<CatalogItem> List(EntryKind kind) = 0;
   /// Where the entries come from, for the window title and the status bar.
   virtual std::string Describe() const = 0;
+  /// Changes `scene` as loading `item` does, for the view's mirror: kAvatar replaces the
+  /// avatar (clip, posture and garments stay; pattern garments are refitted), kCostume
+  /// replaces every garment with the item's (and adds its fabric), kAnimation replaces the
+  /// clip. Throws sim::InputError naming the entry when it cannot (e.g. a pattern garment on a
+  /// scene without avatar).
+  virtual void ApplyToScene(EntryKind kind, const CatalogItem& item,
+                            sim::SceneDescription& scene) = 0;
 };
 
 /// The built-in assets: the humanoid; the clips of sim::BuiltInClipNames; the skirt, cape and

@@ -199,6 +199,21 @@ void MainWindow::LoadSelected(EntryKind kind) {
   const QString name = item->data(kNameRole).toString();
   sender_->Load(kind, id, name.toStdString());
   Log(QString("load %1 '%2' sent").arg(kListTitles[static_cast<int>(kind)]).arg(name));
+  MirrorLoad(kind, CatalogItem{id, name.toStdString(), "", {}});
+}
+
+void MainWindow::MirrorLoad(EntryKind kind, const CatalogItem& item) {
+  try {
+    sim::SceneDescription scene = mirror_->scene();
+    catalog_->ApplyToScene(kind, item, scene);
+    auto mirror = std::make_unique<SceneMirror>(std::move(scene));
+    view_->SetMirror(mirror.get());
+    mirror_ = std::move(mirror);
+    warned_mismatch_ = false;
+    Log(QString("view mirrors the new scene: %1 particles").arg(mirror_->num_particles()));
+  } catch (const sim::InputError& error) {
+    Log(QString("the view keeps the previous scene: ") + error.what());
+  }
 }
 
 QWidget* MainWindow::BuildEditing() {

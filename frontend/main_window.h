@@ -127,6 +127,8 @@ class MainWindow : public QMainWindow {
   void BuildStatusBar();
   void FillLists();
   void LoadSelected(EntryKind kind);
+  /// Rebuilds the mirror as the server's scene changes with a LOAD_* (scene_mirror.h).
+  void MirrorLoad(EntryKind kind, const CatalogItem& item);
   void ConnectSignals();
   void ShowWarnings(const costume_lcm::status& status, const QString& process);
   void ToggleExport();

@@ -80,7 +80,7 @@ void SceneMirror::Follow(const ClothFrame& frame) {
 std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>& joints,
                                                  double heading_degrees) {
   std::vector<std::string> unknown;
-  if (!motion_) return unknown;
+  if (!motion_ || !scene_.avatar) return unknown;
   // As the server's SET_POSTURE: the listed joints rotated, every other joint at rest, the
   // avatar turned about +y and left where it stands.
   const sim::Skeleton& skeleton = motion_->avatar().skeleton();
@@ -102,6 +102,7 @@ std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>&
   }
   posture.orientation = Eigen::AngleAxisd(heading_degrees * kDegree, Eigen::Vector3d::UnitY());
   motion_->SetPosture(posture);
+  scene_.avatar->motion.posture = posture;  // as the server's scene: a rebuild keeps it
   posture_start_ = last_sim_time_;
   posture_blending_ = true;
   PoseAvatar();
