@@ -315,11 +315,15 @@ void MainWindow::BuildStatusBar() {
   sim_label_ = new QLabel("sim: no status yet");
   haptic_label_ = new QLabel("haptic: no status yet");
   device_label_ = new QLabel("device: disconnected");
+  force_label_ = new QLabel("force —");
+  force_label_->setToolTip("Force on the device after clamping and ramping [N] (requested force "
+                           "before them in brackets)");
   warning_label_ = new QLabel;
   warning_label_->setStyleSheet("color: #a05000");
   statusBar()->addWidget(sim_label_);
   statusBar()->addWidget(haptic_label_);
   statusBar()->addWidget(device_label_);
+  statusBar()->addWidget(force_label_);
   statusBar()->addWidget(warning_label_, 1);
 }
 
@@ -328,6 +332,7 @@ void MainWindow::ConnectSignals() {
   connect(link_.get(), &BusLink::simStatus, this, &MainWindow::OnSimStatus);
   connect(link_.get(), &BusLink::hapticStatus, this, &MainWindow::OnHapticStatus);
   connect(link_.get(), &BusLink::deviceState, this, &MainWindow::OnDeviceState);
+  connect(link_.get(), &BusLink::feedback, this, &MainWindow::OnFeedback);
 
   for (int k = 0; k < 3; ++k) {
     const auto kind = static_cast<EntryKind>(k);
@@ -493,6 +498,16 @@ void MainWindow::OnDeviceState(const costume_lcm::device_state& state) {
   last_cursor_ = position;
   view_->SetCursor(position, q.normalized(),
                    state.model == costume_lcm::device_state::MODEL_CYBERGRASP);
+}
+
+void MainWindow::OnFeedback(const costume_lcm::feedback& message) {
+  const Eigen::Vector3d force(message.force[0], message.force[1], message.force[2]);
+  const Eigen::Vector3d requested(message.requested_force[0], message.requested_force[1],
+                                  message.requested_force[2]);
+  force_label_->setText(QString("force %1 N (%2)%3")
+                            .arg(force.norm(), 0, 'f', 2)
+                            .arg(requested.norm(), 0, 'f', 2)
+                            .arg(message.clamped ? " clamped" : ""));
 }
 
 void MainWindow::Log(const QString& line) { log_->appendPlainText(line); }

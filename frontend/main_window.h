@@ -102,6 +102,7 @@ class MainWindow : public QMainWindow {
   QLabel* haptic_label() const { return haptic_label_; }
   QLabel* device_label() const { return device_label_; }
   QLabel* warning_label() const { return warning_label_; }
+  QLabel* force_label() const { return force_label_; }
   QPlainTextEdit* message_log() const { return log_; }
   /// The last whole frame received, if any.
   const std::optional<ClothFrame>& last_frame() const { return last_frame_; }
@@ -114,6 +115,8 @@ class MainWindow : public QMainWindow {
   void OnSimStatus(const costume_lcm::status& status);
   void OnHapticStatus(const costume_lcm::status& status);
   void OnDeviceState(const costume_lcm::device_state& state);
+  /// Shows the force the device renders (what a stylus would feel with the mouse) [N].
+  void OnFeedback(const costume_lcm::feedback& message);
   /// Appends a line to the message log (warnings, process output).
   void Log(const QString& line);
 
@@ -172,6 +175,7 @@ class MainWindow : public QMainWindow {
   QLabel* haptic_label_ = nullptr;
   QLabel* device_label_ = nullptr;
   QLabel* warning_label_ = nullptr;
+  QLabel* force_label_ = nullptr;
   QPlainTextEdit* log_ = nullptr;
 };
 

@@ -254,6 +254,15 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   EXPECT_TRUE(sim.contains("editing"));
   EXPECT_TRUE(sim.contains("playing"));
   EXPECT_TRUE(window_->warning_label()->text().contains("LOAD_COSTUME refused"));
+  costume_lcm::feedback f{};
+  f.utime = bus::NowUtime();
+  f.force[0] = 0.6;
+  f.force[1] = -0.8;  // |F| = 1 N
+  f.requested_force[2] = 4.0;
+  f.clamped = true;
+  ASSERT_TRUE(bus::Publish(bus_, bus::kFeedbackChannel, f));
+  Sent();
+  EXPECT_EQ(window_->force_label()->text(), "force 1.00 N (4.00) clamped");
   const QString haptic = window_->haptic_label()->text();
   EXPECT_TRUE(haptic.contains("1000 Hz")) << haptic.toStdString();
   EXPECT_TRUE(haptic.contains("p99 1019"));
