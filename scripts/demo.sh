@@ -4,7 +4,7 @@
 #    the simulation server and the haptic server with the chosen device as its child processes
 #    and stops them when its window closes (docs/frontend.md);
 #  - without a display, or with --headless, or with an option only the headless program knows
-#    (--out, --frames, ...): the headless run of the built-in garment scene (or the scene file
+#    (--out, --duration, ...): the headless run of the built-in garment scene (or the scene file
 #    given), writing OBJ frames under out/ (see: build/sim_core/app/costume_sim --help).
 # Workstation options: --device simulated|mouse|openhaptics|cybergrasp|none (default mouse),
 # --builtin NAME, --scene FILE or a scene file as the first argument, --editing,

@@ -11,6 +11,7 @@ packages=(
   libbullet-dev                                          # collision (avatar issue)
   liblcm-dev liblcm-bin libglib2.0-dev liblcm-java default-jdk-headless  # processes
   qt6-base-dev libqt6opengl6-dev libgl-dev libosmesa6-dev xvfb xauth     # frontend
+  qt6-wayland                                            # the GUI on a Wayland-only desktop
   libsqlite3-dev libpq-dev                               # database
   libpng-dev                                             # render: thumbnails as PNG
 )
