@@ -361,3 +361,39 @@ TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
 
 }  // namespace
 }  // namespace costume::frontend
+
+namespace costume::frontend {
+namespace {
+
+TEST_F(MainWindowTest, DragOnEmptySpaceOrbitsShiftDragPansWheelZooms) {
+  ViewWidget& view = window_->view();
+  view.resize(800, 600);
+  const render::Camera start = view.camera();
+  const double distance = (start.eye - start.target).norm();
+  // The top-left corner shows no cloth: a left drag there orbits about the target.
+  QTest::mousePress(&view, Qt::LeftButton, Qt::NoModifier, QPoint(5, 5));
+  EXPECT_FALSE(view.grab_point());
+  QTest::mouseMove(&view, QPoint(65, 5));
+  QTest::mouseRelease(&view, Qt::LeftButton, Qt::NoModifier, QPoint(65, 5));
+  EXPECT_TRUE(view.camera().target.isApprox(start.target));
+  EXPECT_NEAR((view.camera().eye - view.camera().target).norm(), distance, 1e-9);
+  EXPECT_GT((view.camera().eye - start.eye).norm(), 0.1);
+  // Shift + drag pans: eye and target move together.
+  const render::Camera orbited = view.camera();
+  QTest::mousePress(&view, Qt::LeftButton, Qt::ShiftModifier, QPoint(5, 5));
+  QTest::mouseMove(&view, QPoint(5, 65));
+  QTest::mouseRelease(&view, Qt::LeftButton, Qt::ShiftModifier, QPoint(5, 65));
+  const Eigen::Vector3d moved = view.camera().target - orbited.target;
+  EXPECT_GT(moved.norm(), 0.01);
+  EXPECT_TRUE((view.camera().eye - orbited.eye).isApprox(moved));
+  // One wheel notch towards the scene: the distance shrinks by 10 %.
+  const render::Camera panned = view.camera();
+  QWheelEvent wheel(QPointF(400, 300), view.mapToGlobal(QPointF(400, 300)), QPoint(),
+                    QPoint(0, 120), Qt::NoButton, Qt::NoModifier, Qt::NoScrollPhase, false);
+  QApplication::sendEvent(&view, &wheel);
+  EXPECT_NEAR((view.camera().eye - view.camera().target).norm(),
+              (panned.eye - panned.target).norm() / 1.1, 1e-9);
+}
+
+}  // namespace
+}  // namespace costume::frontend
