@@ -50,6 +50,8 @@ class BusLink : public QObject {
   std::int64_t dropped() const;
 
  signals:
+  /// One accepted message of each subscribed channel (bus/channels.h), emitted on the thread
+  /// that called Poll.
   void clothChunk(const costume_lcm::cloth_frame& chunk);
   void deviceState(const costume_lcm::device_state& state);
   void feedback(const costume_lcm::feedback& message);

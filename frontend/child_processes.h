@@ -52,6 +52,8 @@ class ChildProcesses : public QObject {
   /// Stops both (SIGTERM, waits up to 3 s each, then SIGKILL).
   void StopAll();
 
+  /// Whether each child is running; the device last connected; the options (mutable: the
+  /// radius field updates them for the next connect).
   bool sim_running() const { return sim_.state() != QProcess::NotRunning; }
   bool device_running() const { return haptic_.state() != QProcess::NotRunning; }
   const QString& device() const { return device_; }

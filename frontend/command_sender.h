@@ -45,14 +45,18 @@ class CommandSender {
   bool Load(EntryKind kind, std::int64_t database_id, const std::string& name);
   /// SET_MODE: `editing` false = MODE_ANIMATION (mode A), true = MODE_EDITING (mode B).
   bool SetMode(bool editing);
+  /// PLAY: frames advance. PAUSE: they stop (still published). STOP: the server rebuilds the
+  /// scene at frame 0 and stays stopped.
   bool Play();
   bool Pause();
   bool Stop();
   /// SET_MATERIAL for garment `garment` (-1 = every garment).
   bool SetMaterial(int garment, const sim::Material& material);
+  /// SET_SOLVER with every field of `settings` (the server restarts from frame 0 with it).
   bool SetSolver(const sim::SolverSettings& settings);
   /// ELIMINATE_STRETCH over the sphere (`centre` [m], `radius` [m] > 0), grab_id = -1.
   bool EliminateStretch(const Eigen::Vector3d& centre, double radius);
+  /// UNDO / REDO of the last stretch elimination (rest lengths).
   bool Undo();
   bool Redo();
   /// SAVE_VERSION with `label` as the version's label.
