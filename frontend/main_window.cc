@@ -10,6 +10,7 @@
 #include <QMenuBar>
 #include <QPixmap>
 #include <QScrollArea>
+#include <QSignalBlocker>
 #include <QStatusBar>
 #include <QStyle>
 #include <QTabWidget>
@@ -358,11 +359,13 @@ void MainWindow::ConnectSignals() {
   connect(animation_mode_, &QRadioButton::toggled, this, [this](bool on) {
     if (!on) return;
     sender_->SetMode(false);
+    mode_sent_.start();
     view_->SetSelectionVisible(false);
   });
   connect(editing_mode_, &QRadioButton::toggled, this, [this](bool on) {
     if (!on) return;
     sender_->SetMode(true);
+    mode_sent_.start();
     view_->SetSelectionVisible(true);
   });
   connect(radius_, &QDoubleSpinBox::valueChanged, this, [this](double r) {
@@ -483,6 +486,18 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
 void MainWindow::OnSimStatus(const Status& status) {
   sim_label_->setText(FormatSimStatus(status));
   ShowWarnings(status, "sim");
+  SyncMode(status.mode == Status::MODE_EDITING);
+}
+
+void MainWindow::SyncMode(bool editing) {
+  // The server's mode wins, except just after the designer switched (the status on its way
+  // may predate the switch).
+  if (mode_sent_.isValid() && mode_sent_.elapsed() < 2000) return;
+  if (editing_mode_->isChecked() == editing) return;
+  const QSignalBlocker block_a(animation_mode_);
+  const QSignalBlocker block_b(editing_mode_);
+  (editing ? editing_mode_ : animation_mode_)->setChecked(true);
+  view_->SetSelectionVisible(editing);
 }
 
 void MainWindow::OnHapticStatus(const Status& status) {

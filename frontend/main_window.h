@@ -9,6 +9,7 @@
 
 #include <QActionGroup>
 #include <QDoubleSpinBox>
+#include <QElapsedTimer>
 #include <QLabel>
 #include <QLineEdit>
 #include <QListWidget>
@@ -133,6 +134,8 @@ class MainWindow : public QMainWindow {
   /// Rebuilds the mirror as the server's scene changes with a LOAD_* (scene_mirror.h).
   void MirrorLoad(EntryKind kind, const CatalogItem& item);
   void ConnectSignals();
+  /// Shows the server's mode on the switch without sending a command.
+  void SyncMode(bool editing);
   void ShowWarnings(const costume_lcm::status& status, const QString& process);
   void ToggleExport();
 
@@ -147,6 +150,8 @@ class MainWindow : public QMainWindow {
   std::optional<Eigen::Vector3d> last_grab_;
   std::optional<Eigen::Vector3d> last_cursor_;
   bool warned_mismatch_ = false;
+  /// Since the designer last switched modes.
+  QElapsedTimer mode_sent_;
 
   ViewWidget* view_ = nullptr;
   ChildProcesses* children_ = nullptr;

@@ -245,7 +245,7 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   h.period_p99_us = 1019;
   h.num_warnings = 0;
   ASSERT_TRUE(bus::Publish(bus_, bus::kHapticStatusChannel, h));
-  Sent();
+  const std::vector<Command> sent_meanwhile = Sent();
   const QString sim = window_->sim_label()->text();
   EXPECT_TRUE(sim.contains("59.7 Hz")) << sim.toStdString();
   EXPECT_TRUE(sim.contains("17 it"));
@@ -253,6 +253,8 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   EXPECT_TRUE(sim.contains("frame 120"));
   EXPECT_TRUE(sim.contains("editing"));
   EXPECT_TRUE(sim.contains("playing"));
+  EXPECT_TRUE(window_->editing_mode()->isChecked());  // the switch shows the server's mode
+  EXPECT_TRUE(sent_meanwhile.empty());                  // ... without sending a command
   EXPECT_TRUE(window_->warning_label()->text().contains("LOAD_COSTUME refused"));
   costume_lcm::feedback f{};
   f.utime = bus::NowUtime();
