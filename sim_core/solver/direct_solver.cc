@@ -1,6 +1,7 @@
 #include "sim_core/solver/direct_solver.h"
 
 #include <Eigen/CholmodSupport>
+#include <algorithm>
 #include <vector>
 
 namespace costume::sim {
@@ -9,7 +10,8 @@ struct DirectSolver::Impl {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> cholesky;
   /// The filtered matrix in CHOLMOD's compressed-column form, same pattern as A.
   Eigen::SparseMatrix<double> filtered;
-  /// For block b and entry r·3 + c: its index in filtered's value array.
+  /// For each scalar entry of A's blocks (ForEachEntry's slots): its index in filtered's
+  /// value array.
   std::vector<int> value_index;
   Eigen::VectorXd rhs, az, y;
 };
@@ -42,51 +44,68 @@ DirectSolver::~DirectSolver() = default;
 
 namespace {
 
+/// Calls visit(row, col, slot) for the nine scalar entries of every block A has: slots
+/// [0, 9n) are the diagonal blocks, then 18 per spring, (a, b) before (b, a).
+template <typename Visit>
+void ForEachEntry(const SystemMatrix& a, Visit visit) {
+  int slot = 0;
+  auto block = [&](int i, int j) {
+    for (int e = 0; e < 9; ++e) visit(3 * i + e / 3, 3 * j + e % 3, slot++);
+  };
+  for (int i = 0; i < a.num_particles(); ++i) block(i, i);
+  for (int s = 0; s < a.num_springs(); ++s) {
+    const auto [i, j] = a.spring_ends(s);
+    block(i, j);
+    block(j, i);
+  }
+}
+
 void BuildPattern(const SystemMatrix& a, DirectSolver::Impl& m) {
   const int n3 = 3 * a.num_particles();
   std::vector<Eigen::Triplet<double>> triplets;
-  for (int i = 0; i < a.num_particles(); ++i) {
-    for (int b = a.row_start()[i]; b < a.row_start()[i + 1]; ++b) {
-      for (int e = 0; e < 9; ++e) {
-        triplets.emplace_back(3 * i + e / 3, 3 * a.block_col()[b] + e % 3, 0.0);
-      }
-    }
-  }
+  ForEachEntry(a, [&](int row, int col, int) { triplets.emplace_back(row, col, 0.0); });
   m.filtered.resize(n3, n3);
   m.filtered.setFromTriplets(triplets.begin(), triplets.end());
   m.filtered.makeCompressed();
-  m.value_index.resize(9 * a.num_blocks());
-  for (int i = 0; i < a.num_particles(); ++i) {
-    for (int b = a.row_start()[i]; b < a.row_start()[i + 1]; ++b) {
-      for (int e = 0; e < 9; ++e) {
-        const int row = 3 * i + e / 3, col = 3 * a.block_col()[b] + e % 3;
-        const int* first = m.filtered.innerIndexPtr() + m.filtered.outerIndexPtr()[col];
-        const int* last = m.filtered.innerIndexPtr() + m.filtered.outerIndexPtr()[col + 1];
-        m.value_index[9 * b + e] =
-            static_cast<int>(std::lower_bound(first, last, row) - m.filtered.innerIndexPtr());
-      }
-    }
-  }
+  m.value_index.resize(triplets.size());
+  ForEachEntry(a, [&](int row, int col, int slot) {
+    const int* first = m.filtered.innerIndexPtr() + m.filtered.outerIndexPtr()[col];
+    const int* last = m.filtered.innerIndexPtr() + m.filtered.outerIndexPtr()[col + 1];
+    m.value_index[slot] =
+        static_cast<int>(std::lower_bound(first, last, row) - m.filtered.innerIndexPtr());
+  });
 }
 
 /// Copies A into the CSC matrix, replacing every block touching a constrained particle by
 /// S_i A_ij S_j (+ I − S_i on the diagonal): same pattern, SPD, constrained directions
-/// decoupled.
+/// decoupled. Springs joining the same pair share entries, so values are summed.
 void CopyFiltered(const SystemMatrix& a, const Constraints& constraints,
                   DirectSolver::Impl& m) {
   double* values = m.filtered.valuePtr();
-  for (int i = 0; i < a.num_particles(); ++i) {
-    const bool row_free = constraints.num_constrained_directions(i) == 0;
-    for (int b = a.row_start()[i]; b < a.row_start()[i + 1]; ++b) {
-      const int j = a.block_col()[b];
-      Eigen::Matrix3d block = a.block(b);
-      if (!row_free || constraints.num_constrained_directions(j) != 0) {
-        const Eigen::Matrix3d si = FilterBlock(constraints, i);
-        block = si * block * FilterBlock(constraints, j);
-        if (i == j) block += Eigen::Matrix3d::Identity() - si;
-      }
-      for (int e = 0; e < 9; ++e) values[m.value_index[9 * b + e]] = block(e / 3, e % 3);
+  std::fill(values, values + m.filtered.nonZeros(), 0.0);
+  int slot = 0;
+  auto add = [&](const Eigen::Matrix3d& block) {
+    for (int e = 0; e < 9; ++e) values[m.value_index[slot++]] += block(e / 3, e % 3);
+  };
+  auto filtered = [&](int i, int j, const Eigen::Matrix3d& block) -> Eigen::Matrix3d {
+    if (constraints.num_constrained_directions(i) == 0 &&
+        constraints.num_constrained_directions(j) == 0) {
+      return block;
     }
+    return FilterBlock(constraints, i) * block * FilterBlock(constraints, j);
+  };
+  for (int i = 0; i < a.num_particles(); ++i) {
+    Eigen::Matrix3d block = filtered(i, i, a.DiagonalBlock(i));
+    if (constraints.num_constrained_directions(i) != 0) {
+      block += Eigen::Matrix3d::Identity() - FilterBlock(constraints, i);
+    }
+    add(block);
+  }
+  for (int s = 0; s < a.num_springs(); ++s) {
+    const auto [i, j] = a.spring_ends(s);
+    const Eigen::Matrix3d coupling = -a.SpringBlock(s);
+    add(filtered(i, j, coupling));
+    add(filtered(j, i, coupling));
   }
 }
 

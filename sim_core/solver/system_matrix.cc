@@ -4,67 +4,73 @@
 
 namespace costume::sim {
 
-SystemMatrix::SystemMatrix(const ClothModel& model) : num_particles_(model.num_particles()) {
-  const int n = num_particles_;
-  std::vector<std::vector<int>> neighbours(n);
-  for (int i = 0; i < n; ++i) neighbours[i].push_back(i);
-  for (const Spring& s : model.springs()) {
-    neighbours[s.a].push_back(s.b);
-    neighbours[s.b].push_back(s.a);
-  }
-  row_start_.assign(n + 1, 0);
-  for (int i = 0; i < n; ++i) {
-    std::sort(neighbours[i].begin(), neighbours[i].end());
-    row_start_[i + 1] = row_start_[i] + static_cast<int>(neighbours[i].size());
-    block_col_.insert(block_col_.end(), neighbours[i].begin(), neighbours[i].end());
-  }
-  values_.assign(9 * block_col_.size(), 0.0);
-  auto block_of = [&](int row, int col) {
-    const auto first = block_col_.begin() + row_start_[row];
-    const auto last = block_col_.begin() + row_start_[row + 1];
-    return static_cast<int>(std::lower_bound(first, last, col) - block_col_.begin());
-  };
-  diagonal_block_.resize(n);
-  for (int i = 0; i < n; ++i) diagonal_block_[i] = block_of(i, i);
-  for (const Spring& s : model.springs()) {
-    spring_ends_.emplace_back(s.a, s.b);
-    spring_blocks_.emplace_back(block_of(s.a, s.b), block_of(s.b, s.a));
-  }
+SystemMatrix::SystemMatrix(const ClothModel& model)
+    : num_particles_(model.num_particles()),
+      diagonal_(9 * static_cast<std::size_t>(model.num_particles()), 0.0),
+      coupling_(6 * model.springs().size(), 0.0) {
+  spring_ends_.reserve(model.springs().size());
+  for (const Spring& s : model.springs()) spring_ends_.emplace_back(s.a, s.b);
 }
 
-void SystemMatrix::SetZero() { std::fill(values_.begin(), values_.end(), 0.0); }
+void SystemMatrix::SetZero() {
+  std::fill(diagonal_.begin(), diagonal_.end(), 0.0);
+  std::fill(coupling_.begin(), coupling_.end(), 0.0);
+}
 
 void SystemMatrix::AddToDiagonal(int i, const Eigen::Matrix3d& block) {
-  mutable_block(diagonal_block_[i]) += block;
+  double* d = &diagonal_[9 * static_cast<std::size_t>(i)];
+  for (int e = 0; e < 9; ++e) d[e] += block(e / 3, e % 3);
 }
 
 void SystemMatrix::AddSpringCoupling(int spring, const Eigen::Matrix3d& block) {
   const auto [a, b] = spring_ends_[spring];
-  const auto [ab, ba] = spring_blocks_[spring];
-  mutable_block(diagonal_block_[a]) += block;
-  mutable_block(diagonal_block_[b]) += block;
-  mutable_block(ab) -= block;
-  mutable_block(ba) -= block;
+  AddToDiagonal(a, block);
+  AddToDiagonal(b, block);
+  double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
+  c[0] += block(0, 0);
+  c[1] += block(0, 1);
+  c[2] += block(0, 2);
+  c[3] += block(1, 1);
+  c[4] += block(1, 2);
+  c[5] += block(2, 2);
 }
 
 void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  const double* v = values_.data();
   const double* xs = x.data();
-  for (int i = 0; i < num_particles_; ++i) {
-    double y0 = 0.0, y1 = 0.0, y2 = 0.0;
-    for (int b = row_start_[i]; b < row_start_[i + 1]; ++b) {
-      const double* m = v + 9 * b;
-      const double* xj = xs + 3 * block_col_[b];
-      y0 += m[0] * xj[0] + m[1] * xj[1] + m[2] * xj[2];
-      y1 += m[3] * xj[0] + m[4] * xj[1] + m[5] * xj[2];
-      y2 += m[6] * xj[0] + m[7] * xj[1] + m[8] * xj[2];
-    }
-    y[3 * i] = y0;
-    y[3 * i + 1] = y1;
-    y[3 * i + 2] = y2;
+  double* ys = y.data();
+  const double* d = diagonal_.data();
+  for (int i = 0; i < num_particles_; ++i, d += 9) {
+    const double* xi = xs + 3 * i;
+    ys[3 * i] = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
+    ys[3 * i + 1] = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
+    ys[3 * i + 2] = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
+  }
+  const double* c = coupling_.data();
+  for (const auto& [a, b] : spring_ends_) {
+    const double* xa = xs + 3 * a;
+    const double* xb = xs + 3 * b;
+    double* ya = ys + 3 * a;
+    double* yb = ys + 3 * b;
+    ya[0] -= c[0] * xb[0] + c[1] * xb[1] + c[2] * xb[2];
+    ya[1] -= c[1] * xb[0] + c[3] * xb[1] + c[4] * xb[2];
+    ya[2] -= c[2] * xb[0] + c[4] * xb[1] + c[5] * xb[2];
+    yb[0] -= c[0] * xa[0] + c[1] * xa[1] + c[2] * xa[2];
+    yb[1] -= c[1] * xa[0] + c[3] * xa[1] + c[4] * xa[2];
+    yb[2] -= c[2] * xa[0] + c[4] * xa[1] + c[5] * xa[2];
+    c += 6;
   }
 }
 
-Eigen::Matrix3d SystemMatrix::DiagonalBlock(int i) const { return block(diagonal_block_[i]); }
+Eigen::Matrix3d SystemMatrix::DiagonalBlock(int i) const {
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(
+      &diagonal_[9 * static_cast<std::size_t>(i)]);
+}
+
+Eigen::Matrix3d SystemMatrix::SpringBlock(int spring) const {
+  const double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
+  Eigen::Matrix3d block;
+  block << c[0], c[1], c[2], c[1], c[3], c[4], c[2], c[4], c[5];
+  return block;
+}
 
 }  // namespace costume::sim
