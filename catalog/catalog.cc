@@ -529,3 +529,40 @@ int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size) {
 }
 
 }  // namespace costume::catalog
+
+namespace costume::catalog {
+
+std::vector<std::string> Catalog::CheckIntegrity() {
+  return InTransaction(*db_, false, [&] {
+    std::vector<std::string> problems;
+    if (db_->dialect() == Dialect::kSqlite) {
+      for (const SqlRow& row : db_->Query("PRAGMA integrity_check")) {
+        if (AsText(row.at(0)) != "ok") problems.push_back("integrity_check: " + AsText(row[0]));
+      }
+      for (const SqlRow& row : db_->Query("PRAGMA foreign_key_check")) {
+        problems.push_back("foreign_key_check: table " + AsText(row.at(0)) + " row " +
+                           std::to_string(AsInt(row.at(1))));
+      }
+    }
+    for (const SqlRow& row : db_->Query(
+             "SELECT e.id, e.name, e.latest_version, COUNT(v.version), MIN(v.version), "
+             "MAX(v.version) FROM entries e LEFT JOIN versions v ON v.entry_id = e.id "
+             "GROUP BY e.id, e.name, e.latest_version "
+             "HAVING COUNT(v.version) <> e.latest_version OR MIN(v.version) <> 1 OR "
+             "MAX(v.version) <> e.latest_version OR COUNT(v.version) = 0")) {
+      problems.push_back("entry " + std::to_string(AsInt(row[0])) + " ('" + AsText(row[1]) +
+                         "'): latest_version " + std::to_string(AsInt(row[2])) + " but " +
+                         std::to_string(AsInt(row[3])) + " version(s) stored");
+    }
+    for (const SqlRow& row : db_->Query(
+             "SELECT e.id, e.name FROM entries e WHERE (e.kind <> 'garment' AND "
+             "e.latest_version <> 1) OR (e.kind = 'garment' AND NOT EXISTS "
+             "(SELECT 1 FROM fabrics f WHERE f.entry_id = e.id))")) {
+      problems.push_back("entry " + std::to_string(AsInt(row[0])) + " ('" + AsText(row[1]) +
+                         "'): a garment without fabric or another kind with several versions");
+    }
+    return problems;
+  });
+}
+
+}  // namespace costume::catalog

@@ -206,6 +206,10 @@ class Catalog {
   /// without a renderer); returns how many were made. Entries whose data cannot be loaded or
   /// rendered are skipped.
   int FillMissingThumbnails(const ThumbnailMaker& maker, int size = 128);
+  /// Checks the database: SQLite's integrity_check and foreign_key_check, and for every
+  /// entry that its versions are exactly 1..latest_version, non-garments have one version,
+  /// garments have a fabric. Returns the problems found (empty: consistent).
+  std::vector<std::string> CheckIntegrity();
 
  private:
   Catalog(std::string url, std::unique_ptr<SqlConnection> connection);
