@@ -173,10 +173,17 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                                    : ".toml (one [[garment]]), .cdgarment (edited garment)"));
       }
       if (format == "deepmimic") {
-        const fs::path character = ResolveInsideRoot(
-            root, request.character.empty()
-                      ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
-                      : request.character);
+        const std::string character_file =
+            request.character.empty()
+                ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
+                : request.character;
+        fs::path character;
+        try {
+          character = ResolveInsideRoot(root, character_file);
+        } catch (const sim::InputError& error) {
+          throw sim::InputError(shown + ": its DeepMimic character file: " + error.what() +
+                                " (give it with --character)");
+        }
         c.entry.data = {format, PackBundle({{"motion.txt", ReadBytes(path, shown)},
                                             {"character.txt", ReadBytes(character, shown +
                                                                         " (character file)")}})};
