@@ -47,7 +47,7 @@ struct FabricParameters {
   /// Sheet shear stiffness [N/m] > 0 (sim::Material::shear_stiffness).
   double shear_stiffness = 1000.0;
   /// Bending rigidity [N·m] = [N·m²/m] >= 0 (sim::Material::bending_rigidity; Kawabata's B
-  /// in gf·cm²/cm is 9.81e-6 N·m).
+  /// in gf·cm²/cm is 9.81e-5 N·m).
   double bend_stiffness = 1e-5;
   /// Spring damping time [s] >= 0 (sim::Material::damping: c = damping · k).
   double damping = 1e-3;
