@@ -135,6 +135,9 @@ int main(int argc, char** argv) {
   exporter->add_option("id", export_id, "entry id (or a garment's name)")->required();
   exporter->add_option("--version", export_version, "garment version (default: latest)");
   exporter->add_option("--out", out, "output file (a folder for multi-file entries)")->required();
+  bool export_thumbnail = false;
+  exporter->add_flag("--thumbnail", export_thumbnail,
+                     "write the entry's thumbnail (PNG) instead of its data");
 
   CLI11_PARSE(app, argc, argv);
 
@@ -162,7 +165,16 @@ int main(int argc, char** argv) {
                     v.label.c_str());
       }
     } else if (*exporter) {
-      Export(*catalog, Resolve(*catalog, export_id, Kind::kGarment), export_version, out);
+      const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
+      if (export_thumbnail) {
+        const auto png = catalog->Thumbnail(entry.id);
+        if (png.empty()) throw costume::sim::InputError("'" + entry.name + "' has no thumbnail");
+        std::ofstream(out, std::ios::binary)
+            .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+        std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
+      } else {
+        Export(*catalog, entry, export_version, out);
+      }
     }
   } catch (const costume::sim::InputError& error) {
     std::cerr << "error: " << error.what() << "\n";
