@@ -26,8 +26,8 @@ SceneDescription SkirtScene() {
   scene.source = "edited_garment_test";
   sim::AvatarSpec avatar;
   avatar.avatar = humanoid;
-  avatar.clip = std::make_shared<const sim::Clip>(
-      sim::MakeBuiltInClip("walk", humanoid->shared_skeleton()));
+  avatar.clip =
+      std::make_shared<const sim::Clip>(sim::MakeBuiltInClip("walk", humanoid->shared_skeleton()));
   avatar.motion.fit_time = 0.1;
   scene.avatar = avatar;
   sim::GarmentSpec skirt;
@@ -163,8 +163,7 @@ TEST(EditedGarment, RefusesDamagedBytes) {
   std::vector<std::uint8_t> bad_index = good;
   const std::int32_t far = 1 << 20;
   std::memcpy(bad_index.data() + first_spring, &far, 4);
-  EXPECT_NE(Refusal(bad_index).find("damaged.cdgarment"), std::string::npos)
-      << Refusal(bad_index);
+  EXPECT_NE(Refusal(bad_index).find("damaged.cdgarment"), std::string::npos) << Refusal(bad_index);
 }
 
 }  // namespace

@@ -43,8 +43,8 @@ TEST_F(CatalogLoaderTest, BuiltInsLoadAsSimCoreMakesThem) {
     const sim::Clip made = sim::MakeBuiltInClip(name, humanoid->shared_skeleton());
     EXPECT_EQ(clip->frames.size(), made.frames.size()) << name;
     EXPECT_EQ(clip->frame_time, made.frame_time) << name;
-    EXPECT_EQ(clip->category, name == "dance" ? sim::ClipCategory::kChoreography
-                                              : sim::ClipCategory::kBasic);
+    EXPECT_EQ(clip->category,
+              name == "dance" ? sim::ClipCategory::kChoreography : sim::ClipCategory::kBasic);
   }
   // Without a skeleton: the built-in humanoid's.
   EXPECT_EQ(LoadClip(*catalog_, Id(Kind::kAnimation, "walk"), nullptr)->skeleton->num_joints(),
@@ -93,8 +93,8 @@ TEST_F(CatalogLoaderTest, AnEditedGarmentVersionKeepsItsRestLengths) {
 
   const auto bytes =
       assets::WriteEditedGarment(assets::EditedGarmentFromSimulation(*simulation, "skirt"));
-  const int version = catalog_->SaveGarmentVersion(skirt, {"edited-garment", bytes},
-                                                   "hem eased", {});
+  const int version =
+      catalog_->SaveGarmentVersion(skirt, {"edited-garment", bytes}, "hem eased", {});
   EXPECT_EQ(version, 2);
   const sim::GarmentSpec saved = LoadGarment(*catalog_, skirt, 2);
   ASSERT_TRUE(saved.model);

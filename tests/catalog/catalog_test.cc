@@ -182,8 +182,9 @@ TEST_P(CatalogTest, VersionsNeverOverwriteAndEveryVersionLoads) {
   const std::int64_t skirt = Skirt(*catalog);
   const auto modified_before = catalog->Get(skirt).modified_utime;
   for (int v = 2; v <= 4; ++v) {
-    const int saved = catalog->SaveGarmentVersion(skirt, {"edited-garment", PatternBlob(v, 1000 + v)},
-                                                  "edit " + std::to_string(v), {0x89, 'P', 'N', 'G'});
+    const int saved =
+        catalog->SaveGarmentVersion(skirt, {"edited-garment", PatternBlob(v, 1000 + v)},
+                                    "edit " + std::to_string(v), {0x89, 'P', 'N', 'G'});
     EXPECT_EQ(saved, v);
   }
   const auto versions = catalog->Versions(skirt);
@@ -203,8 +204,7 @@ TEST_P(CatalogTest, VersionsNeverOverwriteAndEveryVersionLoads) {
   const std::int64_t walk = catalog->Find(Kind::kAnimation, "walk")->id;
   EXPECT_THROW(catalog->SaveGarmentVersion(walk, {"bvh", {1}}, "", {}), sim::InputError);
   EXPECT_THROW(catalog->Versions(walk), sim::InputError);
-  EXPECT_THROW(catalog->SaveGarmentVersion(skirt, {"edited-garment", {}}, "", {}),
-               sim::InputError);
+  EXPECT_THROW(catalog->SaveGarmentVersion(skirt, {"edited-garment", {}}, "", {}), sim::InputError);
   EXPECT_TRUE(catalog->CheckIntegrity().empty());
 }
 
@@ -249,8 +249,7 @@ TEST_P(CatalogTest, AWriterKilledMidSaveLeavesThePreviousVersionIntact) {
         const auto blob = PatternBlob(next, kSize + i);
         const char go = 1;
         if (write(ready[1], &go, 1) != 1) return false;  // "a save starts now"
-        catalog.SaveGarmentVersion(skirt, {"edited-garment", blob}, "v" + std::to_string(next),
-                                   {});
+        catalog.SaveGarmentVersion(skirt, {"edited-garment", blob}, "v" + std::to_string(next), {});
       }
     });
     close(ready[1]);
@@ -269,7 +268,7 @@ TEST_P(CatalogTest, AWriterKilledMidSaveLeavesThePreviousVersionIntact) {
   const auto versions = catalog->Versions(skirt);
   const int latest = catalog->Get(skirt).latest_version;
   ASSERT_EQ(static_cast<int>(versions.size()), latest);
-  EXPECT_GE(latest, 5);  // at least one save completed per round
+  EXPECT_GE(latest, 5);                            // at least one save completed per round
   RecordProperty("versions_after_kills", latest);  // 7 when every kill landed mid-save
   for (int v = 2; v <= latest; ++v) {
     EXPECT_EQ(versions[v - 1].version, v);
@@ -361,20 +360,21 @@ TEST(CatalogUrl, ErrorsNameTheUrl) {
   char pattern[] = "/tmp/catalog-url-XXXXXX";
   ASSERT_NE(mkdtemp(pattern), nullptr);
   const std::string dir = pattern;
-  {
-    std::ofstream(dir + "/text.sqlite") << "this is not a database, just some text to read\n";
-  }
+  { std::ofstream(dir + "/text.sqlite") << "this is not a database, just some text to read\n"; }
   const std::vector<std::string> urls = {
       "sqlite:" + dir + "/text.sqlite",           // not a database
-      dir,                                         // a folder
-      "mysql://localhost/catalog",                 // unknown scheme
-      "postgresql://nobody@127.0.0.1:1/catalog",   // nothing listens on port 1
+      dir,                                        // a folder
+      "mysql://localhost/catalog",                // unknown scheme
+      "postgresql://nobody@127.0.0.1:1/catalog",  // nothing listens on port 1
   };
   for (const std::string& url : urls) {
     const std::string message = OpenError(url);
     EXPECT_NE(message.find(url), std::string::npos) << url << " → " << message;
   }
   EXPECT_NE(OpenError("").find("empty"), std::string::npos);
+  const std::string secret = OpenError("postgresql://ada:s3cret@127.0.0.1:1/catalog");
+  EXPECT_EQ(secret.find("s3cret"), std::string::npos) << secret;
+  EXPECT_NE(secret.find("postgresql://ada:***@127.0.0.1:1/catalog"), std::string::npos) << secret;
   std::filesystem::remove_all(dir);
 }
 
@@ -393,8 +393,9 @@ TEST(CatalogUrl, SqliteUrlFormsOpenTheSameFile) {
   char pattern[] = "/tmp/catalog-url-XXXXXX";
   ASSERT_NE(mkdtemp(pattern), nullptr);
   const std::string path = std::string(pattern) + "/sub/c.sqlite";  // folder created
-  Catalog::Open("sqlite:" + path)->SetFabric(
-      Catalog::Open(path)->Find(Kind::kGarment, "cape")->id, FindFabricPreset("denim").fabric);
+  Catalog::Open("sqlite:" + path)
+      ->SetFabric(Catalog::Open(path)->Find(Kind::kGarment, "cape")->id,
+                  FindFabricPreset("denim").fabric);
   EXPECT_EQ(Catalog::Open("sqlite://" + path)->Find(Kind::kGarment, "cape")->fabric->mass_per_area,
             FindFabricPreset("denim").fabric.mass_per_area);
   std::filesystem::remove_all(pattern);

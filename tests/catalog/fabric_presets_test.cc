@@ -87,8 +87,8 @@ TEST(FabricPresets, ConvertToAndFromMaterials) {
 // cannot trust, and rolls back non-finite ones).
 TEST(FabricPresets, HangStablyAtSixtyHertz) {
   for (const FabricPreset& preset : FabricPresets()) {
-    auto simulation = sim::Simulation::Build(
-        test::HangScene(17, MaterialFromFabric(preset.fabric, preset.name)));
+    auto simulation =
+        sim::Simulation::Build(test::HangScene(17, MaterialFromFabric(preset.fabric, preset.name)));
     int rolled_back = 0;
     for (int frame = 0; frame < 60; ++frame) {
       rolled_back += simulation->AdvanceFrame().rolled_back_steps;

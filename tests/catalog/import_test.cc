@@ -154,8 +154,9 @@ TEST_F(ImportTest, OneBadFileStopsTheWholeBatch) {
   ImportRequest request;
   request.kind = Kind::kGarment;
   request.files = {Write("good.toml", "[[garment]]\nname = \"sheet\"\n[garment.panel]\n"),
-                   Write("bad.toml", "[[garment]]\nname = \"sheet2\"\n[garment.panel]\n"
-                                     "cols = 1\n")};
+                   Write("bad.toml",
+                         "[[garment]]\nname = \"sheet2\"\n[garment.panel]\n"
+                         "cols = 1\n")};
   const std::string message = ImportError(request);
   EXPECT_TRUE(Contains(message, "bad.toml")) << message;
   EXPECT_FALSE(catalog_->Find(Kind::kGarment, "good"));
@@ -275,17 +276,17 @@ class SharedDataImportTest : public ImportTest {
 };
 
 TEST_F(SharedDataImportTest, AvatarsLoadAsFromTheirFiles) {
-  const auto ids = ImportShared(Kind::kAvatar, {"khronos-cesiumman/CesiumMan.glb",
-                                                "makehuman/body/base.obj",
-                                                "makehuman/body/default.mhskel",
-                                                "makehuman/body/default_weights.mhw"});
+  const auto ids = ImportShared(
+      Kind::kAvatar, {"khronos-cesiumman/CesiumMan.glb", "makehuman/body/base.obj",
+                      "makehuman/body/default.mhskel", "makehuman/body/default_weights.mhw"});
   ASSERT_EQ(ids.size(), 2u);  // MakeHuman's three files are one avatar
   EXPECT_TRUE(Contains(progress_, "[1/2]")) << progress_;
   EXPECT_TRUE(Contains(progress_, "[2/2]")) << progress_;
   const auto cesium = catalog_->Find(Kind::kAvatar, "CesiumMan");
   ASSERT_TRUE(cesium);
   EXPECT_EQ(cesium->licence, "see SOURCE.md");
-  const auto direct = assets::LoadAvatar((kSharedData / "khronos-cesiumman/CesiumMan.glb").string());
+  const auto direct =
+      assets::LoadAvatar((kSharedData / "khronos-cesiumman/CesiumMan.glb").string());
   const auto stored = LoadAvatar(*catalog_, cesium->id);
   EXPECT_EQ(stored->skeleton().num_joints(), direct->skeleton().num_joints());
   EXPECT_EQ(stored->rest_vertices().rows(), direct->rest_vertices().rows());
@@ -294,9 +295,10 @@ TEST_F(SharedDataImportTest, AvatarsLoadAsFromTheirFiles) {
 }
 
 TEST_F(SharedDataImportTest, ClipsLoadAsFromTheirFiles) {
-  const auto ids = ImportShared(Kind::kAnimation, {"cmu-mocap-bvh/02_02.bvh",
-                                                   "deepmimic-motions/motions/humanoid3d_dance_a.txt"},
-                                "choreography");
+  const auto ids =
+      ImportShared(Kind::kAnimation,
+                   {"cmu-mocap-bvh/02_02.bvh", "deepmimic-motions/motions/humanoid3d_dance_a.txt"},
+                   "choreography");
   ASSERT_EQ(ids.size(), 2u);
   const sim::Clip direct = assets::LoadClip((kSharedData / "cmu-mocap-bvh/02_02.bvh").string());
   const auto stored = LoadClip(*catalog_, ids[0], nullptr);
@@ -327,10 +329,10 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   const std::string url = "--url sqlite:" + (dir_ / "program.sqlite").string() + " --no-thumbnails";
   std::string output;
   const std::string good = Write("sheet.toml", "[[garment]]\nname = \"sheet\"\n[garment.panel]\n");
-  ASSERT_EQ(RunProgram(url + " import --kind garment --fabric silk --root " + root_.string() +
-                           " " + good,
-                       output),
-            0)
+  ASSERT_EQ(
+      RunProgram(url + " import --kind garment --fabric silk --root " + root_.string() + " " + good,
+                 output),
+      0)
       << output;
   EXPECT_TRUE(Contains(output, "[1/1]")) << output;
   EXPECT_TRUE(Contains(output, "stored garment 'sheet'")) << output;
@@ -345,9 +347,8 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_TRUE(Contains(std::string(std::istreambuf_iterator<char>(in), {}), "[garment.panel]"));
 
   const std::string bad = Write("bad.bvh", "HIERARCHY\nROOT");
-  EXPECT_EQ(RunProgram(url + " import --kind animation --root " + root_.string() + " " + bad,
-                       output),
-            1);
+  EXPECT_EQ(
+      RunProgram(url + " import --kind animation --root " + root_.string() + " " + bad, output), 1);
   EXPECT_TRUE(Contains(output, "error:")) << output;
   EXPECT_TRUE(Contains(output, bad)) << output;
   EXPECT_EQ(RunProgram(url + " import --kind animation --root " + root_.string() + " " +

@@ -44,7 +44,8 @@ class PostgresServer {
   int port() const { return port_; }
 
   ~PostgresServer() {
-    if (started_) Run(AsOwner(bin_ + "/pg_ctl -D " + dir_ + "/data -m immediate -w stop") + " >/dev/null 2>&1");
+    if (started_)
+      Run(AsOwner(bin_ + "/pg_ctl -D " + dir_ + "/data -m immediate -w stop") + " >/dev/null 2>&1");
     if (!dir_.empty()) {
       std::error_code error;
       std::filesystem::remove_all(dir_, error);
@@ -61,8 +62,9 @@ class PostgresServer {
       bin_ = FindBinaries();
     }
     if (bin_.empty()) {
-      skip_reason_ = "no PostgreSQL server binaries (initdb, pg_ctl) under /usr/lib/postgresql "
-                     "even after scripts/install_deps.sh: install the package 'postgresql'";
+      skip_reason_ =
+          "no PostgreSQL server binaries (initdb, pg_ctl) under /usr/lib/postgresql "
+          "even after scripts/install_deps.sh: install the package 'postgresql'";
       return;
     }
     char pattern[] = "/tmp/costume-pg-XXXXXX";
@@ -75,8 +77,10 @@ class PostgresServer {
       run_as_ = "runuser -u postgres -- ";
     }
     port_ = FreePort();
-    if (Run(AsOwner(bin_ + "/initdb -D " + dir_ + "/data -U postgres --auth=trust -E UTF8 "
-                    "--no-sync") + " >" + dir_ + "/initdb.log 2>&1") != 0) {
+    if (Run(AsOwner(bin_ + "/initdb -D " + dir_ +
+                    "/data -U postgres --auth=trust -E UTF8 "
+                    "--no-sync") +
+            " >" + dir_ + "/initdb.log 2>&1") != 0) {
       return Fail("initdb failed: " + ReadFile(dir_ + "/initdb.log"));
     }
     // Loopback only, socket in our folder; fsync off: the tests kill client processes, not
@@ -84,7 +88,8 @@ class PostgresServer {
     const std::string options = "-c listen_addresses=127.0.0.1 -p " + std::to_string(port_) +
                                 " -k " + dir_ + " -c fsync=off -c max_connections=40";
     if (Run(AsOwner(bin_ + "/pg_ctl -D " + dir_ + "/data -o '" + options + "' -l " + dir_ +
-                    "/server.log -w -t 60 start") + " >/dev/null 2>&1") != 0) {
+                    "/server.log -w -t 60 start") +
+            " >/dev/null 2>&1") != 0) {
       return Fail("pg_ctl start failed: " + ReadFile(dir_ + "/server.log"));
     }
     started_ = true;
@@ -124,7 +129,8 @@ class PostgresServer {
 
   std::string Psql(const std::string& sql) const {
     return AsOwner(bin_ + "/psql -q -h " + dir_ + " -p " + std::to_string(port_) +
-                   " -U postgres -d postgres -c \"" + sql + "\"") + " >/dev/null";
+                   " -U postgres -d postgres -c \"" + sql + "\"") +
+           " >/dev/null";
   }
 
   static int Run(const std::string& command) { return std::system(command.c_str()); }
