@@ -53,7 +53,9 @@ struct Ray {
 Ray PixelRay(const Camera& camera, double x, double y, int width, int height);
 
 /// Turns the eye about the target: yaw about the world up axis (+y), pitch about the camera's
-/// right axis [rad]. Pitch is limited so that the view never flips over the pole.
+/// right axis [rad], both by the right-hand rule (positive yaw takes an eye on +z towards +x,
+/// positive pitch lowers the eye). The eye's elevation stays within ±89°, so the view never
+/// flips over the pole; up becomes +y.
 void Orbit(Camera& camera, double yaw_radians, double pitch_radians);
 
 /// Moves eye and target together in the view plane by dx (right) and dy (up), given as

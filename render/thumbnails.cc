@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "render/offscreen_context.h"
+#include "render/scene_meshes.h"
 #include "sim_core/avatar/avatar_motion.h"
 #include "sim_core/avatar/garment_patterns.h"
 #include "sim_core/avatar/procedural_humanoid.h"
@@ -28,24 +29,6 @@ void CheckSize(int size) {
     throw sim::InputError("thumbnail size = " + std::to_string(size) +
                           ": allowed range 16..4096 pixels");
   }
-}
-
-DrawMesh MakeDrawMesh(const sim::Points& vertices, const std::vector<Eigen::Vector3i>& triangles,
-                      const Eigen::Vector3f& colour, bool two_sided) {
-  DrawMesh mesh;
-  mesh.positions.reserve(vertices.rows());
-  for (Eigen::Index i = 0; i < vertices.rows(); ++i) {
-    mesh.positions.push_back(vertices.row(i).transpose().cast<float>());
-  }
-  mesh.indices.reserve(3 * triangles.size());
-  for (const Eigen::Vector3i& t : triangles) {
-    mesh.indices.insert(mesh.indices.end(), {static_cast<std::uint32_t>(t[0]),
-                                             static_cast<std::uint32_t>(t[1]),
-                                             static_cast<std::uint32_t>(t[2])});
-  }
-  mesh.colour = colour;
-  mesh.two_sided = two_sided;
-  return mesh;
 }
 
 Eigen::AlignedBox3d BoundsOf(const RenderScene& scene) {
@@ -127,7 +110,7 @@ Thumbnail BuildAvatarThumbnail(const sim::Avatar& avatar, int size) {
   CheckSize(size);
   RenderScene scene;
   scene.meshes.push_back(
-      MakeDrawMesh(avatar.rest_vertices(), avatar.triangles(), kSkinColour, false));
+      ToDrawMesh(avatar.rest_vertices(), avatar.triangles(), kSkinColour, false));
   return Frame(std::move(scene), kFrontView, size);
 }
 
@@ -145,7 +128,7 @@ Thumbnail BuildClipThumbnail(const sim::Avatar& avatar, const sim::Clip& clip, i
   sim::AvatarMotion motion(Borrow(avatar), Borrow(clip), settings);
   motion.Evaluate(0.5 * clip.duration());
   RenderScene scene;
-  scene.meshes.push_back(MakeDrawMesh(motion.vertices(), avatar.triangles(), kSkinColour, false));
+  scene.meshes.push_back(ToDrawMesh(motion.vertices(), avatar.triangles(), kSkinColour, false));
   return Frame(std::move(scene), kThreeQuarterView, size);
 }
 
@@ -167,10 +150,10 @@ Thumbnail BuildGarmentThumbnail(const sim::SceneDescription& scene, int size) {
 
   RenderScene render_scene;
   if (const sim::AvatarMotion* avatar = simulation->avatar()) {
-    render_scene.meshes.push_back(MakeDrawMesh(avatar->vertices(), avatar->avatar().triangles(),
+    render_scene.meshes.push_back(ToDrawMesh(avatar->vertices(), avatar->avatar().triangles(),
                                                kSkinColour, false));
   }
-  render_scene.meshes.push_back(MakeDrawMesh(simulation->state().positions,
+  render_scene.meshes.push_back(ToDrawMesh(simulation->state().positions,
                                              simulation->model().triangles(), kClothColour, true));
   return Frame(std::move(render_scene), GarmentView(render_scene), size);
 }

@@ -15,11 +15,6 @@
 
 namespace costume::render {
 
-/// The avatar's skin colour in thumbnails and the GUI (linear RGB).
-inline const Eigen::Vector3f kSkinColour{0.87f, 0.70f, 0.58f};
-/// The cloth colour of garment thumbnails (linear RGB).
-inline const Eigen::Vector3f kClothColour{0.25f, 0.42f, 0.75f};
-
 /// What a thumbnail shows and from where: the scene, the camera and the image size. The render
 /// functions below are BuildXxx + RenderThumbnail; the Build functions let tests project the
 /// same vertices with the same camera.
