@@ -163,9 +163,8 @@ EditedGarment ReadEditedGarment(const std::vector<std::uint8_t>& bytes, const st
                 std::to_string(kEditedGarmentVersion));
   }
   const auto header_size = reader.Get<std::uint32_t>("the header length");
-  if (header_size > reader.remaining()) reader.Fail("header length " +
-                                                    std::to_string(header_size) +
-                                                    " exceeds the data");
+  if (header_size > reader.remaining())
+    reader.Fail("header length " + std::to_string(header_size) + " exceeds the data");
   std::string text(header_size, '\0');
   reader.GetBytes(text.data(), header_size, "the header");
   EditedGarment garment;

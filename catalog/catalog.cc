@@ -74,7 +74,9 @@ std::string ForDialect(std::string sql, Dialect dialect) {
 }
 
 /// "an " or "a ", for messages.
-const char* Article(Kind kind) { return kind == Kind::kAvatar || kind == Kind::kAnimation ? "an " : "a "; }
+const char* Article(Kind kind) {
+  return kind == Kind::kAvatar || kind == Kind::kAnimation ? "an " : "a ";
+}
 
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -127,7 +129,7 @@ EntryInfo ToEntry(const SqlRow& row) {
 }
 
 std::vector<SqlValue> FabricValues(std::int64_t id, const FabricParameters& f) {
-  return {id, f.mass_per_area, f.stretch_stiffness, f.shear_stiffness, f.bend_stiffness,
+  return {id,        f.mass_per_area, f.stretch_stiffness, f.shear_stiffness, f.bend_stiffness,
           f.damping, f.friction};
 }
 
@@ -138,6 +140,19 @@ std::string SqlitePath(const std::string& url) {
   if (path.rfind("//", 0) == 0) path = path.substr(2);
   return path;
 }
+
+}  // namespace
+
+std::string RedactedUrl(const std::string& url) {
+  const auto scheme = url.find("://");
+  const auto at = url.rfind('@');
+  if (scheme == std::string::npos || at == std::string::npos || at < scheme) return url;
+  const auto colon = url.find(':', scheme + 3);
+  if (colon == std::string::npos || colon > at) return url;
+  return url.substr(0, colon + 1) + "***" + url.substr(at);
+}
+
+namespace {
 
 bool IsPostgresUrl(const std::string& url) {
   return url.rfind("postgresql://", 0) == 0 || url.rfind("postgres://", 0) == 0;
@@ -249,8 +264,8 @@ Kind ParseKind(const std::string& name) {
 }
 
 FabricParameters FabricFromMaterial(const sim::Material& m) {
-  return {m.density, m.stretch_stiffness, m.shear_stiffness, m.bending_rigidity, m.damping,
-          m.friction};
+  return {m.density,          m.stretch_stiffness, m.shear_stiffness,
+          m.bending_rigidity, m.damping,           m.friction};
 }
 
 sim::Material MaterialFromFabric(const FabricParameters& f, const std::string& name) {
@@ -291,8 +306,9 @@ std::string DefaultCatalogUrl() {
 // ---- Catalog -------------------------------------------------------------------------------
 
 std::unique_ptr<Catalog> Catalog::Open(const std::string& url, const OpenOptions& options) {
-  if (url.empty()) throw sim::InputError("catalog URL is empty: give sqlite:<path>, a path or "
-                                         "postgresql://...");
+  if (url.empty()) {
+    throw sim::InputError("catalog URL is empty: give sqlite:<path>, a path or postgresql://...");
+  }
   std::unique_ptr<SqlConnection> connection;
   if (IsPostgresUrl(url)) {
     connection = OpenPostgres(url);
@@ -304,7 +320,7 @@ std::unique_ptr<Catalog> Catalog::Open(const std::string& url, const OpenOptions
   } else {
     connection = OpenSqlite(SqlitePath(url), url);
   }
-  std::unique_ptr<Catalog> catalog(new Catalog(url, std::move(connection)));
+  std::unique_ptr<Catalog> catalog(new Catalog(RedactedUrl(url), std::move(connection)));
   catalog->Migrate();
   if (options.seed) catalog->Seed(options);
   return catalog;
@@ -331,9 +347,10 @@ void Catalog::Migrate() {
     for (const Migration& m : kMigrations) {
       if (m.version <= current) continue;
       db_->Execute(ForDialect(m.sql, db_->dialect()));
-      db_->Execute("INSERT INTO schema_migrations (version, description, applied_utime) "
-                   "VALUES ($1, $2, $3)",
-                   {std::int64_t{m.version}, std::string(m.description), NowUtime()});
+      db_->Execute(
+          "INSERT INTO schema_migrations (version, description, applied_utime) "
+          "VALUES ($1, $2, $3)",
+          {std::int64_t{m.version}, std::string(m.description), NowUtime()});
     }
   });
 }
@@ -362,9 +379,9 @@ void Catalog::Seed(const OpenOptions& options) {
 
 std::vector<EntryInfo> Catalog::List(Kind kind) {
   std::vector<EntryInfo> entries;
-  for (const SqlRow& row : db_->Query(std::string(kEntryColumns) +
-                                          "WHERE e.kind = $1 ORDER BY e.name",
-                                      {std::string(KindName(kind))})) {
+  for (const SqlRow& row :
+       db_->Query(std::string(kEntryColumns) + "WHERE e.kind = $1 ORDER BY e.name",
+                  {std::string(KindName(kind))})) {
     entries.push_back(ToEntry(row));
   }
   return entries;
@@ -401,16 +418,17 @@ AssetData Catalog::Data(std::int64_t id, int version) {
   // same snapshot, so a save committing meanwhile is seen whole or not at all.
   const auto rows =
       version == 0
-          ? db_->Query("SELECT v.format, v.data FROM versions v JOIN entries e ON "
-                       "e.id = v.entry_id WHERE e.id = $1 AND v.version = e.latest_version",
-                       {id})
+          ? db_->Query(
+                "SELECT v.format, v.data FROM versions v JOIN entries e ON "
+                "e.id = v.entry_id WHERE e.id = $1 AND v.version = e.latest_version",
+                {id})
           : db_->Query("SELECT format, data FROM versions WHERE entry_id = $1 AND version = $2",
                        {id, std::int64_t{version}});
   if (rows.empty()) {
     const EntryInfo entry = Get(id);  // throws for an unknown id
     throw sim::InputError("catalog '" + url_ + "': " + KindName(entry.kind) + " '" + entry.name +
-                          "' has no version " + std::to_string(version) +
-                          ": versions are 1 to " + std::to_string(entry.latest_version));
+                          "' has no version " + std::to_string(version) + ": versions are 1 to " +
+                          std::to_string(entry.latest_version));
   }
   return {AsText(rows[0][0]), AsBlob(rows[0][1])};
 }
@@ -419,8 +437,8 @@ std::vector<VersionInfo> Catalog::Versions(std::int64_t garment_id) {
   return InTransaction(*db_, false, [&] {
     const EntryInfo entry = Get(garment_id);
     if (entry.kind != Kind::kGarment) {
-      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
+      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) + " ('" +
+                            entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments have versions");
     }
     std::vector<VersionInfo> versions;
@@ -452,8 +470,8 @@ int Catalog::SaveGarmentVersion(std::int64_t garment_id, const AssetData& data,
         {garment_id, now});
     if (rows.empty()) {
       const EntryInfo entry = Get(garment_id);  // throws for an unknown id
-      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
+      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) + " ('" +
+                            entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments take new versions");
     }
     const std::int64_t version = AsInt(rows[0][0]);
@@ -484,8 +502,8 @@ void Catalog::SetFabric(std::int64_t garment_id, const FabricParameters& fabric)
   InTransaction(*db_, true, [&] {
     const EntryInfo entry = Get(garment_id);
     if (entry.kind != Kind::kGarment) {
-      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) +
-                            " ('" + entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
+      throw sim::InputError("catalog '" + url_ + "': entry " + std::to_string(garment_id) + " ('" +
+                            entry.name + "') is " + Article(entry.kind) + KindName(entry.kind) +
                             ", not a garment: only garments have a fabric");
     }
     ValidateFabric(fabric, "garment '" + entry.name + "'");
@@ -499,9 +517,9 @@ void Catalog::SetFabric(std::int64_t garment_id, const FabricParameters& fabric)
 void Catalog::SetThumbnail(std::int64_t id, const std::vector<std::uint8_t>& png) {
   InTransaction(*db_, true, [&] {
     const EntryInfo entry = Get(id);
-    db_->Execute("UPDATE versions SET thumbnail = $3 WHERE entry_id = $1 AND version = $2",
-                 {id, std::int64_t{entry.latest_version},
-                  png.empty() ? SqlValue{} : SqlValue{png}});
+    db_->Execute(
+        "UPDATE versions SET thumbnail = $3 WHERE entry_id = $1 AND version = $2",
+        {id, std::int64_t{entry.latest_version}, png.empty() ? SqlValue{} : SqlValue{png}});
   });
 }
 
@@ -511,9 +529,9 @@ int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size) {
     for (const EntryInfo& entry : List(kind)) {
       if (!Thumbnail(entry.id).empty()) continue;
       try {
-        ThumbnailRequest request = CheckAssetData(kind, entry.name, Data(entry.id),
-                                                  entry.fabric.value_or(FabricParameters{}),
-                                                  entry.name);
+        ThumbnailRequest request =
+            CheckAssetData(kind, entry.name, Data(entry.id),
+                           entry.fabric.value_or(FabricParameters{}), entry.name);
         request.size = size;
         const std::vector<std::uint8_t> png = maker(request);
         if (png.empty()) continue;
@@ -526,6 +544,43 @@ int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size) {
     }
   }
   return made;
+}
+
+}  // namespace costume::catalog
+
+namespace costume::catalog {
+
+std::vector<std::string> Catalog::CheckIntegrity() {
+  return InTransaction(*db_, false, [&] {
+    std::vector<std::string> problems;
+    if (db_->dialect() == Dialect::kSqlite) {
+      for (const SqlRow& row : db_->Query("PRAGMA integrity_check")) {
+        if (AsText(row.at(0)) != "ok") problems.push_back("integrity_check: " + AsText(row[0]));
+      }
+      for (const SqlRow& row : db_->Query("PRAGMA foreign_key_check")) {
+        problems.push_back("foreign_key_check: table " + AsText(row.at(0)) + " row " +
+                           std::to_string(AsInt(row.at(1))));
+      }
+    }
+    for (const SqlRow& row :
+         db_->Query("SELECT e.id, e.name, e.latest_version, COUNT(v.version), MIN(v.version), "
+                    "MAX(v.version) FROM entries e LEFT JOIN versions v ON v.entry_id = e.id "
+                    "GROUP BY e.id, e.name, e.latest_version "
+                    "HAVING COUNT(v.version) <> e.latest_version OR MIN(v.version) <> 1 OR "
+                    "MAX(v.version) <> e.latest_version OR COUNT(v.version) = 0")) {
+      problems.push_back("entry " + std::to_string(AsInt(row[0])) + " ('" + AsText(row[1]) +
+                         "'): latest_version " + std::to_string(AsInt(row[2])) + " but " +
+                         std::to_string(AsInt(row[3])) + " version(s) stored");
+    }
+    for (const SqlRow& row :
+         db_->Query("SELECT e.id, e.name FROM entries e WHERE (e.kind <> 'garment' AND "
+                    "e.latest_version <> 1) OR (e.kind = 'garment' AND NOT EXISTS "
+                    "(SELECT 1 FROM fabrics f WHERE f.entry_id = e.id))")) {
+      problems.push_back("entry " + std::to_string(AsInt(row[0])) + " ('" + AsText(row[1]) +
+                         "'): a garment without fabric or another kind with several versions");
+    }
+    return problems;
+  });
 }
 
 }  // namespace costume::catalog

@@ -51,7 +51,8 @@ class TempDir {
     const fs::path file = path_ / name;
     labels_.emplace_back(file.string(), label.empty() ? name : label);
     std::ofstream out(file, std::ios::binary);
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
     if (!out) throw sim::InputError("cannot write the temporary file " + file.string());
     return file.string();
   }
@@ -267,8 +268,7 @@ void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene) {
   sim::GarmentSpec garment = LoadGarment(catalog, id, version);
   const sim::Material material = GarmentMaterial(catalog, id);
-  std::erase_if(scene.materials,
-                [&](const sim::Material& m) { return m.name == material.name; });
+  std::erase_if(scene.materials, [&](const sim::Material& m) { return m.name == material.name; });
   scene.materials.push_back(material);
   scene.garments.push_back(std::move(garment));
 }

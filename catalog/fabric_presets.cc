@@ -7,8 +7,8 @@ namespace costume::catalog {
 namespace {
 
 // Unit conversions from Kawabata's KES-F units (docs/catalog.md):
-/// Bending rigidity B: 1 gf·cm²/cm = 9.80665e-3 N · 1e-4 m² / 1e-2 m [N·m].
-constexpr double kGfCm2PerCm = 9.80665e-6;
+/// Bending rigidity B: 1 gf·cm²/cm = 1 gf·cm = 9.80665e-3 N · 1e-2 m [N·m].
+constexpr double kGfCm2PerCm = 9.80665e-5;
 /// Shear rigidity G: 1 gf/(cm·degree) = 9.80665e-3 N / 1e-2 m per π/180 rad [N/m].
 constexpr double kGfPerCmDegree = 0.980665 * 180.0 / 3.141592653589793;
 /// KES-F's tensile test stops at 500 gf/cm = 490.3 N/m; EMT is the strain reached there.
@@ -39,8 +39,8 @@ const std::vector<FabricPreset>& FabricPresets() {
        "worsted suiting 250 g/m²; KES-F EMT 6%, G 0.6, B 0.12; skin friction 0.45"},
       {"denim", Make(0.40, 0.03, 3.0, 1.0, 0.45),
        "12 oz/yd² (407 g/m²); KES-F EMT 3%, G 3, B 1.0 (estimate); skin friction 0.45"},
-      {"leather", Make(0.55, 0.02, 10.0, 10.0, 0.55),
-       "lamb nappa 0.7 mm; estimates: E·t ≈ 25 kN/m, G, B ≈ 1e-4 N·m; skin friction 0.55"},
+      {"leather", Make(0.55, 0.02, 10.0, 3.0, 0.55),
+       "lamb nappa 0.7 mm; estimates: E·t ≈ 25 kN/m, G 10, B 3 (E·t³/12); skin friction 0.55"},
   };
   return presets;
 }

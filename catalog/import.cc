@@ -173,13 +173,21 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                                    : ".toml (one [[garment]]), .cdgarment (edited garment)"));
       }
       if (format == "deepmimic") {
-        const fs::path character = ResolveInsideRoot(
-            root, request.character.empty()
-                      ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
-                      : request.character);
-        c.entry.data = {format, PackBundle({{"motion.txt", ReadBytes(path, shown)},
-                                            {"character.txt", ReadBytes(character, shown +
-                                                                        " (character file)")}})};
+        const std::string character_file =
+            request.character.empty()
+                ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
+                : request.character;
+        fs::path character;
+        try {
+          character = ResolveInsideRoot(root, character_file);
+        } catch (const sim::InputError& error) {
+          throw sim::InputError(shown + ": its DeepMimic character file: " + error.what() +
+                                " (give it with --character)");
+        }
+        c.entry.data = {
+            format,
+            PackBundle({{"motion.txt", ReadBytes(path, shown)},
+                        {"character.txt", ReadBytes(character, shown + " (character file)")}})};
       } else if (format == "garment-toml") {
         c.entry.data = GarmentTomlData(root, path, shown);
       } else {
@@ -221,8 +229,8 @@ fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {
   std::error_code error;
   const fs::path real_root = fs::canonical(root, error);
   if (error || !fs::is_directory(real_root)) {
-    throw sim::InputError("import folder '" + root.string() + "' is not a folder: " +
-                          (error ? error.message() : "not a directory"));
+    throw sim::InputError("import folder '" + root.string() +
+                          "' is not a folder: " + (error ? error.message() : "not a directory"));
   }
   const fs::path real = fs::canonical(file, error);
   if (error) throw sim::InputError(file + ": cannot open: " + error.message());
@@ -268,15 +276,14 @@ std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& req
       if (c.entry.kind == Kind::kGarment) {
         c.entry.fabric = !request.fabric_preset.empty()
                              ? FindFabricPreset(request.fabric_preset).fabric
-                         : c.entry.data.format == "garment-toml"
-                             ? FabricOfGarmentFile(c.path)
-                             : FabricParameters{};
+                         : c.entry.data.format == "garment-toml" ? FabricOfGarmentFile(c.path)
+                                                                 : FabricParameters{};
       }
       ThumbnailRequest thumbnail =
           CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
                          c.entry.fabric.value_or(FabricParameters{}), c.shown);
-      progress << " loaded in " << std::fixed << std::setprecision(1) << SecondsSince(start)
-               << " s" << std::flush;
+      progress << " loaded in " << std::fixed << std::setprecision(1) << SecondsSince(start) << " s"
+               << std::flush;
       if (request.thumbnails) {
         progress << "; thumbnail..." << std::flush;
         thumbnail.size = request.thumbnail_size;

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <memory>
 
+#include "catalog/catalog.h"
 #include "catalog/sql_connection.h"
 #include "sim_core/common/input_error.h"
 
@@ -33,16 +34,6 @@ std::uint64_t ReadBigEndian(const char* data, int n) {
   std::uint64_t value = 0;
   for (int i = 0; i < n; ++i) value = (value << 8) | static_cast<std::uint8_t>(data[i]);
   return value;
-}
-
-/// The URL with any password replaced by "***", for messages.
-std::string Redacted(const std::string& url) {
-  const auto scheme = url.find("://");
-  const auto at = url.find('@');
-  if (scheme == std::string::npos || at == std::string::npos) return url;
-  const auto colon = url.find(':', scheme + 3);
-  if (colon == std::string::npos || colon > at) return url;
-  return url.substr(0, colon + 1) + "***" + url.substr(at);
 }
 
 class PostgresConnection final : public SqlConnection {
@@ -123,7 +114,7 @@ class PostgresConnection final : public SqlConnection {
     if (status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK) return;
     std::string message = result ? PQresultErrorMessage(result) : PQerrorMessage(connection_);
     while (!message.empty() && message.back() == '\n') message.pop_back();
-    throw sim::InputError("catalog '" + Redacted(url_) + "': PostgreSQL: " + message +
+    throw sim::InputError("catalog '" + RedactedUrl(url_) + "': PostgreSQL: " + message +
                           " (in: " + sql.substr(0, 80) + ")");
   }
 
@@ -141,8 +132,8 @@ class PostgresConnection final : public SqlConnection {
       case kInt8Oid:
         return static_cast<std::int64_t>(ReadBigEndian(data, 8));
       case kFloat4Oid:
-        return static_cast<double>(std::bit_cast<float>(
-            static_cast<std::uint32_t>(ReadBigEndian(data, 4))));
+        return static_cast<double>(
+            std::bit_cast<float>(static_cast<std::uint32_t>(ReadBigEndian(data, 4))));
       case kFloat8Oid:
         return std::bit_cast<double>(ReadBigEndian(data, 8));
       case kTextOid:
@@ -151,7 +142,7 @@ class PostgresConnection final : public SqlConnection {
       case kByteaOid:
         return Blob(data, data + length);
       default:
-        throw sim::InputError("catalog '" + Redacted(url_) + "': PostgreSQL column " +
+        throw sim::InputError("catalog '" + RedactedUrl(url_) + "': PostgreSQL column " +
                               std::to_string(c) + " has an unexpected type (oid " +
                               std::to_string(PQftype(result, c)) + ") in: " + sql.substr(0, 80));
     }
@@ -169,8 +160,8 @@ std::unique_ptr<SqlConnection> OpenPostgres(const std::string& url) {
     std::string message = connection ? PQerrorMessage(connection) : "out of memory";
     PQfinish(connection);
     while (!message.empty() && message.back() == '\n') message.pop_back();
-    throw sim::InputError("catalog '" + Redacted(url) + "': cannot connect to PostgreSQL: " +
-                          message);
+    throw sim::InputError("catalog '" + RedactedUrl(url) +
+                          "': cannot connect to PostgreSQL: " + message);
   }
   auto result = std::make_unique<PostgresConnection>(connection, url);
   result->Execute("SET client_min_messages = warning", {});

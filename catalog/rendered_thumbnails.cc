@@ -21,7 +21,8 @@ ThumbnailMaker RenderedThumbnails() {
           return render::EncodePng(render::RenderGarmentThumbnail(request.pattern, request.size));
         }
         if (!request.garment_scene) break;
-        return render::EncodePng(render::RenderGarmentThumbnail(*request.garment_scene, request.size));
+        return render::EncodePng(
+            render::RenderGarmentThumbnail(*request.garment_scene, request.size));
     }
     throw sim::InputError(std::string("thumbnail of ") + KindName(request.kind) + " '" +
                           request.name + "': the request lacks what to draw");

@@ -73,8 +73,8 @@ class SqliteConnection final : public SqlConnection {
 
  private:
   [[noreturn]] void Fail(const std::string& message, const std::string& sql) const {
-    throw sim::InputError("catalog '" + url_ + "': SQLite: " + message + " (in: " +
-                          sql.substr(0, 80) + ")");
+    throw sim::InputError("catalog '" + url_ + "': SQLite: " + message +
+                          " (in: " + sql.substr(0, 80) + ")");
   }
 
   void Bind(sqlite3_stmt* statement, int index, const SqlValue& value) {
@@ -142,10 +142,8 @@ std::unique_ptr<SqlConnection> OpenSqlite(const std::string& path, const std::st
                           "': " + error.message());
   }
   sqlite3* db = nullptr;
-  const int status = sqlite3_open_v2(path.c_str(), &db,
-                                     SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE |
-                                         SQLITE_OPEN_NOMUTEX,
-                                     nullptr);
+  const int status = sqlite3_open_v2(
+      path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
   if (status != SQLITE_OK) {
     const std::string message = db ? sqlite3_errmsg(db) : sqlite3_errstr(status);
     sqlite3_close_v2(db);
@@ -155,9 +153,10 @@ std::unique_ptr<SqlConnection> OpenSqlite(const std::string& path, const std::st
   auto connection = std::make_unique<SqliteConnection>(db, url);
   sqlite3_busy_timeout(db, kBusyTimeoutMs);
   // Reading the header here turns "not a database" into an error at open time.
-  connection->Execute("PRAGMA journal_mode = WAL; PRAGMA synchronous = FULL; "
-                      "PRAGMA foreign_keys = ON;",
-                      {});
+  connection->Execute(
+      "PRAGMA journal_mode = WAL; PRAGMA synchronous = FULL; "
+      "PRAGMA foreign_keys = ON;",
+      {});
   return connection;
 }
 

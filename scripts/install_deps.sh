@@ -13,6 +13,7 @@ packages=(
   qt6-base-dev libqt6opengl6-dev libgl-dev libosmesa6-dev xvfb xauth     # frontend
   qt6-wayland                                            # the GUI on a Wayland-only desktop
   libsqlite3-dev libpq-dev                               # database
+  postgresql                                             # catalogue tests start their own server
   libpng-dev                                             # render: thumbnails as PNG
 )
 

@@ -43,8 +43,8 @@ EntryInfo Resolve(Catalog& catalog, const std::string& what, Kind kind_for_names
 }
 
 void PrintList(Catalog& catalog, const std::vector<Kind>& kinds) {
-  std::printf("%-6s %-10s %-24s %-14s %-8s %-19s %s\n", "id", "kind", "name", "category",
-              "version", "modified (UTC)", "provenance / licence");
+  std::printf("%-6s %-10s %-24s %-14s %-8s %-19s %s\n", "id", "kind", "name", "category", "version",
+              "modified (UTC)", "provenance / licence");
   for (Kind kind : kinds) {
     for (const EntryInfo& e : catalog.List(kind)) {
       std::printf("%-6lld %-10s %-24s %-14s %-8d %-19s %s / %s\n", static_cast<long long>(e.id),
@@ -59,7 +59,8 @@ void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::st
   namespace fs = std::filesystem;
   auto write = [](const fs::path& path, const std::vector<std::uint8_t>& bytes) {
     std::ofstream file(path, std::ios::binary);
-    file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    file.write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
     if (!file) throw costume::sim::InputError(path.string() + ": cannot write");
   };
   if (costume::catalog::IsBundle(data.bytes)) {  // several files: into the folder `out`
@@ -80,8 +81,9 @@ void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::st
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"costume-catalog: the Costume Designer catalogue of avatars, garments and "
-               "animations (docs/catalog.md)."};
+  CLI::App app{
+      "costume-catalog: the Costume Designer catalogue of avatars, garments and "
+      "animations (docs/catalog.md)."};
   app.require_subcommand(1);
   std::string url = costume::catalog::DefaultCatalogUrl();
   app.add_option("--url", url,
@@ -97,17 +99,17 @@ int main(int argc, char** argv) {
   import->add_option("--kind", kind_name, "avatar | animation | garment")
       ->required()
       ->check(CLI::IsMember({"avatar", "animation", "garment"}));
-  import->add_option("--root", request.root,
-                     "the import folder: every file must lie inside it (no '..' or symbolic "
-                     "links leading out)")
+  import
+      ->add_option("--root", request.root,
+                   "the import folder: every file must lie inside it (no '..' or symbolic "
+                   "links leading out)")
       ->required();
   import->add_option("files", request.files, "files to import (MakeHuman: .obj .mhskel .mhw)")
       ->required();
   import->add_option("--name", request.name, "entry name (one entry only; default: file stem)");
   import->add_option("--category", request.category,
                      "animations: basic (default) | choreography; others: free text");
-  import->add_option("--licence", request.licence, "licence of the files")
-      ->capture_default_str();
+  import->add_option("--licence", request.licence, "licence of the files")->capture_default_str();
   import->add_option("--provenance", request.provenance,
                      "where the files come from (default: 'imported from <path>')");
   import->add_option("--fabric", request.fabric_preset,
@@ -135,6 +137,9 @@ int main(int argc, char** argv) {
   exporter->add_option("id", export_id, "entry id (or a garment's name)")->required();
   exporter->add_option("--version", export_version, "garment version (default: latest)");
   exporter->add_option("--out", out, "output file (a folder for multi-file entries)")->required();
+  bool export_thumbnail = false;
+  exporter->add_flag("--thumbnail", export_thumbnail,
+                     "write the entry's thumbnail (PNG) instead of its data");
 
   CLI11_PARSE(app, argc, argv);
 
@@ -162,7 +167,17 @@ int main(int argc, char** argv) {
                     v.label.c_str());
       }
     } else if (*exporter) {
-      Export(*catalog, Resolve(*catalog, export_id, Kind::kGarment), export_version, out);
+      const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
+      if (export_thumbnail) {
+        const auto png = catalog->Thumbnail(entry.id);
+        if (png.empty()) throw costume::sim::InputError("'" + entry.name + "' has no thumbnail");
+        std::ofstream(out, std::ios::binary)
+            .write(reinterpret_cast<const char*>(png.data()),
+                   static_cast<std::streamsize>(png.size()));
+        std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
+      } else {
+        Export(*catalog, entry, export_version, out);
+      }
     }
   } catch (const costume::sim::InputError& error) {
     std::cerr << "error: " << error.what() << "\n";

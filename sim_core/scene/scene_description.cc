@@ -154,8 +154,8 @@ void ValidateGarment(const GarmentSpec& garment, std::size_t index,
   if (shapes != 1) {
     refuser.Refuse(field, Quote(garment.name),
                    std::string("has ") + (shapes ? "more than one of" : "none of") +
-                       " a panel, a mesh, a pattern and a prebuilt model: a garment needs exactly one of "
-                       "them");
+                       " a panel, a mesh, a pattern and a prebuilt model: a garment needs "
+                       "exactly one of them");
   }
   if (garment.pattern) {
     refuser.RequireInteger(field + ".resolution", garment.pattern_resolution, 8, 1024);
