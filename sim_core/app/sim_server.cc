@@ -362,18 +362,18 @@ void SimServer::Redo() {
   ++model_revision_;
 }
 
+// Only the solver changes (Simulation::SetSolver): the cloth state, the edited rest lengths,
+// the undo and redo history, the held grab, the frame number and the avatar's clock stay;
+// the model revision too (same springs, same rest lengths).
 void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
-  sim::SceneDescription scene = scene_;
   try {
-    scene.solver = ToSolverSettings(solver);
-    Rebuild(scene);
+    const sim::SolverSettings settings = ToSolverSettings(solver);
+    simulation_->SetSolver(settings);
+    scene_.solver = settings;
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
-    return;
   }
-  Warn("command SET_SOLVER: simulation rebuilt with the new solver from frame 0; edits and "
-       "state were not carried over");
 }
 
 namespace {
