@@ -170,7 +170,7 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
         grab_seq_ = g.seq;
       },
       options_.receive_policy);
-  // An hour of statuses every second at 60 Hz never needs more.
+  // Room for four status periods of frames, so a late status loses none; never grown.
   frame_periods_.reserve(static_cast<std::size_t>(
       std::clamp(4.0 * options_.status_period * scene_.frame_rate, 64.0, 1e6)));
   period_start_ = std::chrono::steady_clock::now();
