@@ -24,9 +24,10 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 std::string GarmentContext(const SceneDescription& scene, const GarmentSpec& garment) {
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) about ":" + to_string here.
   std::string where = scene.source;
-  if (garment.source_line > 0) where += ":" + std::to_string(garment.source_line);
-  return where + ": garment '" + garment.name + "'";
+  if (garment.source_line > 0) where.append(":").append(std::to_string(garment.source_line));
+  return where.append(": garment '").append(garment.name).append("'");
 }
 
 /// The material a garment names: the scene's own first, then the built-in ones. Blender's
@@ -207,9 +208,9 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     attachments_ = std::move(attachments);
   }
   if (scene_.effects.self_collision) {
-    SelfCollisionSettings settings;
-    if (scene_.avatar) settings.thickness = scene_.avatar->thickness;
-    self_collision_ = std::make_unique<SelfCollision>(model_, settings);
+    SelfCollisionSettings self;
+    if (scene_.avatar) self.thickness = scene_.avatar->thickness;
+    self_collision_ = std::make_unique<SelfCollision>(model_, self);
     start_positions_ = state_.positions;
   }
   contacts_.reserve(model_->num_particles());
