@@ -170,7 +170,7 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
         grab_seq_ = g.seq;
       },
       options_.receive_policy);
-  // An hour of statuses every second at 60 Hz never needs more.
+  // Room for four status periods of frames, so a late status loses none; never grown.
   frame_periods_.reserve(static_cast<std::size_t>(
       std::clamp(4.0 * options_.status_period * scene_.frame_rate, 64.0, 1e6)));
   period_start_ = std::chrono::steady_clock::now();
@@ -362,18 +362,18 @@ void SimServer::Redo() {
   ++model_revision_;
 }
 
+// Only the solver changes (Simulation::SetSolver): the cloth state, the edited rest lengths,
+// the undo and redo history, the held grab, the frame number and the avatar's clock stay;
+// the model revision too (same springs, same rest lengths).
 void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
-  sim::SceneDescription scene = scene_;
   try {
-    scene.solver = ToSolverSettings(solver);
-    Rebuild(scene);
+    const sim::SolverSettings settings = ToSolverSettings(solver);
+    simulation_->SetSolver(settings);
+    scene_.solver = settings;
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
-    return;
   }
-  Warn("command SET_SOLVER: simulation rebuilt with the new solver from frame 0; edits and "
-       "state were not carried over");
 }
 
 namespace {

@@ -104,6 +104,14 @@ class Simulation {
   /// Restores the rest lengths before the last EliminateStretchEnergy (repeatable down to
   /// the model the scene was built with); false when there is nothing to undo.
   bool UndoEdit();
+  /// Changes the solver settings (method, levels, tolerance, iterations, substeps, strain
+  /// limit) in place: the state, the edited rest lengths, the undo history, the grab and the
+  /// avatar's clock are kept, so the positions at the switch are bit for bit those before it.
+  /// The new solver is built around the current model (a pyramid's coarse levels from the
+  /// edited level 0). Throws InputError (ValidateScene, RequireStableStep) and changes
+  /// nothing for settings the scene would refuse.
+  void SetSolver(const SolverSettings& solver);
+
   /// Edits that UndoEdit can still take back.
   int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
 
@@ -128,7 +136,7 @@ class Simulation {
   bool SetPosture(const Pose& posture, double transition_time);
 
   const SceneDescription& scene() const { return scene_; }
-  const ClothModel& model() const { return stepper_.model(); }
+  const ClothModel& model() const { return stepper_->model(); }
   std::shared_ptr<const ClothModel> shared_model() const { return model_; }
   const ClothState& state() const { return state_; }
   ClothState& mutable_state() { return state_; }
@@ -152,6 +160,10 @@ class Simulation {
   void StepOnce(FrameReport& report);
   void MoveAvatar(double t, double h);
   void StartGrab();
+  /// Points the stepper at the grab's forces or anchors (or at none when not grabbing).
+  void ConnectGrab();
+  /// A new pyramid (when the method uses one) and stepper around model_ for `settings`.
+  void BuildSolver(const StepperSettings& settings);
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts();
@@ -162,7 +174,8 @@ class Simulation {
   std::vector<GarmentRange> garments_;
   /// The quincunx pyramid, for the hierarchical and multigrid solvers (null otherwise).
   std::shared_ptr<QuincunxPyramid> pyramid_;
-  ImplicitStepper stepper_;
+  /// Rebuilt by SetSolver (hence a pointer); never null.
+  std::unique_ptr<ImplicitStepper> stepper_;
   ClothState state_;
   std::vector<SphereObstacle> spheres_;
   std::unique_ptr<AvatarMotion> avatar_;

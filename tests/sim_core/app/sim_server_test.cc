@@ -419,7 +419,7 @@ TEST_F(SimServerTest, UnavailableCommandsWarnInStatusWithoutCrashing) {
   EXPECT_EQ(received_.frame, 2);
 }
 
-TEST_F(SimServerTest, SetSolverRebuildsWithTheNewSolver) {
+TEST_F(SimServerTest, SetSolverChangesTheSolverInPlace) {
   Step(5);
   command solver{};
   solver.kind = command::KIND_SET_SOLVER;
@@ -431,7 +431,89 @@ TEST_F(SimServerTest, SetSolverRebuildsWithTheNewSolver) {
   Step();
   EXPECT_EQ(server_->simulation().scene().solver.method, sim::SolverMethod::kDirect);
   EXPECT_EQ(server_->simulation().scene().solver.substeps, 2);
-  EXPECT_EQ(received_.frame, 1);  // rebuilt at frame 0, then one frame
+  EXPECT_EQ(server_->scene().solver.method, sim::SolverMethod::kDirect);
+  EXPECT_EQ(received_.frame, 6);  // no rebuild: the frames carry on
+  EXPECT_TRUE(server_->pending_warnings().empty());
+}
+
+// After a stretch elimination: SET_SOLVER (direct, then hierarchical) keeps the positions
+// bit for bit at the switch, the edited rest lengths and the undo history; an undo after the
+// switch still restores the scene's rest lengths (the hierarchical pyramid rebuilt around
+// them). Oracle: the model as Simulation::Build makes it, and the positions before the switch.
+TEST_F(SimServerTest, SetSolverKeepsTheClothStateTheEditsAndTheUndoHistory) {
+  SendMode(command::MODE_EDITING);
+  Step(60);
+  PullDown(0);
+  command eliminate{};
+  eliminate.kind = command::KIND_ELIMINATE_STRETCH;
+  eliminate.grab_id = -1;
+  eliminate.centre[1] = eliminate.centre[2] = -0.5;
+  eliminate.radius = 2.0;
+  SendCommand(eliminate);
+  SendKind(command::KIND_PAUSE);
+  Step();
+  ASSERT_EQ(server_->simulation().num_undoable_edits(), 1);
+  const std::shared_ptr<const sim::ClothModel> built_model =
+      sim::Simulation::Build(SoftHang())->shared_model();
+  const sim::ClothModel& built = *built_model;
+  std::vector<double> edited;
+  int num_edited = 0;
+  for (int k = 0; k < server_->simulation().model().num_springs(); ++k) {
+    edited.push_back(server_->simulation().model().springs()[k].rest_length);
+    num_edited += edited.back() != built.springs()[k].rest_length;
+  }
+  ASSERT_GT(num_edited, 0);
+  const sim::Points positions = server_->simulation().state().positions;
+  const sim::Points velocities = server_->simulation().state().velocities;
+  const double time = server_->simulation().state().time;
+  const double avatar_time = server_->simulation().avatar_time();
+  const std::int64_t frame = received_.frame;
+  const std::int64_t revision = received_.revision;
+
+  command solver{};
+  solver.kind = command::KIND_SET_SOLVER;
+  solver.solver.method = costume_lcm::solver_parameters::METHOD_DIRECT;
+  solver.solver.tolerance = 1e-4;
+  solver.solver.max_iterations = 100;
+  solver.solver.substeps = 1;
+  SendCommand(solver);
+  Step();  // paused: the switch alone
+  const sim::Simulation& sim = server_->simulation();
+  EXPECT_EQ(sim.scene().solver.method, sim::SolverMethod::kDirect);
+  EXPECT_EQ(sim.state().positions, positions);  // bit for bit
+  EXPECT_EQ(sim.state().velocities, velocities);
+  EXPECT_EQ(sim.state().time, time);
+  EXPECT_EQ(sim.avatar_time(), avatar_time);
+  EXPECT_EQ(received_.frame, frame);
+  EXPECT_EQ(received_.revision, revision);
+  for (int k = 0; k < sim.model().num_springs(); ++k) {
+    ASSERT_EQ(sim.model().springs()[k].rest_length, edited[k]) << "spring " << k;
+  }
+  EXPECT_EQ(sim.num_undoable_edits(), 1);
+
+  // The direct solver steps the edited cloth on.
+  SendKind(command::KIND_PLAY);
+  Step(30);
+  EXPECT_EQ(received_.frame, frame + 30);
+  EXPECT_TRUE(server_->simulation().state().positions.allFinite());
+  EXPECT_GT((server_->simulation().state().positions - positions).cwiseAbs().maxCoeff(), 0.0);
+
+  // Hierarchical, then undo: the scene's rest lengths come back; the cloth keeps stepping.
+  solver.solver.method = costume_lcm::solver_parameters::METHOD_HIERARCHICAL;
+  solver.solver.tolerance = 1e-3;
+  SendCommand(solver);
+  Step();
+  EXPECT_EQ(server_->simulation().scene().solver.method, sim::SolverMethod::kHierarchical);
+  SendKind(command::KIND_UNDO);
+  Step();
+  for (int k = 0; k < server_->simulation().model().num_springs(); ++k) {
+    ASSERT_EQ(server_->simulation().model().springs()[k].rest_length,
+              built.springs()[k].rest_length) << "spring " << k;
+  }
+  EXPECT_EQ(server_->simulation().num_undoable_edits(), 0);
+  Step(30);
+  EXPECT_TRUE(server_->simulation().state().positions.allFinite());
+  EXPECT_EQ(server_->ignored().commands_refused, 0);
 }
 
 // ELIMINATE_STRETCH naming the held grab uses that grab's sphere: the command's own sphere
@@ -450,7 +532,9 @@ TEST_F(SimServerTest, EliminateStretchNamingTheHeldGrabUsesItsSphere) {
   EXPECT_EQ(received_.revision, revision0 + 1);
   EXPECT_EQ(server_->simulation().num_undoable_edits(), 1);
   // Only springs with both ends within 0.3 m of the sphere's centre changed.
-  const sim::ClothModel& built = *sim::Simulation::Build(SoftHang())->shared_model();
+  const std::shared_ptr<const sim::ClothModel> built_model =
+      sim::Simulation::Build(SoftHang())->shared_model();
+  const sim::ClothModel& built = *built_model;
   const sim::ClothModel& now = server_->simulation().model();
   int changed = 0;
   for (int k = 0; k < now.num_springs(); ++k) {
