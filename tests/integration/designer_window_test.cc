@@ -6,6 +6,8 @@
 // checks that the avatar and the cloth are where the view's camera projects them.
 // Run through ctest (tests/integration/designer_window.sh sets up Xvfb and the namespace).
 #include <QDir>
+#include <QFile>
+#include <QSignalSpy>
 #include <QFileInfo>
 #include <QTest>
 #include <gtest/gtest.h>
@@ -71,6 +73,18 @@ Eigen::Vector3d HeadCentre(const std::vector<Eigen::Vector3f>& vertices) {
 TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
   costume::testing::TestApp();
+  // A stand-in ffmpeg first on PATH (this machine has none): records its arguments and
+  // writes the video file, so the export's video step runs end to end.
+  const QString stub_dir = QString(COSTUME_BUILD_DIR) + "/designer_window_ffmpeg";
+  QDir().mkpath(stub_dir);
+  {
+    QFile stub(stub_dir + "/ffmpeg");
+    ASSERT_TRUE(stub.open(QIODevice::WriteOnly));
+    stub.write("#!/bin/sh\necho \"$@\" > ffmpeg_args.txt\nfor last; do :; done\n"
+               "ls frame_00000.png >/dev/null && echo video > \"$last\"\n");
+    stub.setPermissions(stub.permissions() | QFileDevice::ExeOwner);
+  }
+  qputenv("PATH", (stub_dir + ":").toUtf8() + qgetenv("PATH"));
   bus::LcmBus bus(bus::kDefaultLcmUrl);
   FrontendOptions options;
   options.builtin = "garment";
@@ -97,7 +111,14 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   QDir(export_dir).removeRecursively();
   ASSERT_TRUE(window.exporter().Start(export_dir));
   QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 2.5, 120000);
-  window.exporter().Finish();
+  QSignalSpy video(&window.exporter(), &FrameExporter::videoDone);
+  EXPECT_TRUE(window.exporter().Finish().contains("encoding animation.mp4"));
+  QTRY_COMPARE_WITH_TIMEOUT(video.count(), 1, 10000);
+  EXPECT_TRUE(video.at(0).at(0).toString().startsWith("video written"));
+  EXPECT_TRUE(QFileInfo(export_dir + "/animation.mp4").isFile());
+  QFile args(export_dir + "/ffmpeg_args.txt");
+  ASSERT_TRUE(args.open(QIODevice::ReadOnly));
+  EXPECT_TRUE(args.readAll().contains("-framerate 60 -i frame_%05d.png"));
   const int exported = window.exporter().frames_written();
   EXPECT_GE(exported, 10);  // 1.5 s of frames; fewer drawn than received on a loaded machine
   EXPECT_TRUE(QFileInfo(export_dir + "/frame_00000.png").isFile());
