@@ -1,6 +1,9 @@
 #include "frontend/child_processes.h"
 
+#include <sys/prctl.h>
+
 #include <QDir>
+#include <csignal>
 #include <QFileInfo>
 
 namespace costume::frontend {
@@ -9,6 +12,11 @@ QStringList DeviceNames() { return {"simulated", "mouse", "openhaptics", "cyberg
 
 ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
     : QObject(parent), options_(std::move(options)) {
+  // A child gets SIGTERM when the GUI dies, however it dies (even SIGKILL): no server is left
+  // running without the window that owns it.
+  for (QProcess* process : {&sim_, &haptic_}) {
+    process->setChildProcessModifier([] { prctl(PR_SET_PDEATHSIG, SIGTERM); });
+  }
   Forward(sim_, "sim_server");
   Forward(haptic_, "haptic_server");
   connect(&sim_, &QProcess::finished, this, [this](int code) { emit simServerExited(code); });

@@ -6,6 +6,8 @@
 #include <CLI/CLI.hpp>
 #include <QApplication>
 #include <QTimer>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <memory>
 
@@ -14,6 +16,10 @@
 #include "sim_core/common/input_error.h"
 
 namespace {
+
+std::atomic<bool> g_stop{false};
+
+void OnSignal(int) { g_stop.store(true); }
 
 struct Arguments {
   std::string lcm_url = costume::bus::kDefaultLcmUrl;
@@ -56,6 +62,14 @@ int Run(QApplication& app, const Arguments& args) {
   window.show();
   window.StartBusThread();
   window.StartChildren();
+  // SIGINT/SIGTERM close the window like the user would, so the servers stop cleanly.
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  QTimer stop_poll;
+  QObject::connect(&stop_poll, &QTimer::timeout, &window, [&window] {
+    if (g_stop.load()) window.close();
+  });
+  stop_poll.start(100);
   if (args.quit_after > 0.0) {
     // For scripted runs: a screenshot of the view, then close (children stopped).
     QTimer::singleShot(static_cast<int>(args.quit_after * 1000.0), &window, [&] {
