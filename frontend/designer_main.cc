@@ -89,7 +89,6 @@ int Run(QApplication& app, const Arguments& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  QApplication app(argc, argv);
   CLI::App cli{"costume_designer: the Costume Designer workstation GUI (docs/frontend.md)"};
   Arguments args;
   cli.add_option("--lcm-url", args.lcm_url, "LCM URL")->capture_default_str();
@@ -116,11 +115,13 @@ int main(int argc, char** argv) {
   cli.add_option("--quit-after", args.quit_after, "Close the window after this many seconds")
       ->check(CLI::NonNegativeNumber);
   cli.add_option("--screenshot", args.screenshot, "With --quit-after: save the 3D view as PNG (and the window as *_window.png)");
+  cli.allow_extras();  // Qt's own options (-platform, -style, ...) go to QApplication
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
-    return cli.exit(error);
+    return cli.exit(error);  // --help works without a display: no QApplication yet
   }
+  QApplication app(argc, argv);
   try {
     return Run(app, args);
   } catch (const costume::sim::InputError& error) {

@@ -357,7 +357,7 @@ TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
   window_->connect_action()->trigger();
   QTRY_VERIFY_WITH_TIMEOUT(!children.device_running(), 10000);
   QTRY_VERIFY_WITH_TIMEOUT(window_->device_label()->text().contains("failed"), 5000);
-  EXPECT_TRUE(window_->message_log()->toPlainText().contains("OpenHaptics"))
+  EXPECT_TRUE(window_->message_log()->toPlainText().contains("openhaptics", Qt::CaseInsensitive))
       << window_->message_log()->toPlainText().toStdString();
 }
 
