@@ -205,16 +205,31 @@ void MainWindow::LoadSelected(EntryKind kind) {
 
 void MainWindow::MirrorLoad(EntryKind kind, const CatalogItem& item) {
   try {
-    sim::SceneDescription scene = mirror_->scene();
+    // Built on the pending scene when loads follow each other before the server answers.
+    sim::SceneDescription scene = (pending_mirror_ ? *pending_mirror_ : *mirror_).scene();
     catalog_->ApplyToScene(kind, item, scene);
-    auto mirror = std::make_unique<SceneMirror>(std::move(scene));
-    view_->SetMirror(mirror.get());
-    mirror_ = std::move(mirror);
-    warned_mismatch_ = false;
-    Log(QString("view mirrors the new scene: %1 particles").arg(mirror_->num_particles()));
+    pending_mirror_ = std::make_unique<SceneMirror>(std::move(scene));
+    Log(QString("the view follows once the server runs the new scene (%1 particles)")
+            .arg(pending_mirror_->num_particles()));
   } catch (const sim::InputError& error) {
-    Log(QString("the view keeps the previous scene: ") + error.what());
+    Log(QString("the view keeps its scene: ") + error.what());
   }
+}
+
+bool MainWindow::AdoptPendingMirror(const ClothFrame& frame) {
+  if (!pending_mirror_) return false;
+  const int count = static_cast<int>(frame.positions.size());
+  // The server rebuilds its simulation for a load: its frame numbers start again.
+  const bool rebuilt = last_frame_ && frame.frame < last_frame_->frame;
+  if (count != pending_mirror_->num_particles() ||
+      (!rebuilt && count == mirror_->num_particles())) {
+    return false;
+  }
+  mirror_ = std::move(pending_mirror_);
+  view_->SetMirror(mirror_.get());
+  warned_mismatch_ = false;
+  Log(QString("the view follows the loaded scene: %1 particles").arg(count));
+  return true;
 }
 
 QWidget* MainWindow::BuildEditing() {
@@ -447,6 +462,7 @@ Eigen::Vector3d MainWindow::StretchCentre() const {
 void MainWindow::OnClothChunk(const costume_lcm::cloth_frame& chunk) {
   std::optional<ClothFrame> frame = assembler_.Add(chunk);
   if (!frame) return;
+  AdoptPendingMirror(*frame);
   if (static_cast<int>(frame->positions.size()) != mirror_->num_particles()) {
     if (!warned_mismatch_) {
       warned_mismatch_ = true;
@@ -477,6 +493,10 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
     }
     warning_label_->setText(process + ": " + text);
     Log(process + " warning: " + text);
+    if (pending_mirror_ && warning.rfind("command LOAD_", 0) == 0) {
+      pending_mirror_.reset();  // the server refused the load: its scene stays
+      Log("the view keeps its scene");
+    }
   }
   if (!figures.isEmpty()) {
     (process == "haptic" ? haptic_label_ : sim_label_)->setToolTip(figures.join("\n"));

@@ -75,6 +75,8 @@ class MainWindow : public QMainWindow {
   CommandSender& sender() { return *sender_; }
   ViewWidget& view() { return *view_; }
   SceneMirror& mirror() { return *mirror_; }
+  /// The mirror of a requested load the server has not shown yet (null when none).
+  const SceneMirror* pending_mirror() const { return pending_mirror_.get(); }
   ChildProcesses& children() { return *children_; }
   FrameExporter& exporter() { return *exporter_; }
   const ClothFrameAssembler& assembler() const { return assembler_; }
@@ -131,8 +133,13 @@ class MainWindow : public QMainWindow {
   void BuildStatusBar();
   void FillLists();
   void LoadSelected(EntryKind kind);
-  /// Rebuilds the mirror as the server's scene changes with a LOAD_* (scene_mirror.h).
+  /// Builds the mirror of the scene a LOAD_* asks for (scene_mirror.h); it replaces the view's
+  /// mirror when the server's frames show the new scene (AdoptPendingMirror) and is dropped
+  /// when the server refuses the load (a "command LOAD_…" warning).
   void MirrorLoad(EntryKind kind, const CatalogItem& item);
+  /// Switches to the pending mirror when `frame` is of it: its particle count, and either a
+  /// rebuilt simulation (frame number went down) or a count the current mirror does not have.
+  bool AdoptPendingMirror(const ClothFrame& frame);
   void ConnectSignals();
   /// Shows the server's mode on the switch without sending a command.
   void SyncMode(bool editing);
@@ -142,6 +149,7 @@ class MainWindow : public QMainWindow {
   FrontendOptions options_;
   std::unique_ptr<CatalogSource> catalog_;
   std::unique_ptr<SceneMirror> mirror_;
+  std::unique_ptr<SceneMirror> pending_mirror_;
   std::unique_ptr<CommandSender> sender_;
   std::unique_ptr<BusLink> link_;
   std::unique_ptr<BusThread> thread_;

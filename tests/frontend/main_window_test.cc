@@ -399,3 +399,52 @@ TEST_F(MainWindowTest, DragOnEmptySpaceOrbitsShiftDragPansWheelZooms) {
 
 }  // namespace
 }  // namespace costume::frontend
+
+namespace costume::frontend {
+namespace {
+
+TEST(MainWindowLoads, TheViewFollowsALoadedCostumeOnceTheServerRunsIt) {
+  costume::testing::TestApp();
+  bus::LcmBus bus("memq://");
+  FrontendOptions options;  // the garment scene: the skirt on the walking humanoid
+  MainWindow window(bus, options, MakeBuiltInCatalog());
+  const int skirt = window.mirror().num_particles();
+  int seq = 0;
+  PublishFrame(bus, window.mirror().rest_positions(), Eigen::Vector3f::Zero(), 10, 1, seq);
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+  ASSERT_TRUE(window.last_frame());
+
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  costumes->setCurrentItem(costumes->findItems("cape", Qt::MatchExactly).at(0));
+  window.load_button(EntryKind::kCostume)->click();
+  ASSERT_NE(window.pending_mirror(), nullptr);
+  const int cape = window.pending_mirror()->num_particles();
+  ASSERT_NE(cape, skirt);
+  EXPECT_EQ(window.mirror().num_particles(), skirt);  // until the server shows the cape
+
+  // The server refuses: the view keeps the skirt.
+  costume_lcm::status refused{};
+  refused.utime = bus::NowUtime();
+  refused.num_warnings = 1;
+  refused.warnings = {"command LOAD_COSTUME: not available until the database issue; ignored"};
+  ASSERT_TRUE(bus::Publish(bus, bus::kSimStatusChannel, refused));
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+  EXPECT_EQ(window.pending_mirror(), nullptr);
+
+  // Loaded again and accepted: the server's frames start again at 0 with the cape.
+  window.load_button(EntryKind::kCostume)->click();
+  ASSERT_NE(window.pending_mirror(), nullptr);
+  const std::vector<Eigen::Vector3f> cape_rest = window.pending_mirror()->rest_positions();
+  PublishFrame(bus, cape_rest, Eigen::Vector3f::Zero(), 0, 1, seq);
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+  EXPECT_EQ(window.pending_mirror(), nullptr);
+  EXPECT_EQ(window.mirror().num_particles(), cape);
+  EXPECT_EQ(static_cast<int>(window.view().cloth_positions().size()), cape);
+  EXPECT_EQ(window.last_frame()->frame, 0);
+}
+
+}  // namespace
+}  // namespace costume::frontend
