@@ -507,6 +507,8 @@ void MainWindow::OnSimStatus(const Status& status) {
   sim_label_->setText(FormatSimStatus(status));
   ShowWarnings(status, "sim");
   SyncMode(status.mode == Status::MODE_EDITING);
+  undo_->setToolTip(QString("%1 edit(s) the server can undo").arg(status.undo_depth));
+  redo_->setToolTip(QString("%1 undone edit(s) the server can redo").arg(status.redo_depth));
 }
 
 void MainWindow::SyncMode(bool editing) {

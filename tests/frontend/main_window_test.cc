@@ -235,6 +235,7 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   s.sim_time = 2.0;
   s.mode = costume_lcm::status::MODE_EDITING;
   s.playback = costume_lcm::status::PLAYBACK_PLAYING;
+  s.undo_depth = 2;
   s.num_warnings = 1;
   s.warnings = {"LOAD_COSTUME refused: no catalogue"};
   ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
@@ -255,6 +256,8 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   EXPECT_TRUE(sim.contains("playing"));
   EXPECT_TRUE(window_->editing_mode()->isChecked());  // the switch shows the server's mode
   EXPECT_TRUE(sent_meanwhile.empty());                  // ... without sending a command
+  EXPECT_TRUE(sim.contains("undo 2 redo 0"));
+  EXPECT_TRUE(window_->undo_button()->toolTip().startsWith("2 edit(s)"));
   EXPECT_TRUE(window_->warning_label()->text().contains("LOAD_COSTUME refused"));
   costume_lcm::feedback f{};
   f.utime = bus::NowUtime();
