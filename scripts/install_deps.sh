@@ -12,6 +12,7 @@ packages=(
   liblcm-dev liblcm-bin libglib2.0-dev liblcm-java default-jdk-headless  # processes
   qt6-base-dev libqt6opengl6-dev libgl-dev libosmesa6-dev xvfb xauth     # frontend
   libsqlite3-dev libpq-dev                               # database
+  postgresql                                             # catalogue tests start their own server
   libpng-dev                                             # render: thumbnails as PNG
 )
 

@@ -149,11 +149,13 @@ void ValidateGarment(const GarmentSpec& garment, std::size_t index,
   const Refuser refuser = scene_refuser.AtLine(garment.source_line);
   const std::string field = "garment[" + std::to_string(index) + "]";
   if (garment.name.empty()) refuser.Refuse(field + ".name", "\"\"", "must not be empty");
-  const int shapes = garment.panel.has_value() + garment.mesh.has_value() + garment.pattern.has_value();
+  const int shapes = garment.panel.has_value() + garment.mesh.has_value() +
+                     garment.pattern.has_value() + (garment.model != nullptr);
   if (shapes != 1) {
     refuser.Refuse(field, Quote(garment.name),
                    std::string("has ") + (shapes ? "more than one of" : "none of") +
-                       " a panel, a mesh and a pattern: a garment needs exactly one of them");
+                       " a panel, a mesh, a pattern and a prebuilt model: a garment needs "
+                       "exactly one of them");
   }
   if (garment.pattern) {
     refuser.RequireInteger(field + ".resolution", garment.pattern_resolution, 8, 1024);

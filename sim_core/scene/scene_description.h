@@ -12,6 +12,7 @@
 #include "sim_core/avatar/avatar.h"
 #include "sim_core/avatar/avatar_motion.h"
 #include "sim_core/avatar/clip.h"
+#include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/material.h"
 #include "sim_core/cloth/mesh_cloth.h"
@@ -44,18 +45,24 @@ struct Effects {
   bool self_collision = false;
 };
 
-/// A garment: one lattice panel, one mesh, or a built-in pattern sewn around the avatar;
-/// a material, pins.
+/// A garment: one lattice panel, one mesh, a built-in pattern sewn around the avatar, or a
+/// prebuilt model (an edited garment read back); a material, pins.
 struct GarmentSpec {
   std::string name = "cloth";
   /// Name of a material of the scene or a built-in one ("stiff_cotton", "blender_cotton").
   std::string material = "stiff_cotton";
-  /// Exactly one of panel, mesh or pattern is set.
+  /// Exactly one of panel, mesh, pattern or model is set.
   std::optional<LatticePanel> panel;
   std::optional<SurfaceMesh> mesh;
   /// A built-in garment ("skirt", "cape", "dress": garment_patterns.h), fitted to the
   /// scene's avatar and attached to it; needs an avatar.
   std::optional<std::string> pattern;
+  /// A prebuilt model used as it is: rest positions, masses, springs with their stiffness,
+  /// damping and (possibly edited) rest lengths, and its own pinned particles (pin_points
+  /// are ignored; the material is not used to build it). With attach_to, the model's pinned
+  /// particles are held by that joint. Saved garments come back this way
+  /// (assets/edited_garment.h).
+  std::shared_ptr<const ClothModel> model;
   /// Particles around the pattern's circumference, in [8, 1024].
   int pattern_resolution = 64;
   /// Pinned particles: the particle nearest to each point is pinned [m].

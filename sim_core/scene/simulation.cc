@@ -82,6 +82,12 @@ ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentS
 
 ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& garment,
                             std::vector<BodyAttachment>& attachments) {
+  if (garment.model) {  // prebuilt: its springs already carry the material (and any edits)
+    ClothModelData data = garment.model->data();
+    data.name = garment.name;
+    if (garment.attach_to) Attach(scene, garment, *garment.attach_to, data, attachments);
+    return data;
+  }
   const Material material = ResolveMaterial(scene, garment);
   if (garment.pattern) return BuildPatternGarment(scene, garment, material, attachments);
   ClothModelData data = garment.panel

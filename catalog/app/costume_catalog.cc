@@ -1,0 +1,187 @@
+/// costume-catalog: the catalogue of avatars, garments and animations from the command line
+/// (docs/catalog.md). Subcommands: import, list, versions, export. Not called `import`,
+/// which ImageMagick owns on users' machines.
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "catalog/bundle.h"
+#include "catalog/catalog.h"
+#include "catalog/import.h"
+#include "catalog/rendered_thumbnails.h"
+#include "sim_core/common/input_error.h"
+
+namespace {
+
+using costume::catalog::Catalog;
+using costume::catalog::EntryInfo;
+using costume::catalog::Kind;
+
+std::string FormatTime(std::int64_t utime) {
+  const std::time_t seconds = static_cast<std::time_t>(utime / 1000000);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%d %H:%M:%S", std::gmtime(&seconds));
+  return text;
+}
+
+/// An entry named by id or by name (for `versions`: a garment's name).
+EntryInfo Resolve(Catalog& catalog, const std::string& what, Kind kind_for_names) {
+  if (!what.empty() && what.find_first_not_of("0123456789") == std::string::npos) {
+    return catalog.Get(std::stoll(what));
+  }
+  const auto entry = catalog.Find(kind_for_names, what);
+  if (!entry) {
+    throw costume::sim::InputError("no " + std::string(KindName(kind_for_names)) + " named '" +
+                                   what + "' in " + catalog.url());
+  }
+  return *entry;
+}
+
+void PrintList(Catalog& catalog, const std::vector<Kind>& kinds) {
+  std::printf("%-6s %-10s %-24s %-14s %-8s %-19s %s\n", "id", "kind", "name", "category", "version",
+              "modified (UTC)", "provenance / licence");
+  for (Kind kind : kinds) {
+    for (const EntryInfo& e : catalog.List(kind)) {
+      std::printf("%-6lld %-10s %-24s %-14s %-8d %-19s %s / %s\n", static_cast<long long>(e.id),
+                  KindName(e.kind), e.name.c_str(), e.category.c_str(), e.latest_version,
+                  FormatTime(e.modified_utime).c_str(), e.provenance.c_str(), e.licence.c_str());
+    }
+  }
+}
+
+void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::string& out) {
+  const costume::catalog::AssetData data = catalog.Data(entry.id, version);
+  namespace fs = std::filesystem;
+  auto write = [](const fs::path& path, const std::vector<std::uint8_t>& bytes) {
+    std::ofstream file(path, std::ios::binary);
+    file.write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+    if (!file) throw costume::sim::InputError(path.string() + ": cannot write");
+  };
+  if (costume::catalog::IsBundle(data.bytes)) {  // several files: into the folder `out`
+    fs::create_directories(out);
+    for (const auto& file : costume::catalog::UnpackBundle(data.bytes, entry.name)) {
+      write(fs::path(out) / file.name, file.bytes);
+      std::printf("wrote %s (%zu bytes)\n", (fs::path(out) / file.name).string().c_str(),
+                  file.bytes.size());
+    }
+    return;
+  }
+  write(out, data.bytes);
+  std::printf("wrote %s: %s '%s' version %d, format %s, %zu bytes\n", out.c_str(),
+              KindName(entry.kind), entry.name.c_str(), version ? version : entry.latest_version,
+              data.format.c_str(), data.bytes.size());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "costume-catalog: the Costume Designer catalogue of avatars, garments and "
+      "animations (docs/catalog.md)."};
+  app.require_subcommand(1);
+  std::string url = costume::catalog::DefaultCatalogUrl();
+  app.add_option("--url", url,
+                 "catalogue: sqlite:<path>, a path, or postgresql://... (default: "
+                 "$COSTUME_CATALOG, else sqlite:$XDG_DATA_HOME/costume-designer/catalog.sqlite)");
+  bool no_thumbnails = false;
+  app.add_flag("--no-thumbnails", no_thumbnails,
+               "do not render thumbnails (when seeding a new catalogue or importing)");
+
+  costume::catalog::ImportRequest request;
+  std::string kind_name;
+  auto* import = app.add_subcommand("import", "import avatars, animations or garments from files");
+  import->add_option("--kind", kind_name, "avatar | animation | garment")
+      ->required()
+      ->check(CLI::IsMember({"avatar", "animation", "garment"}));
+  import
+      ->add_option("--root", request.root,
+                   "the import folder: every file must lie inside it (no '..' or symbolic "
+                   "links leading out)")
+      ->required();
+  import->add_option("files", request.files, "files to import (MakeHuman: .obj .mhskel .mhw)")
+      ->required();
+  import->add_option("--name", request.name, "entry name (one entry only; default: file stem)");
+  import->add_option("--category", request.category,
+                     "animations: basic (default) | choreography; others: free text");
+  import->add_option("--licence", request.licence, "licence of the files")->capture_default_str();
+  import->add_option("--provenance", request.provenance,
+                     "where the files come from (default: 'imported from <path>')");
+  import->add_option("--fabric", request.fabric_preset,
+                     "garments: fabric preset cotton | silk | wool | denim | leather (default: "
+                     "the garment file's material)");
+  import->add_option("--character", request.character,
+                     "DeepMimic clips: the character file (default: "
+                     "<motion folder>/../characters/humanoid3d.txt)");
+  import->add_option("--label", request.label, "garments: the first version's label")
+      ->capture_default_str();
+
+  std::string list_kind;
+  auto* list = app.add_subcommand("list", "list the entries");
+  list->add_option("--kind", list_kind, "avatar | animation | garment (default: all)")
+      ->check(CLI::IsMember({"avatar", "animation", "garment"}));
+
+  std::string garment;
+  auto* versions = app.add_subcommand("versions", "list a garment's saved versions");
+  versions->add_option("garment", garment, "garment name or id")->required();
+
+  std::string export_id;
+  int export_version = 0;
+  std::string out;
+  auto* exporter = app.add_subcommand("export", "write an entry's stored data to a file");
+  exporter->add_option("id", export_id, "entry id (or a garment's name)")->required();
+  exporter->add_option("--version", export_version, "garment version (default: latest)");
+  exporter->add_option("--out", out, "output file (a folder for multi-file entries)")->required();
+  bool export_thumbnail = false;
+  exporter->add_flag("--thumbnail", export_thumbnail,
+                     "write the entry's thumbnail (PNG) instead of its data");
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    costume::catalog::OpenOptions options;
+    if (!no_thumbnails) options = costume::catalog::WithRenderedThumbnails();
+    const auto catalog = Catalog::Open(url, options);
+    if (*import) {
+      request.kind = costume::catalog::ParseKind(kind_name);
+      if (!no_thumbnails) request.thumbnails = costume::catalog::RenderedThumbnails();
+      costume::catalog::ImportFiles(*catalog, request, std::cout);
+    } else if (*list) {
+      if (list_kind.empty()) {
+        PrintList(*catalog, {Kind::kAvatar, Kind::kAnimation, Kind::kGarment});
+      } else {
+        PrintList(*catalog, {costume::catalog::ParseKind(list_kind)});
+      }
+    } else if (*versions) {
+      const EntryInfo entry = Resolve(*catalog, garment, Kind::kGarment);
+      const auto history = catalog->Versions(entry.id);  // throws for a non-garment
+      std::printf("garment '%s' (id %lld): %d version(s)\n", entry.name.c_str(),
+                  static_cast<long long>(entry.id), entry.latest_version);
+      for (const auto& v : history) {
+        std::printf("  %3d  %s  %s\n", v.version, FormatTime(v.created_utime).c_str(),
+                    v.label.c_str());
+      }
+    } else if (*exporter) {
+      const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
+      if (export_thumbnail) {
+        const auto png = catalog->Thumbnail(entry.id);
+        if (png.empty()) throw costume::sim::InputError("'" + entry.name + "' has no thumbnail");
+        std::ofstream(out, std::ios::binary)
+            .write(reinterpret_cast<const char*>(png.data()),
+                   static_cast<std::streamsize>(png.size()));
+        std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
+      } else {
+        Export(*catalog, entry, export_version, out);
+      }
+    }
+  } catch (const costume::sim::InputError& error) {
+    std::cerr << "error: " << error.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

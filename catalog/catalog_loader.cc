@@ -1,0 +1,315 @@
+#include "catalog/catalog_loader.h"
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "assets/avatar_import.h"
+#include "assets/clip_import.h"
+#include "assets/edited_garment.h"
+#include "assets/makehuman_import.h"
+#include "assets/scene_file.h"
+#include "catalog/bundle.h"
+#include "sim_core/avatar/procedural_clips.h"
+#include "sim_core/avatar/procedural_humanoid.h"
+#include "sim_core/common/input_error.h"
+#include "sim_core/scene/simulation.h"
+
+namespace costume::catalog {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A private folder under the system's temporary folder, removed with its contents.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device random;
+    const fs::path base = fs::temp_directory_path();
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      path_ = base / ("costume-catalog-" + std::to_string(random()));
+      std::error_code error;
+      if (fs::create_directory(path_, error)) {
+        fs::permissions(path_, fs::perms::owner_all, error);
+        return;
+      }
+    }
+    throw sim::InputError("cannot create a temporary folder under " + base.string());
+  }
+  ~TempDir() {
+    std::error_code error;
+    fs::remove_all(path_, error);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  /// Writes `bytes` to the file `name` (a plain name) in the folder; returns its path.
+  /// Messages quoting that path will quote `label` instead (see Clean); empty: the name.
+  std::string Write(const std::string& name, const std::vector<std::uint8_t>& bytes,
+                    const std::string& label = "") {
+    const fs::path file = path_ / name;
+    labels_.emplace_back(file.string(), label.empty() ? name : label);
+    std::ofstream out(file, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
+    if (!out) throw sim::InputError("cannot write the temporary file " + file.string());
+    return file.string();
+  }
+
+  /// `message` with the temporary paths replaced by their labels: an importer's error then
+  /// names the user's file or the catalogue entry, not a path that no longer exists.
+  std::string Clean(std::string message) const {
+    for (const auto& [path, label] : labels_) Replace(message, path, label);
+    Replace(message, path_.string() + "/", "");
+    return message;
+  }
+
+  /// Runs `load`, cleaning the message of any InputError it throws.
+  template <typename Load>
+  auto Guard(Load&& load) const {
+    try {
+      return load();
+    } catch (const sim::InputError& error) {
+      throw sim::InputError(Clean(error.what()));
+    } catch (const std::exception& error) {  // a library's own error on malformed input
+      throw sim::InputError(Clean(error.what()));
+    }
+  }
+
+ private:
+  static void Replace(std::string& text, const std::string& from, const std::string& to) {
+    for (auto at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) {
+      text.replace(at, from.size(), to);
+    }
+  }
+
+  fs::path path_;
+  std::vector<std::pair<std::string, std::string>> labels_;
+};
+
+std::string BuiltInName(const AssetData& data) {
+  return std::string(data.bytes.begin(), data.bytes.end());
+}
+
+/// The bundle member whose name ends in `suffix`; throws naming `what` when there is none.
+const BundleFile& Member(const std::vector<BundleFile>& files, const std::string& suffix,
+                         const std::string& what) {
+  for (const BundleFile& file : files) {
+    if (file.name.size() >= suffix.size() &&
+        file.name.compare(file.name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      return file;
+    }
+  }
+  throw sim::InputError(what + ": the bundle has no '*" + suffix + "' file");
+}
+
+bool IsMeshFormat(const std::string& format) {
+  return format == "glb" || format == "gltf" || format == "fbx" || format == "dae" ||
+         format == "obj";
+}
+
+std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const AssetData& data,
+                                                  const std::string& what) {
+  if (data.format == "builtin") {
+    if (BuiltInName(data) != "humanoid") {
+      throw sim::InputError(what + ": unknown built-in avatar '" + BuiltInName(data) +
+                            "': the built-in avatar is humanoid");
+    }
+    return sim::MakeHumanoid();
+  }
+  TempDir dir;
+  if (IsMeshFormat(data.format)) {
+    assets::AvatarImportOptions options;
+    options.name = name;
+    const std::string path = dir.Write("avatar." + data.format, data.bytes, what);
+    return dir.Guard([&] { return assets::LoadAvatar(path, options); });
+  }
+  if (data.format == "makehuman") {
+    const auto files = UnpackBundle(data.bytes, what);
+    assets::MakeHumanImportOptions options;
+    options.name = name;
+    const BundleFile& obj = Member(files, ".obj", what);
+    const BundleFile& skeleton = Member(files, ".mhskel", what);
+    const BundleFile& weights = Member(files, ".mhw", what);
+    const std::string obj_path = dir.Write(obj.name, obj.bytes, what + " (" + obj.name + ")");
+    const std::string skeleton_path =
+        dir.Write(skeleton.name, skeleton.bytes, what + " (" + skeleton.name + ")");
+    const std::string weights_path =
+        dir.Write(weights.name, weights.bytes, what + " (" + weights.name + ")");
+    return dir.Guard([&] {
+      return assets::LoadMakeHumanAvatar(obj_path, skeleton_path, weights_path, options);
+    });
+  }
+  throw sim::InputError(what + ": format '" + data.format +
+                        "' is not an avatar format: allowed are builtin, glb, gltf, fbx, dae, "
+                        "obj, makehuman");
+}
+
+std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::ClipCategory category,
+                                              const AssetData& data,
+                                              std::shared_ptr<const sim::Skeleton> skeleton,
+                                              const std::string& what) {
+  if (data.format == "builtin") {
+    auto clip = std::make_shared<sim::Clip>(sim::MakeBuiltInClip(
+        BuiltInName(data), skeleton ? std::move(skeleton) : sim::MakeHumanoidSkeleton()));
+    clip->category = category;
+    clip->name = name;
+    return clip;
+  }
+  assets::ClipImportOptions options;
+  options.name = name;
+  options.category = category;
+  TempDir dir;
+  if (data.format == "bvh" || (IsMeshFormat(data.format) && data.format != "obj")) {
+    const std::string path = dir.Write("clip." + data.format, data.bytes, what);
+    return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
+  }
+  if (data.format == "deepmimic") {
+    const auto files = UnpackBundle(data.bytes, what);
+    const BundleFile& motion = Member(files, "motion.txt", what);
+    const BundleFile& character = Member(files, "character.txt", what);
+    options.deepmimic_character =
+        dir.Write(character.name, character.bytes, what + " (character file)");
+    const std::string path = dir.Write(motion.name, motion.bytes, what);
+    return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
+  }
+  throw sim::InputError(what + ": format '" + data.format +
+                        "' is not an animation format: allowed are builtin, bvh, glb, gltf, "
+                        "fbx, dae, deepmimic");
+}
+
+sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
+                                 const std::string& what) {
+  sim::GarmentSpec spec;
+  if (data.format == "builtin") {
+    spec.pattern = BuiltInName(data);
+  } else if (data.format == "edited-garment") {
+    const assets::EditedGarment garment = assets::ReadEditedGarment(data.bytes, what);
+    spec.model = garment.model;
+    spec.attach_to = garment.attached_to;
+  } else if (data.format == "garment-toml") {
+    TempDir dir;
+    std::string path;
+    if (IsBundle(data.bytes)) {
+      const auto files = UnpackBundle(data.bytes, what);
+      const BundleFile& toml = Member(files, ".toml", what);
+      for (const BundleFile& file : files) {
+        if (&file != &toml) dir.Write(file.name, file.bytes, what + " (" + file.name + ")");
+      }
+      path = dir.Write(toml.name, toml.bytes, what);
+    } else {
+      path = dir.Write("garment.toml", data.bytes, what);
+    }
+    const sim::SceneDescription scene = dir.Guard([&] { return assets::LoadSceneFile(path); });
+    if (scene.garments.size() != 1) {
+      throw sim::InputError(what + ": a garment file holds exactly one [[garment]] table, found " +
+                            std::to_string(scene.garments.size()));
+    }
+    spec = scene.garments.front();
+  } else {
+    throw sim::InputError(what + ": format '" + data.format +
+                          "' is not a garment format: allowed are builtin, garment-toml, "
+                          "edited-garment");
+  }
+  spec.name = name;
+  spec.material = name + "_fabric";
+  return spec;
+}
+
+sim::ClipCategory CategoryOf(const EntryInfo& entry) {
+  return entry.category == "choreography" ? sim::ClipCategory::kChoreography
+                                          : sim::ClipCategory::kBasic;
+}
+
+EntryInfo EntryOfKind(Catalog& catalog, std::int64_t id, Kind kind) {
+  EntryInfo entry = catalog.Get(id);
+  if (entry.kind != kind) {
+    throw sim::InputError("catalog entry " + std::to_string(id) + " ('" + entry.name + "') is " +
+                          (entry.kind == Kind::kGarment ? "a " : "an ") + KindName(entry.kind) +
+                          ", not " + (kind == Kind::kGarment ? "a " : "an ") + KindName(kind));
+  }
+  return entry;
+}
+
+std::string EntryWhat(const EntryInfo& entry, int version) {
+  std::string what = std::string("catalog ") + KindName(entry.kind) + " '" + entry.name + "'";
+  if (entry.kind == Kind::kGarment) {
+    what += " version " + std::to_string(version ? version : entry.latest_version);
+  }
+  return what;
+}
+
+}  // namespace
+
+std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id) {
+  const EntryInfo entry = EntryOfKind(catalog, id, Kind::kAvatar);
+  return AvatarFromData(entry.name, catalog.Data(id), EntryWhat(entry, 0));
+}
+
+std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id,
+                                          std::shared_ptr<const sim::Skeleton> avatar_skeleton) {
+  const EntryInfo entry = EntryOfKind(catalog, id, Kind::kAnimation);
+  return ClipFromData(entry.name, CategoryOf(entry), catalog.Data(id), std::move(avatar_skeleton),
+                      EntryWhat(entry, 0));
+}
+
+sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version) {
+  const EntryInfo entry = EntryOfKind(catalog, id, Kind::kGarment);
+  return GarmentFromData(entry.name, catalog.Data(id, version), EntryWhat(entry, version));
+}
+
+sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id) {
+  const EntryInfo entry = EntryOfKind(catalog, id, Kind::kGarment);
+  return MaterialFromFabric(entry.fabric.value_or(FabricParameters{}), entry.name + "_fabric");
+}
+
+void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
+                       sim::SceneDescription& scene) {
+  sim::GarmentSpec garment = LoadGarment(catalog, id, version);
+  const sim::Material material = GarmentMaterial(catalog, id);
+  std::erase_if(scene.materials, [&](const sim::Material& m) { return m.name == material.name; });
+  scene.materials.push_back(material);
+  scene.garments.push_back(std::move(garment));
+}
+
+ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
+                                const FabricParameters& fabric, const std::string& what) {
+  ThumbnailRequest request;
+  request.kind = kind;
+  request.name = name;
+  switch (kind) {
+    case Kind::kAvatar:
+      request.avatar = AvatarFromData(name, data, what);
+      break;
+    case Kind::kAnimation:
+      request.avatar = sim::MakeHumanoid();
+      request.clip = ClipFromData(name, sim::ClipCategory::kBasic, data,
+                                  request.avatar->shared_skeleton(), what);
+      break;
+    case Kind::kGarment: {
+      ValidateFabric(fabric, what);
+      sim::SceneDescription scene;
+      scene.name = name;
+      scene.source = what;
+      sim::AvatarSpec avatar;
+      avatar.avatar = sim::MakeHumanoid();
+      request.avatar = avatar.avatar;
+      scene.avatar = avatar;
+      sim::GarmentSpec garment = GarmentFromData(name, data, what);
+      if (garment.pattern) request.pattern = *garment.pattern;
+      scene.materials.push_back(MaterialFromFabric(fabric, garment.material));
+      scene.garments.push_back(std::move(garment));
+      // Building the model checks what the file alone cannot: pins, attachment, sizes.
+      sim::ValidateScene(scene);
+      std::vector<sim::GarmentRange> ranges;
+      std::vector<sim::BodyAttachment> attachments;
+      sim::BuildSceneModel(scene, &ranges, &attachments);
+      request.garment_scene = std::move(scene);
+      break;
+    }
+  }
+  return request;
+}
+
+}  // namespace costume::catalog

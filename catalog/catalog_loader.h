@@ -1,0 +1,49 @@
+#pragma once
+/// @file
+/// Turning catalogue entries into simulation inputs, through the importers of assets/ (the
+/// bytes are written to a private temporary folder when an importer needs a path).
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "catalog/catalog.h"
+#include "sim_core/avatar/avatar.h"
+#include "sim_core/avatar/clip.h"
+#include "sim_core/cloth/material.h"
+#include "sim_core/scene/scene_description.h"
+
+namespace costume::catalog {
+
+/// The avatar of entry `id` (kind avatar). Throws sim::InputError naming the entry for a
+/// wrong kind or data its importer refuses.
+std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id);
+
+/// The clip of entry `id` (kind animation), with the entry's category. Built-in clips are
+/// made on `avatar_skeleton` (null: the built-in humanoid's skeleton); clips from files keep
+/// their own skeleton (sim::Retargeter puts them on any avatar). Throws sim::InputError.
+std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id,
+                                          std::shared_ptr<const sim::Skeleton> avatar_skeleton);
+
+/// Version `version` (0: latest) of garment `id` as a scene garment named after the entry.
+/// Its `material` names the entry's fabric as GarmentMaterial returns it ("<name>_fabric"),
+/// which must be added to the scene's materials (AddGarmentToScene does both). Built-in
+/// patterns need the scene to have an avatar; edited garments carry their prebuilt model
+/// (GarmentSpec::model). Throws sim::InputError naming the entry and version.
+sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version = 0);
+
+/// The fabric of garment `id` as a sim::Material named "<entry name>_fabric".
+sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
+
+/// Appends version `version` of garment `id` and its material to `scene` (a material of the
+/// same name already there is replaced).
+void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
+                       sim::SceneDescription& scene);
+
+/// Checks that `data` loads as an entry of `kind` (what Catalog users import), returning the
+/// request a ThumbnailMaker needs to draw it. Throws sim::InputError naming `what` (a file
+/// name) and the problem. `fabric` is the garment's fabric (ignored for other kinds).
+ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
+                                const FabricParameters& fabric, const std::string& what);
+
+}  // namespace costume::catalog

@@ -1,0 +1,318 @@
+#include "catalog/import.h"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "assets/scene_file.h"
+#include "catalog/bundle.h"
+#include "catalog/catalog_loader.h"
+#include "catalog/fabric_presets.h"
+#include "sim_core/common/input_error.h"
+
+namespace costume::catalog {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// An entry being prepared: where it comes from and what will be stored.
+struct Candidate {
+  /// The file named in messages (the main one, as the user gave it).
+  std::string shown;
+  /// The main file, resolved inside the root.
+  fs::path path;
+  NewEntry entry;
+};
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+std::string Extension(const fs::path& path) {
+  std::string extension = Lower(path.extension().string());
+  return extension.empty() ? extension : extension.substr(1);
+}
+
+std::vector<std::uint8_t> ReadBytes(const fs::path& path, const std::string& shown) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw sim::InputError(shown + ": cannot open the file");
+  std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                  std::istreambuf_iterator<char>());
+  if (in.bad()) throw sim::InputError(shown + ": cannot read the file");
+  if (bytes.empty()) throw sim::InputError(shown + ": the file is empty");
+  return bytes;
+}
+
+std::string SizeText(std::size_t bytes) {
+  std::ostringstream out;
+  if (bytes >= 1 << 20) {
+    out << std::fixed << std::setprecision(1) << static_cast<double>(bytes) / (1 << 20) << " MB";
+  } else {
+    out << (bytes + 1023) / 1024 << " KB";
+  }
+  return out.str();
+}
+
+/// A garment scene file and, when it names one, its mesh file (flattened into a bundle: the
+/// mesh path in the stored scene file becomes its plain name).
+AssetData GarmentTomlData(const fs::path& root, const fs::path& path, const std::string& shown) {
+  const std::vector<std::uint8_t> bytes = ReadBytes(path, shown);
+  toml::table table;
+  try {
+    table = toml::parse(std::string(bytes.begin(), bytes.end()), path.string());
+  } catch (const toml::parse_error& error) {
+    std::ostringstream message;
+    message << shown << ":" << error.source().begin.line << ":" << error.source().begin.column
+            << ": " << error.description();
+    throw sim::InputError(message.str());
+  }
+  toml::node* file = table.at_path("garment[0].mesh.file").node();
+  if (!file || !file->is_string()) return {"garment-toml", bytes};
+  const std::string mesh_name = file->as_string()->get();
+  const fs::path mesh = ResolveInsideRoot(root, (path.parent_path() / mesh_name).string());
+  const std::string plain = mesh.filename().string();
+  *file->as_string() = plain;
+  std::ostringstream text;
+  text << table;
+  const std::string rewritten = text.str();
+  return {"garment-toml",
+          PackBundle({{path.filename().string(),
+                       std::vector<std::uint8_t>(rewritten.begin(), rewritten.end())},
+                      {plain, ReadBytes(mesh, shown + " (mesh " + mesh_name + ")")}})};
+}
+
+/// The fabric a garment file defines: its garment's material when the file defines it, else
+/// a built-in material of that name.
+FabricParameters FabricOfGarmentFile(const fs::path& path) {
+  const sim::SceneDescription scene = assets::LoadSceneFile(path.string());
+  const sim::GarmentSpec& garment = scene.garments.at(0);
+  for (const sim::Material& m : scene.materials) {
+    if (m.name == garment.material) return FabricFromMaterial(m);
+  }
+  return FabricFromMaterial(sim::NamedMaterial(garment.material));
+}
+
+/// The candidates of the request, before loading: files grouped into entries, bytes read.
+std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& root,
+                               std::vector<std::string>& errors) {
+  std::vector<Candidate> candidates;
+  std::vector<std::pair<std::string, fs::path>> files;
+  for (const std::string& file : request.files) {
+    try {
+      files.emplace_back(file, ResolveInsideRoot(root, file));
+    } catch (const sim::InputError& error) {
+      errors.push_back(error.what());
+    }
+  }
+  auto relative = [&root](const fs::path& path) { return path.lexically_relative(root).string(); };
+  auto start = [&](const std::string& shown, const fs::path& path) {
+    Candidate c;
+    c.shown = shown;
+    c.path = path;
+    c.entry.kind = request.kind;
+    c.entry.name = path.stem().string();
+    c.entry.category = request.category;
+    c.entry.licence = request.licence;
+    c.entry.provenance =
+        request.provenance.empty() ? "imported from " + relative(path) : request.provenance;
+    c.entry.version_label = request.label;
+    return c;
+  };
+  // MakeHuman's triple is one avatar.
+  if (request.kind == Kind::kAvatar) {
+    auto find = [&](const std::string& extension) {
+      return std::find_if(files.begin(), files.end(),
+                          [&](const auto& f) { return Extension(f.second) == extension; });
+    };
+    const auto skeleton = find("mhskel");
+    const auto weights = find("mhw");
+    if (skeleton != files.end() || weights != files.end()) {
+      const auto obj = find("obj");
+      if (skeleton == files.end() || weights == files.end() || obj == files.end()) {
+        errors.push_back((skeleton != files.end() ? skeleton : weights)->first +
+                         ": a MakeHuman avatar needs its base .obj, .mhskel and .mhw files "
+                         "given together");
+        return candidates;
+      }
+      Candidate c = start(obj->first, obj->second);
+      try {
+        std::vector<BundleFile> bundle;
+        for (const auto& part : {*obj, *skeleton, *weights}) {
+          bundle.push_back({part.second.filename().string(), ReadBytes(part.second, part.first)});
+        }
+        c.entry.data = {"makehuman", PackBundle(bundle)};
+        candidates.push_back(std::move(c));
+      } catch (const sim::InputError& error) {
+        errors.push_back(error.what());
+      }
+      std::erase_if(files, [&](const auto& f) {
+        return f.second == obj->second || f.second == skeleton->second ||
+               f.second == weights->second;
+      });
+    }
+  }
+  for (const auto& [shown, path] : files) {
+    Candidate c = start(shown, path);
+    try {
+      const std::string format = FormatOfExtension(request.kind, Extension(path));
+      if (format.empty()) {
+        throw sim::InputError(shown + ": extension '." + Extension(path) + "' is not " +
+                              (request.kind == Kind::kAvatar ? "an " : "a ") +
+                              KindName(request.kind) + " format: allowed are " +
+                              (request.kind == Kind::kAvatar
+                                   ? ".glb, .gltf, .fbx, .dae, .obj, MakeHuman's .obj+.mhskel+.mhw"
+                               : request.kind == Kind::kAnimation
+                                   ? ".bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json"
+                                   : ".toml (one [[garment]]), .cdgarment (edited garment)"));
+      }
+      if (format == "deepmimic") {
+        const std::string character_file =
+            request.character.empty()
+                ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
+                : request.character;
+        fs::path character;
+        try {
+          character = ResolveInsideRoot(root, character_file);
+        } catch (const sim::InputError& error) {
+          throw sim::InputError(shown + ": its DeepMimic character file: " + error.what() +
+                                " (give it with --character)");
+        }
+        c.entry.data = {
+            format,
+            PackBundle({{"motion.txt", ReadBytes(path, shown)},
+                        {"character.txt", ReadBytes(character, shown + " (character file)")}})};
+      } else if (format == "garment-toml") {
+        c.entry.data = GarmentTomlData(root, path, shown);
+      } else {
+        c.entry.data = {format, ReadBytes(path, shown)};
+      }
+      candidates.push_back(std::move(c));
+    } catch (const sim::InputError& error) {
+      errors.push_back(error.what());
+    }
+  }
+  return candidates;
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+std::string FormatOfExtension(Kind kind, const std::string& extension) {
+  const std::string e = Lower(extension);
+  switch (kind) {
+    case Kind::kAvatar:
+      if (e == "glb" || e == "gltf" || e == "fbx" || e == "dae" || e == "obj") return e;
+      break;
+    case Kind::kAnimation:
+      if (e == "bvh" || e == "glb" || e == "gltf" || e == "fbx" || e == "dae") return e;
+      if (e == "txt" || e == "json") return "deepmimic";
+      break;
+    case Kind::kGarment:
+      if (e == "toml") return "garment-toml";
+      if (e == "cdgarment") return "edited-garment";
+      break;
+  }
+  return "";
+}
+
+fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {
+  std::error_code error;
+  const fs::path real_root = fs::canonical(root, error);
+  if (error || !fs::is_directory(real_root)) {
+    throw sim::InputError("import folder '" + root.string() +
+                          "' is not a folder: " + (error ? error.message() : "not a directory"));
+  }
+  const fs::path real = fs::canonical(file, error);
+  if (error) throw sim::InputError(file + ": cannot open: " + error.message());
+  const fs::path inside = real.lexically_relative(real_root);
+  if (inside.empty() || *inside.begin() == "..") {
+    throw sim::InputError(file + ": refused: it resolves to '" + real.string() +
+                          "', outside the import folder '" + real_root.string() +
+                          "' (through '..', an absolute path or a symbolic link)");
+  }
+  if (!fs::is_regular_file(real)) throw sim::InputError(file + ": not a regular file");
+  return real;
+}
+
+std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& request,
+                                      std::ostream& progress) {
+  if (request.files.empty()) throw sim::InputError("import: no files given");
+  std::error_code status;
+  const fs::path root = fs::canonical(request.root.empty() ? "." : request.root, status);
+  if (status || !fs::is_directory(root)) {
+    throw sim::InputError("import folder --root '" + request.root + "' is not a folder" +
+                          (status ? ": " + status.message() : ""));
+  }
+  std::vector<std::string> errors;
+  std::vector<Candidate> candidates = Collect(request, root, errors);
+  if (!request.name.empty()) {
+    if (candidates.size() + errors.size() > 1) {
+      errors.push_back("--name '" + request.name + "' names one entry, but " +
+                       std::to_string(request.files.size()) + " files were given");
+    } else if (!candidates.empty()) {
+      candidates.front().entry.name = request.name;
+    }
+  }
+  const int total = static_cast<int>(candidates.size());
+  int index = 0;
+  for (Candidate& c : candidates) {
+    ++index;
+    const auto start = std::chrono::steady_clock::now();
+    progress << "[" << index << "/" << total << "] " << c.shown << " ("
+             << SizeText(c.entry.data.bytes.size()) << ", " << c.entry.data.format
+             << "): checking..." << std::flush;
+    try {
+      if (c.entry.kind == Kind::kAnimation && c.entry.category.empty()) c.entry.category = "basic";
+      if (c.entry.kind == Kind::kGarment) {
+        c.entry.fabric = !request.fabric_preset.empty()
+                             ? FindFabricPreset(request.fabric_preset).fabric
+                         : c.entry.data.format == "garment-toml" ? FabricOfGarmentFile(c.path)
+                                                                 : FabricParameters{};
+      }
+      ThumbnailRequest thumbnail =
+          CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
+                         c.entry.fabric.value_or(FabricParameters{}), c.shown);
+      progress << " loaded in " << std::fixed << std::setprecision(1) << SecondsSince(start) << " s"
+               << std::flush;
+      if (request.thumbnails) {
+        progress << "; thumbnail..." << std::flush;
+        thumbnail.size = request.thumbnail_size;
+        try {
+          c.entry.thumbnail_png = request.thumbnails(thumbnail);
+        } catch (const std::exception& error) {
+          progress << " (none: " << error.what() << ")";
+        }
+      }
+      progress << " ok\n";
+    } catch (const std::exception& error) {
+      progress << " refused\n";
+      errors.push_back(error.what());
+    }
+  }
+  if (!errors.empty()) {
+    std::string message = std::to_string(errors.size()) + " problem" +
+                          (errors.size() > 1 ? "s" : "") + "; nothing was imported:";
+    for (const std::string& e : errors) message += "\n  " + e;
+    throw sim::InputError(message);
+  }
+  std::vector<NewEntry> entries;
+  for (Candidate& c : candidates) entries.push_back(std::move(c.entry));
+  const std::vector<std::int64_t> ids = catalog.AddAll(entries);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    progress << "stored " << KindName(entries[i].kind) << " '" << entries[i].name << "' as id "
+             << ids[i] << "\n";
+  }
+  return ids;
+}
+
+}  // namespace costume::catalog

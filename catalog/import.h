@@ -1,0 +1,63 @@
+#pragma once
+/// @file
+/// Importing files into the catalogue (what `costume-catalog import` runs): avatars, clips
+/// and garments in every format the assets layer reads. Files must lie inside the import
+/// folder (--root): a path escaping it, through "..", an absolute path or a symbolic link,
+/// is refused. Every file is loaded through its importer (from a private copy of the bytes
+/// that will be stored) before anything is written; the entries are then added in one
+/// transaction, so a bad file leaves the catalogue unchanged.
+
+#include <cstdint>
+#include <filesystem>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "catalog/catalog.h"
+
+namespace costume::catalog {
+
+struct ImportRequest {
+  Kind kind = Kind::kAvatar;
+  /// The import folder every file must lie in.
+  std::string root;
+  /// The files (relative to the working directory, or absolute). Avatars: one entry per
+  /// file, except MakeHuman's triple (.obj + .mhskel + .mhw given together: one entry).
+  /// Animations: .bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json (its character file is
+  /// `character`, else <motion folder>/../characters/humanoid3d.txt). Garments: .toml (a
+  /// scene file with one [[garment]]; a mesh file it names is stored with it) or .cdgarment
+  /// (an edited garment, assets/edited_garment.h).
+  std::vector<std::string> files;
+  /// Entry name (only with one entry); empty: the file name without extension.
+  std::string name;
+  /// Animations: "basic" (default) or "choreography"; others: free text.
+  std::string category;
+  std::string licence = "unspecified";
+  /// Empty: "imported from <path inside the root>".
+  std::string provenance;
+  /// Garments: a fabric preset name (fabric_presets.h); empty: the garment file's material.
+  std::string fabric_preset;
+  /// DeepMimic clips: the character file (inside the root).
+  std::string character;
+  /// Garments: the first version's label.
+  std::string label = "initial";
+  /// Thumbnails (none when empty).
+  ThumbnailMaker thumbnails;
+  int thumbnail_size = 128;
+};
+
+/// The canonical path of `file` (symbolic links and ".." resolved), which must exist and lie
+/// inside `root` (itself canonicalised). Throws sim::InputError naming the file, where it
+/// leads and the import folder.
+std::filesystem::path ResolveInsideRoot(const std::filesystem::path& root, const std::string& file);
+
+/// Imports `request.files`, printing progress lines to `progress`; returns the new ids.
+/// Throws sim::InputError listing every refused file and what is wrong with it (nothing is
+/// imported then).
+std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& request,
+                                      std::ostream& progress);
+
+/// The kind of format a file extension means ("bvh", "glb", ..., "" when unknown).
+std::string FormatOfExtension(Kind kind, const std::string& extension);
+
+}  // namespace costume::catalog

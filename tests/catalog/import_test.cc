@@ -1,0 +1,366 @@
+// Importing files into the catalogue: the real assets of ../shared/data (skipped when that
+// folder is absent), bad files generated here, paths escaping the import folder, and the
+// costume-catalog program itself.
+
+#include "catalog/import.h"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "assets/avatar_import.h"
+#include "assets/clip_import.h"
+#include "assets/edited_garment.h"
+#include "catalog/bundle.h"
+#include "catalog/catalog_loader.h"
+#include "catalog/fabric_presets.h"
+#include "sim_core/common/input_error.h"
+#include "sim_core/scene/simulation.h"
+#include "tests/support/test_scenes.h"
+
+namespace costume::catalog {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kSharedData = "../shared/data";
+
+class ImportTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/catalog-import-XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    root_ = dir_ / "root";
+    fs::create_directories(root_);
+    OpenOptions options;  // no thumbnails: those are tested with the renderer
+    catalog_ = Catalog::Open("sqlite:" + (dir_ / "catalog.sqlite").string(), options);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  /// Writes `text` to root/<name> (folders created) and returns its path.
+  std::string Write(const std::string& name, const std::string& text) {
+    const fs::path path = root_ / name;
+    fs::create_directories(path.parent_path());
+    std::ofstream(path, std::ios::binary) << text;
+    return path.string();
+  }
+
+  /// Imports and returns the ids, or fails the test with the message.
+  std::vector<std::int64_t> Import(ImportRequest request) {
+    if (request.root.empty()) request.root = root_.string();
+    std::ostringstream progress;
+    auto ids = ImportFiles(*catalog_, request, progress);
+    progress_ = progress.str();
+    return ids;
+  }
+
+  /// The error ImportFiles throws for `request` (empty when it imports).
+  std::string ImportError(ImportRequest request) {
+    const std::size_t before = Count();
+    try {
+      Import(std::move(request));
+    } catch (const sim::InputError& error) {
+      EXPECT_EQ(Count(), before) << "a refused import added entries";
+      return error.what();
+    }
+    return "";
+  }
+
+  std::size_t Count() {
+    return catalog_->List(Kind::kAvatar).size() + catalog_->List(Kind::kAnimation).size() +
+           catalog_->List(Kind::kGarment).size();
+  }
+
+  fs::path dir_, root_;
+  std::unique_ptr<Catalog> catalog_;
+  std::string progress_;
+};
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+// ---- confinement to the import folder --------------------------------------------------------
+
+TEST_F(ImportTest, RefusesPathsThatEscapeTheImportFolder) {
+  const std::string outside = (dir_ / "outside.bvh").string();
+  std::ofstream(outside) << "HIERARCHY\n";
+  const std::string dotdot = (root_ / ".." / "outside.bvh").string();
+  fs::create_symlink(outside, root_ / "link.bvh");
+  fs::create_directories(root_ / "sub");
+  fs::create_directory_symlink(dir_, root_ / "sub" / "up");
+  for (const std::string& file :
+       {dotdot, (root_ / "link.bvh").string(), outside, (root_ / "sub/up/outside.bvh").string()}) {
+    ImportRequest request;
+    request.kind = Kind::kAnimation;
+    request.files = {file};
+    const std::string message = ImportError(request);
+    EXPECT_TRUE(Contains(message, file)) << message;
+    EXPECT_TRUE(Contains(message, "outside the import folder")) << message;
+  }
+}
+
+TEST_F(ImportTest, ADeepMimicCharacterOutsideTheFolderIsRefused) {
+  const std::string motion = Write("motions/hop.txt", "{\"Loop\": \"none\", \"Frames\": []}");
+  std::ofstream(dir_ / "humanoid3d.txt") << "{}";
+  ImportRequest request;
+  request.kind = Kind::kAnimation;
+  request.files = {motion};
+  request.character = (dir_ / "humanoid3d.txt").string();
+  EXPECT_TRUE(Contains(ImportError(request), "outside the import folder"));
+}
+
+// ---- bad files ---------------------------------------------------------------------------------
+
+TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
+  struct Case {
+    Kind kind;
+    std::string name, text, expect;
+  };
+  const std::vector<Case> cases = {
+      {Kind::kAnimation, "truncated.bvh", "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0", "truncated.bvh"},
+      {Kind::kAnimation, "empty.bvh", "", "empty"},
+      {Kind::kAvatar, "noise.glb", "glTF this is not a binary glTF at all", "noise.glb"},
+      {Kind::kAvatar, "shape.xyz", "1 2 3", "'.xyz' is not an avatar format"},
+      {Kind::kGarment, "broken.toml", "[[garment]\nname = 1", "broken.toml:1"},
+      {Kind::kGarment, "two.toml",
+       "[[garment]]\nname = \"a\"\n[garment.panel]\n[[garment]]\nname = \"b\"\n"
+       "[garment.panel]\n",
+       "exactly one [[garment]]"},
+      {Kind::kGarment, "noise.cdgarment", "CDGARMNT but then nothing sensible", "noise.cdgarment"},
+      {Kind::kAnimation, "motions/lonely.txt", "{\"Frames\": []}", "lonely.txt"},
+  };
+  for (const Case& c : cases) {
+    ImportRequest request;
+    request.kind = c.kind;
+    request.files = {Write(c.name, c.text)};
+    const std::string message = ImportError(request);
+    EXPECT_TRUE(Contains(message, c.expect)) << c.name << ": " << message;
+    EXPECT_TRUE(Contains(message, "nothing was imported")) << message;
+    EXPECT_FALSE(Contains(message, "costume-catalog-")) << "a temporary path leaked: " << message;
+  }
+  ImportRequest missing;
+  missing.kind = Kind::kAnimation;
+  missing.files = {(root_ / "missing.bvh").string()};
+  EXPECT_TRUE(Contains(ImportError(missing), "missing.bvh"));
+}
+
+TEST_F(ImportTest, OneBadFileStopsTheWholeBatch) {
+  ImportRequest request;
+  request.kind = Kind::kGarment;
+  request.files = {Write("good.toml", "[[garment]]\nname = \"sheet\"\n[garment.panel]\n"),
+                   Write("bad.toml",
+                         "[[garment]]\nname = \"sheet2\"\n[garment.panel]\n"
+                         "cols = 1\n")};
+  const std::string message = ImportError(request);
+  EXPECT_TRUE(Contains(message, "bad.toml")) << message;
+  EXPECT_FALSE(catalog_->Find(Kind::kGarment, "good"));
+  request.files.pop_back();
+  Import(request);
+  EXPECT_TRUE(catalog_->Find(Kind::kGarment, "good"));
+}
+
+// ---- garments from files -----------------------------------------------------------------------
+
+/// A w × h quad grid in the xy plane, as OBJ text (metres).
+std::string GridObj(int w, int h, double size) {
+  std::ostringstream obj;
+  for (int j = 0; j <= h; ++j) {
+    for (int i = 0; i <= w; ++i) obj << "v " << size * i / w << " " << 1.5 - size * j / h << " 0\n";
+  }
+  for (int j = 0; j < h; ++j) {
+    for (int i = 0; i < w; ++i) {
+      const int a = j * (w + 1) + i + 1;
+      obj << "f " << a << " " << a + 1 << " " << a + w + 2 << " " << a + w + 1 << "\n";
+    }
+  }
+  return obj.str();
+}
+
+TEST_F(ImportTest, AGarmentFileAndItsMeshAreStoredTogether) {
+  Write("garments/meshes/apron.obj", GridObj(6, 6, 0.6));
+  const std::string toml = Write("garments/apron.toml", R"(
+[[material]]
+name = "apron_linen"
+density = 0.2
+stretch_stiffness = 800
+shear_stiffness = 400
+bending_rigidity = 2e-6
+friction = 0.35
+
+[[garment]]
+name = "apron"
+material = "apron_linen"
+pin_points = [[0, 1.5, 0], [0.6, 1.5, 0]]
+
+[garment.mesh]
+file = "meshes/apron.obj"
+)");
+  ImportRequest request;
+  request.kind = Kind::kGarment;
+  request.files = {toml};
+  const std::int64_t id = Import(request).at(0);
+  const EntryInfo entry = catalog_->Get(id);
+  EXPECT_EQ(entry.name, "apron");
+  ASSERT_TRUE(entry.fabric);
+  EXPECT_EQ(entry.fabric->mass_per_area, 0.2);  // the file's material
+  EXPECT_EQ(entry.fabric->friction, 0.35);
+  EXPECT_EQ(entry.provenance, "imported from garments/apron.toml");
+  EXPECT_TRUE(IsBundle(catalog_->Data(id).bytes));
+  // Loads with the catalogue's fabric into a scene, without the original files.
+  fs::remove_all(root_ / "garments");
+  sim::SceneDescription scene;
+  scene.source = "import_test";
+  AddGarmentToScene(*catalog_, id, 0, scene);
+  ASSERT_TRUE(scene.garments[0].mesh);
+  EXPECT_EQ(scene.garments[0].mesh->vertices.rows(), 49);
+  auto simulation = sim::Simulation::Build(scene);
+  EXPECT_EQ(simulation->model().num_particles(), 49);
+  EXPECT_EQ(simulation->model().pinned().size(), 2u);
+}
+
+TEST_F(ImportTest, AFabricPresetOverridesTheFileMaterial) {
+  ImportRequest request;
+  request.kind = Kind::kGarment;
+  request.files = {Write("sheet.toml", "[[garment]]\nname = \"sheet\"\n[garment.panel]\n")};
+  request.fabric_preset = "leather";
+  request.name = "cloak";
+  const std::int64_t id = Import(request).at(0);
+  EXPECT_EQ(catalog_->Get(id).name, "cloak");
+  EXPECT_EQ(catalog_->Get(id).fabric->bend_stiffness,
+            FindFabricPreset("leather").fabric.bend_stiffness);
+  request.fabric_preset = "chiffon";
+  request.name = "veil";
+  EXPECT_TRUE(Contains(ImportError(request), "chiffon"));
+}
+
+TEST_F(ImportTest, AnEditedGarmentFileImportsAsAPrebuiltModel) {
+  auto sheet = sim::Simulation::Build(test::HangScene(7));
+  const auto bytes =
+      assets::WriteEditedGarment(assets::EditedGarmentFromSimulation(*sheet, "sheet"));
+  Write("sheet.cdgarment", std::string(bytes.begin(), bytes.end()));
+  ImportRequest request;
+  request.kind = Kind::kGarment;
+  request.files = {(root_ / "sheet.cdgarment").string()};
+  request.fabric_preset = "cotton";
+  const std::int64_t id = Import(request).at(0);
+  const sim::GarmentSpec garment = LoadGarment(*catalog_, id);
+  ASSERT_TRUE(garment.model);
+  EXPECT_EQ(garment.model->num_springs(), sheet->model().num_springs());
+}
+
+// ---- the real assets ---------------------------------------------------------------------------
+
+class SharedDataImportTest : public ImportTest {
+ protected:
+  void SetUp() override {
+    if (!fs::is_directory(kSharedData)) GTEST_SKIP() << kSharedData << " is absent";
+    ImportTest::SetUp();
+  }
+  std::vector<std::int64_t> ImportShared(Kind kind, std::vector<std::string> files,
+                                         const std::string& category = "") {
+    ImportRequest request;
+    request.kind = kind;
+    request.root = kSharedData.string();
+    for (std::string& f : files) f = (kSharedData / f).string();
+    request.files = files;
+    request.category = category;
+    request.licence = "see SOURCE.md";
+    return Import(request);
+  }
+};
+
+TEST_F(SharedDataImportTest, AvatarsLoadAsFromTheirFiles) {
+  const auto ids = ImportShared(
+      Kind::kAvatar, {"khronos-cesiumman/CesiumMan.glb", "makehuman/body/base.obj",
+                      "makehuman/body/default.mhskel", "makehuman/body/default_weights.mhw"});
+  ASSERT_EQ(ids.size(), 2u);  // MakeHuman's three files are one avatar
+  EXPECT_TRUE(Contains(progress_, "[1/2]")) << progress_;
+  EXPECT_TRUE(Contains(progress_, "[2/2]")) << progress_;
+  const auto cesium = catalog_->Find(Kind::kAvatar, "CesiumMan");
+  ASSERT_TRUE(cesium);
+  EXPECT_EQ(cesium->licence, "see SOURCE.md");
+  const auto direct =
+      assets::LoadAvatar((kSharedData / "khronos-cesiumman/CesiumMan.glb").string());
+  const auto stored = LoadAvatar(*catalog_, cesium->id);
+  EXPECT_EQ(stored->skeleton().num_joints(), direct->skeleton().num_joints());
+  EXPECT_EQ(stored->rest_vertices().rows(), direct->rest_vertices().rows());
+  const auto makehuman = LoadAvatar(*catalog_, catalog_->Find(Kind::kAvatar, "base")->id);
+  EXPECT_GT(makehuman->skeleton().num_joints(), 100);  // the 163-bone skeleton
+}
+
+TEST_F(SharedDataImportTest, ClipsLoadAsFromTheirFiles) {
+  const auto ids =
+      ImportShared(Kind::kAnimation,
+                   {"cmu-mocap-bvh/02_02.bvh", "deepmimic-motions/motions/humanoid3d_dance_a.txt"},
+                   "choreography");
+  ASSERT_EQ(ids.size(), 2u);
+  const sim::Clip direct = assets::LoadClip((kSharedData / "cmu-mocap-bvh/02_02.bvh").string());
+  const auto stored = LoadClip(*catalog_, ids[0], nullptr);
+  EXPECT_EQ(stored->frames.size(), direct.frames.size());
+  EXPECT_EQ(stored->frame_time, direct.frame_time);
+  EXPECT_EQ(stored->category, sim::ClipCategory::kChoreography);
+  const auto dance = LoadClip(*catalog_, ids[1], nullptr);
+  EXPECT_GT(dance->frames.size(), 10u);
+  EXPECT_EQ(catalog_->Get(ids[1]).provenance,
+            "imported from deepmimic-motions/motions/humanoid3d_dance_a.txt");
+}
+
+// ---- the program -------------------------------------------------------------------------------
+
+/// Runs costume-catalog with `arguments`; returns its exit status and puts stdout+stderr in
+/// `output`.
+int RunProgram(const std::string& arguments, std::string& output) {
+  const std::string command = std::string(COSTUME_CATALOG_PROGRAM) + " " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  char buffer[4096];
+  output.clear();
+  while (std::fgets(buffer, sizeof buffer, pipe)) output += buffer;
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
+  const std::string url = "--url sqlite:" + (dir_ / "program.sqlite").string() + " --no-thumbnails";
+  std::string output;
+  const std::string good = Write("sheet.toml", "[[garment]]\nname = \"sheet\"\n[garment.panel]\n");
+  ASSERT_EQ(
+      RunProgram(url + " import --kind garment --fabric silk --root " + root_.string() + " " + good,
+                 output),
+      0)
+      << output;
+  EXPECT_TRUE(Contains(output, "[1/1]")) << output;
+  EXPECT_TRUE(Contains(output, "stored garment 'sheet'")) << output;
+  ASSERT_EQ(RunProgram(url + " list --kind garment", output), 0);
+  EXPECT_TRUE(Contains(output, "sheet")) << output;
+  EXPECT_TRUE(Contains(output, "skirt")) << output;  // seeded
+  ASSERT_EQ(RunProgram(url + " versions sheet", output), 0);
+  EXPECT_TRUE(Contains(output, "initial")) << output;
+  const std::string exported = (dir_ / "exported.toml").string();
+  ASSERT_EQ(RunProgram(url + " export sheet --out " + exported, output), 0) << output;
+  std::ifstream in(exported);
+  EXPECT_TRUE(Contains(std::string(std::istreambuf_iterator<char>(in), {}), "[garment.panel]"));
+
+  const std::string bad = Write("bad.bvh", "HIERARCHY\nROOT");
+  EXPECT_EQ(
+      RunProgram(url + " import --kind animation --root " + root_.string() + " " + bad, output), 1);
+  EXPECT_TRUE(Contains(output, "error:")) << output;
+  EXPECT_TRUE(Contains(output, bad)) << output;
+  EXPECT_EQ(RunProgram(url + " import --kind animation --root " + root_.string() + " " +
+                           (root_ / ".." / "program.sqlite").string(),
+                       output),
+            1);
+  EXPECT_TRUE(Contains(output, "outside the import folder")) << output;
+  EXPECT_EQ(RunProgram("--url mysql://nowhere list", output), 1);
+  EXPECT_TRUE(Contains(output, "mysql://nowhere")) << output;
+  EXPECT_EQ(RunProgram("--help", output), 0);
+  EXPECT_TRUE(Contains(output, "import")) << output;
+}
+
+}  // namespace
+}  // namespace costume::catalog
