@@ -12,6 +12,8 @@ namespace costume::bus {
 inline const std::string kDeviceStateChannel = "COSTUME_DEVICE_STATE";
 /// costume_lcm::grab, from haptic_server.
 inline const std::string kGrabChannel = "COSTUME_GRAB";
+/// costume_lcm::grab_ack, from the simulation server: each grab echoed on receipt.
+inline const std::string kGrabAckChannel = "COSTUME_GRAB_ACK";
 /// costume_lcm::feedback, from haptic_server.
 inline const std::string kFeedbackChannel = "COSTUME_FEEDBACK";
 /// costume_lcm::cloth_frame (chunked), from the simulation server.

@@ -20,6 +20,14 @@ bool CountsMatch(const costume_lcm::haptic_patch& m) {
                      m.rest_length);
 }
 
+bool CountsMatch(const costume_lcm::command& m) {
+  if (!AllHaveSize(m.num_joints, m.joint_names, m.joint_angles)) return false;
+  for (const auto& row : m.joint_angles) {
+    if (row.size() != 3) return false;
+  }
+  return true;
+}
+
 bool CountsMatch(const costume_lcm::status& m) { return AllHaveSize(m.num_warnings, m.warnings); }
 
 }  // namespace costume::bus

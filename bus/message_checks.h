@@ -6,6 +6,7 @@
 /// message instead. Never throw; never allocate.
 
 #include "lcm_types/costume_lcm/cloth_frame.hpp"
+#include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
 #include "lcm_types/costume_lcm/status.hpp"
 
@@ -23,6 +24,9 @@ bool CountsMatch(const costume_lcm::cloth_frame& message);
 /// num_particles >= 0 and every particle array holds num_particles values; num_springs >= 0
 /// and every spring array holds num_springs values.
 bool CountsMatch(const costume_lcm::haptic_patch& message);
+
+/// num_joints >= 0, joint_names and joint_angles hold num_joints entries, each angle row 3.
+bool CountsMatch(const costume_lcm::command& message);
 
 /// num_warnings >= 0 and warnings holds num_warnings strings.
 bool CountsMatch(const costume_lcm::status& message);

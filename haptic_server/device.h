@@ -146,6 +146,10 @@ struct WorkspaceTransform {
   Eigen::Vector3d VelocityToScene(const Eigen::Vector3d& v_device) const {
     return scale * (rotation * v_device);
   }
+  /// A scene point [m] in the device frame [m] (the inverse of PositionToScene).
+  Eigen::Vector3d PositionToDevice(const Eigen::Vector3d& p_scene) const {
+    return rotation.transpose() * (p_scene - offset) / scale;
+  }
   /// A displacement in the scene [m] seen in the device frame [m].
   Eigen::Vector3d DisplacementToDevice(const Eigen::Vector3d& d_scene) const {
     return rotation.transpose() * d_scene / scale;

@@ -171,12 +171,15 @@ LoopCounters HapticLoop::counters() const {
           num_overruns_.load(std::memory_order_relaxed)};
 }
 
-PeriodStatistics HapticLoop::Statistics() const {
+PeriodStatistics HapticLoop::Statistics() const { return StatisticsSince(0); }
+
+PeriodStatistics HapticLoop::StatisticsSince(std::int64_t first) const {
   const std::int64_t recorded = num_recorded_.load(std::memory_order_acquire);
-  const std::int64_t n = std::min(recorded, options_.ring_capacity);
+  const std::int64_t begin = std::max({first, recorded - options_.ring_capacity, std::int64_t{0}});
+  const std::int64_t n = std::max<std::int64_t>(0, recorded - begin);
   std::vector<std::int64_t> periods(static_cast<std::size_t>(n));
   for (std::int64_t i = 0; i < n; ++i) {
-    periods[i] = ring_[i].load(std::memory_order_relaxed);
+    periods[i] = ring_[(begin + i) % options_.ring_capacity].load(std::memory_order_relaxed);
   }
   return ComputePeriodStatistics(periods.data(), n, options_.period);
 }

@@ -162,6 +162,12 @@ class HapticLoop {
   /// Statistics of the recorded periods (allocates; any thread, any time; a snapshot taken
   /// while ticking may mix one or two periods from consecutive ticks, harmless for statistics).
   PeriodStatistics Statistics() const;
+  /// Statistics of the periods recorded from the `first`-th on (0-based, as counted by
+  /// num_recorded(); periods already overwritten in the ring are left out). The status
+  /// message uses it for the periods of one status period. Allocates; any thread.
+  PeriodStatistics StatisticsSince(std::int64_t first) const;
+  /// Periods recorded since construction or ResetStatistics (any thread).
+  std::int64_t num_recorded() const { return num_recorded_.load(std::memory_order_acquire); }
   /// Forget recorded periods and counters (e.g. after a warm-up). Only while not running.
   void ResetStatistics();
 

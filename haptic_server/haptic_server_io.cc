@@ -345,6 +345,32 @@ std::int64_t HapticServerIo::ToUtime(std::int64_t loop_ns) const {
   return utime_offset_ + loop_ns / 1000;
 }
 
+void HapticServerIo::SetPointerDevice(MouseDevice* mouse) {
+  if (mouse_ != nullptr || mouse == nullptr) {
+    throw sim::InputError("HapticServerIo::SetPointerDevice: needs one mouse device, once");
+  }
+  mouse_ = mouse;
+  pointer_receive_ = bus::Subscribe<costume_lcm::pointer_sample>(
+      bus_, bus::kPointerChannel,
+      [this](const costume_lcm::pointer_sample& sample) { OnPointerSample(sample); },
+      options_.pointer_policy);
+}
+
+void HapticServerIo::OnPointerSample(const costume_lcm::pointer_sample& sample) {
+  const Eigen::Vector3d scene(sample.position[0], sample.position[1], sample.position[2]);
+  if (sample.inside_view && !scene.allFinite()) {
+    ++counts_.num_pointer_invalid;
+    return;
+  }
+  MouseSample m;
+  m.time = 1e-6 * static_cast<double>(sample.utime);
+  m.position = sample.inside_view ? workspace_.PositionToDevice(scene) : Eigen::Vector3d::Zero();
+  m.buttons = static_cast<std::uint32_t>(sample.buttons);
+  m.inside_view = sample.inside_view;
+  mouse_->Push(m);
+  ++counts_.num_pointer_samples;
+}
+
 void HapticServerIo::OnPatchChunk(const costume_lcm::haptic_patch& chunk) {
   if (!assembler_.Add(chunk)) return;
   PatchAssemblyCounts& counts = assembler_.mutable_counts();
@@ -432,7 +458,7 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
     const RealtimeStatus rt = loop_->realtime_status();
     if (!rt.reason.empty()) warnings.push_back("real-time: " + rt.reason);
     const LoopCounters c = loop_->counters();
-    // status.lcm has no fields for these: they travel as text, every period.
+    // The fields carry totals since start and the period figures; the per-period counts as text.
     std::snprintf(line, sizeof line,
                   "loop: %lld missed and %lld overruns in the last %.1f s; period p99 %.1f us, "
                   "p99.9 %.1f us, max %.1f us",
@@ -479,6 +505,11 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
     warnings.emplace_back(line);
   }
   last_patch_counts_ = a;
+  if (counts_.num_pointer_invalid != last_pointer_invalid_) {
+    warnings.push_back("pointer samples with a non-finite position dropped since start: " +
+                       std::to_string(counts_.num_pointer_invalid));
+    last_pointer_invalid_ = counts_.num_pointer_invalid;
+  }
   if (num_transport_failures_ > 0) {
     warnings.push_back("LCM transport failed " + std::to_string(num_transport_failures_) +
                        " times since start");
@@ -493,12 +524,21 @@ void HapticServerIo::PublishStatus() {
   status.utime = ToUtime(now);
   status.process = "haptic_server";
   status.pid = static_cast<std::int32_t>(::getpid());
-  const PeriodStatistics periods = loop_ != nullptr ? loop_->Statistics() : PeriodStatistics{};
+  // The periods of this status period only (the ring holds the last minute).
+  const std::int64_t recorded = loop_ != nullptr ? loop_->num_recorded() : 0;
+  const PeriodStatistics periods =
+      loop_ != nullptr ? loop_->StatisticsSince(last_status_recorded_) : PeriodStatistics{};
+  last_status_recorded_ = recorded;
+  status.period_p50_us = 1e-3 * static_cast<double>(periods.p50);
+  status.period_p99_us = 1e-3 * static_cast<double>(periods.p99);
+  status.period_p999_us = 1e-3 * static_cast<double>(periods.p999);
+  status.period_max_us = 1e-3 * static_cast<double>(periods.max);
   status.target_rate = periods.nominal > 0 ? 1e9 / static_cast<double>(periods.nominal) : 1000.0;
   if (loop_ != nullptr) {
     const LoopCounters c = loop_->counters();
     status.ticks = c.num_ticks;
     status.overruns = c.num_overruns;
+    status.missed_ticks = c.num_missed;
     status.measured_rate = static_cast<double>(c.num_ticks - last_status_ticks_) / elapsed;
     last_status_ticks_ = c.num_ticks;
   }
@@ -514,10 +554,11 @@ void HapticServerIo::PublishStatus() {
   status.frame = -1;
   status.model_revision = -1;
   const bus::ReceiveCounts& r = *patch_receive_;
-  status.dropped_malformed = r.malformed;
-  status.dropped_oversized = r.oversized;
-  status.dropped_stale = r.stale;
-  status.dropped_out_of_order = r.out_of_order;
+  const bus::ReceiveCounts q = pointer_receive_counts();
+  status.dropped_malformed = r.malformed + q.malformed;
+  status.dropped_oversized = r.oversized + q.oversized;
+  status.dropped_stale = r.stale + q.stale;
+  status.dropped_out_of_order = r.out_of_order + q.out_of_order;
   status.warnings = CollectWarnings(elapsed, periods);
   status.num_warnings = static_cast<std::int16_t>(status.warnings.size());
   if (status_out_.Publish(status)) ++counts_.num_status_published;

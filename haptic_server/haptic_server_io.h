@@ -35,11 +35,13 @@
 #include "haptic_server/device.h"
 #include "haptic_server/haptic_loop.h"
 #include "haptic_server/haptic_tick.h"
+#include "haptic_server/mouse_device.h"
 #include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/device_state.hpp"
 #include "lcm_types/costume_lcm/feedback.hpp"
 #include "lcm_types/costume_lcm/grab.hpp"
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
+#include "lcm_types/costume_lcm/pointer_sample.hpp"
 #include "lcm_types/costume_lcm/status.hpp"
 
 namespace costume::haptics {
@@ -255,6 +257,8 @@ struct HapticServerIoOptions {
   PatchCapacity capacity;
   /// Checks on received haptic_patch chunks (age, order, size).
   bus::ReceivePolicy patch_policy;
+  /// Checks on received pointer samples (SetPointerDevice).
+  bus::ReceivePolicy pointer_policy;
   /// Throws costume::sim::InputError naming the field, value and allowed range.
   void Validate() const;
 };
@@ -273,6 +277,10 @@ struct HapticServerIoCounts {
   std::int64_t num_status_published = 0;
   /// Publishes the bus or the typed checks refused.
   std::int64_t num_publish_refused = 0;
+  /// Pointer samples pushed into the mouse device.
+  std::int64_t num_pointer_samples = 0;
+  /// Pointer samples refused for a non-finite position (inside the view).
+  std::int64_t num_pointer_invalid = 0;
 };
 
 /// The I/O side of the haptic server. All methods from one thread (the I/O thread, or a
@@ -295,6 +303,14 @@ class HapticServerIo {
   void SetStatusSources(const HapticLoop* loop, const HapticTick* tick,
                         TimedTickHandler* timing);
 
+  /// Feeds `mouse` (which must outlive this) from COSTUME_POINTER: each pointer_sample that
+  /// passes the receive filter (options.pointer_policy) is mapped from the scene frame into
+  /// the device frame (the workspace's inverse) and pushed; inside_view = false makes the
+  /// device read "no data" with the buttons released (the force fades). Samples with a
+  /// non-finite position inside the view are counted (num_pointer_invalid) and dropped.
+  /// Call once, before Start. Throws InputError when called twice.
+  void SetPointerDevice(MouseDevice* mouse);
+
   /// One round: dispatches received messages (waiting up to `timeout_ms` [ms] for the first),
   /// drains the tick's queue and publishes, and publishes status when due. Never throws for
   /// bad input (it is counted); a transport failure is counted as a warning.
@@ -313,10 +329,15 @@ class HapticServerIo {
   }
   /// Messages the patch subscription dropped (malformed, oversized, stale, out of order).
   const bus::ReceiveCounts& patch_receive_counts() const { return *patch_receive_; }
+  /// The same for the pointer subscription (all zero without SetPointerDevice).
+  bus::ReceiveCounts pointer_receive_counts() const {
+    return pointer_receive_ ? *pointer_receive_ : bus::ReceiveCounts{};
+  }
   const GrabState& grab_state() const { return grabs_.state(); }
 
  private:
   void OnPatchChunk(const costume_lcm::haptic_patch& chunk);
+  void OnPointerSample(const costume_lcm::pointer_sample& sample);
   void DrainOutgoing();
   void PublishState(const OutgoingDeviceState& state, const GrabState& grab, bool publish_all);
   void PublishStretchRelief(const OutgoingDeviceState& state, const GrabState& grab);
@@ -334,6 +355,8 @@ class HapticServerIo {
   PatchAssembler assembler_;
   GrabTracker grabs_;
   std::shared_ptr<const bus::ReceiveCounts> patch_receive_;
+  std::shared_ptr<const bus::ReceiveCounts> pointer_receive_;
+  MouseDevice* mouse_ = nullptr;
   bus::Publisher<costume_lcm::device_state> device_state_out_;
   bus::Publisher<costume_lcm::feedback> feedback_out_;
   bus::Publisher<costume_lcm::grab> grab_out_;
@@ -348,10 +371,12 @@ class HapticServerIo {
   TimedTickHandler* timing_ = nullptr;
   std::int64_t last_status_ns_ = 0;
   std::int64_t last_status_ticks_ = 0;
+  std::int64_t last_status_recorded_ = 0;  // loop periods recorded at the last status
   LoopCounters last_loop_counters_;
   std::int64_t last_dropped_outgoing_ = 0;
   PatchAssemblyCounts last_patch_counts_;
   std::int64_t num_transport_failures_ = 0;
+  std::int64_t last_pointer_invalid_ = 0;
   HapticServerIoCounts counts_;
   std::atomic<bool> stop_{false};
   std::thread thread_;

@@ -76,9 +76,7 @@ std::unique_ptr<HapticDevice> MakeDevice(const Arguments& args) {
     return std::make_unique<LogPlaybackDevice>(LoadDeviceLog(args.device_log));
   }
   if (args.device == "mouse") {
-    std::fprintf(stderr,
-                 "warning: --device mouse: pointer samples come from the GUI in its own "
-                 "process, which does not send them over LCM yet; the device reports no data\n");
+    // Fed from COSTUME_POINTER by the I/O thread (HapticServerIo::SetPointerDevice).
     return std::make_unique<MouseDevice>();
   }
   if (args.device == "openhaptics") {
@@ -160,6 +158,7 @@ int Run(const Arguments& args) {
   loop_options.realtime_priority = args.priority;
   HapticLoop loop(clock, timed, loop_options);
   io.SetStatusSources(&loop, &tick, &timed);
+  if (auto* mouse = dynamic_cast<MouseDevice*>(inner.get())) io.SetPointerDevice(mouse);
 
   InstallSignalHandlers();
   loop.Start();

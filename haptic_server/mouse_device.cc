@@ -30,9 +30,14 @@ DeviceFault MouseDevice::Read(DeviceState& state) {
   DeviceFault fault = DeviceFault::kNone;
   if (samples_.Update()) {
     const MouseSample& s = samples_.front();
-    if (!s.position.allFinite() || !std::isfinite(s.time)) {
+    if (!s.inside_view) {  // its position means nothing: hold the last one
+      inside_view_ = false;
+      current_.velocity.setZero();
+      current_.buttons = 0;
+    } else if (!s.position.allFinite() || !std::isfinite(s.time)) {
       fault = DeviceFault::kNonFinite;
     } else {
+      inside_view_ = true;
       const double dt = s.time - current_.time;
       if (has_sample_ && dt > 0.0) current_.velocity = (s.position - current_.position) / dt;
       current_.time = s.time;
@@ -42,7 +47,7 @@ DeviceFault MouseDevice::Read(DeviceState& state) {
     }
   }
   state = current_;
-  if (!has_sample_) return DeviceFault::kNoData;
+  if (!has_sample_ || !inside_view_) return DeviceFault::kNoData;
   return fault;
 }
 

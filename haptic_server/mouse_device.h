@@ -22,6 +22,9 @@ struct MouseSample {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   /// DeviceButton bits (left button → kButtonGrab, for instance).
   std::uint32_t buttons = 0;
+  /// False once the pointer has left the 3D view: the device then reads kNoData with every
+  /// button released, so a held grab ends and ForceSafety fades the force out.
+  bool inside_view = true;
 };
 
 /// The mouse device. Producer side (Push, TakeForce): the GUI thread. Consumer side (Read,
@@ -33,7 +36,9 @@ class MouseDevice final : public HapticDevice {
   DeviceStatus Open() override;
   DeviceStatus Close() override;
   /// The newest sample; velocity is the finite difference of the last two distinct samples.
-  /// kNoData before the first Push; a non-finite sample is refused (kNonFinite, previous kept).
+  /// kNoData before the first Push and while the newest sample is outside the view (then the
+  /// last position is held, velocity zero, no button pressed); a non-finite sample is refused
+  /// (kNonFinite, previous kept).
   DeviceFault Read(DeviceState& state) override;
   /// Records `force` [N] for the GUI (TakeForce); nothing is rendered.
   DeviceFault Write(const Eigen::Vector3d& force) override;
@@ -48,6 +53,7 @@ class MouseDevice final : public HapticDevice {
   TripleBuffer<Eigen::Vector3d> forces_;
   bool open_ = false;
   bool has_sample_ = false;
+  bool inside_view_ = true;
   DeviceState current_;
 };
 

@@ -7,8 +7,13 @@
 /// memq:// bus and, before the step of each recorded frame, hands it every logged grab and
 /// command up to those sequence numbers, in log order. The server then sees the same inputs in
 /// the same frames as the live one, and its deterministic step gives the same floats.
-/// Inputs the live server dropped as stale (older than 1 s on arrival) are not known to the
-/// log; the replay accepts every message, so a session with such drops may differ there.
+/// Inputs the live server dropped (stale: utime more than 1 s before or after its arrival;
+/// out of order: a seq that did not increase) must be dropped again, and only they: each
+/// input goes through the server's own receive filter, one at a time and in the recorded
+/// receive order, with the filter's clock set to the time lcm-logger received it (the log
+/// event's timestamp), not the wall clock of the replay. A message within a few milliseconds
+/// of the age limit could fall either way (the logger and the server received it at slightly
+/// different times); everything clearly stale or out of order is decided as it was live.
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -32,11 +37,13 @@ namespace {
 
 using namespace costume;
 
-/// One logged input message, its channel and its seq.
+/// One logged input message, its channel, its seq and when the logger received it.
 struct Input {
   std::string channel;
   std::vector<std::uint8_t> bytes;
   std::int64_t seq = 0;
+  /// lcm-logger's receive time [µs since the Unix epoch].
+  std::int64_t received = 0;
 };
 
 /// A recorded frame: its positions (all chunks) and the inputs its step had seen.
@@ -80,7 +87,7 @@ void ReadLog(const std::string& path, std::vector<Input>& inputs,
       if (Decode(*event, chunk)) AddChunk(chunk, frames);
       continue;
     }
-    Input input{event->channel, {}, 0};
+    Input input{event->channel, {}, 0, event->timestamp};
     if (event->channel == bus::kGrabChannel) {
       costume_lcm::grab grab;
       if (!Decode(*event, grab)) continue;
@@ -111,6 +118,9 @@ std::int64_t BoundFor(const RecordedFrame& frame, const std::string& channel) {
 
 struct Options {
   std::string log, scene_file, builtin = "garment";
+  /// The live server's acceptance window (bus::ReceivePolicy's defaults) [µs].
+  std::int64_t max_age_us = bus::ReceivePolicy{}.max_age_us;
+  std::int64_t max_lead_us = bus::ReceivePolicy{}.max_lead_us;
 };
 
 int Replay(const Options& options) {
@@ -126,7 +136,11 @@ int Replay(const Options& options) {
   server_options.mode = recorded.begin()->second.mode == costume_lcm::cloth_frame::MODE_EDITING
                             ? sim_app::Mode::kEditing
                             : sim_app::Mode::kAnimation;
-  server_options.receive_policy.max_age_us = server_options.receive_policy.max_lead_us = 0;
+  // The live server's filter, on the log's clock: the receive time of the input at hand.
+  std::int64_t log_now = 0;
+  server_options.receive_policy.max_age_us = options.max_age_us;
+  server_options.receive_policy.max_lead_us = options.max_lead_us;
+  server_options.receive_policy.clock = [&log_now] { return log_now; };
   sim_app::SimServer server(memq, scene, server_options);
   std::map<std::int64_t, RecordedFrame> replayed;
   bus::ReceivePolicy keep_all;
@@ -142,9 +156,13 @@ int Replay(const Options& options) {
     if (it != recorded.end()) {
       // Hand over every input this frame's step had taken in (earlier frames' too, if the
       // frames that named them were lost).
+      // Each is dispatched at once, so the filter judges it at its own receive time; the
+      // server's handlers only store it for the coming Step, as live.
       while (next_input < inputs.size() &&
              inputs[next_input].seq <= BoundFor(it->second, inputs[next_input].channel)) {
+        log_now = inputs[next_input].received;
         memq.Publish(inputs[next_input].channel, inputs[next_input].bytes);
+        memq.HandleSubscriptions(0);
         ++next_input;
       }
     }
@@ -168,8 +186,13 @@ int Replay(const Options& options) {
       first_difference = frame;
     }
   }
-  std::printf("replay: %zu inputs, %d recorded frames compared, %d identical bit for bit",
-              inputs.size(), compared, identical);
+  const bus::ReceiveCounts grabs = server.grab_counts();
+  const bus::ReceiveCounts commands = server.command_counts();
+  std::printf("replay: %zu inputs (dropped again: %lld stale, %lld out of order), %d recorded "
+              "frames compared, %d identical bit for bit",
+              inputs.size(), static_cast<long long>(grabs.stale + commands.stale),
+              static_cast<long long>(grabs.out_of_order + commands.out_of_order), compared,
+              identical);
   if (first_difference >= 0) std::printf(", first difference at frame %lld", static_cast<long long>(first_difference));
   std::printf("\n");
   return compared > 0 && identical == compared ? 0 : 1;
@@ -185,6 +208,12 @@ int main(int argc, char** argv) {
                     ->check(CLI::ExistingFile);
   app.add_option("--builtin", options.builtin, "Built-in scene the session ran (default garment)")
       ->excludes(scene);
+  app.add_option("--max-age-us", options.max_age_us,
+                 "The live server's stale limit for old utimes [µs] (<= 0: off)")
+      ->capture_default_str();
+  app.add_option("--max-lead-us", options.max_lead_us,
+                 "The live server's limit for utimes ahead of its clock [µs] (<= 0: off)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     return Replay(options);

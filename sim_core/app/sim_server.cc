@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <ctime>
+#include <optional>
 #include <utility>
 
 #include "bus/channels.h"
+#include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim_app {
@@ -96,6 +99,22 @@ std::string CommandName(std::int8_t kind) {
 
 }  // namespace
 
+PeriodFigures ComputePeriodFigures(std::vector<std::int64_t>& periods) {
+  PeriodFigures figures;
+  if (periods.empty()) return figures;
+  std::sort(periods.begin(), periods.end());
+  const auto n = static_cast<double>(periods.size());
+  auto rank = [&](double q) {  // nearest rank: element ceil(q·n) − 1
+    const auto k = static_cast<std::size_t>(std::max(1.0, std::ceil(q * n))) - 1;
+    return 1e-3 * static_cast<double>(periods[std::min(k, periods.size() - 1)]);
+  };
+  figures.p50_us = rank(0.50);
+  figures.p99_us = rank(0.99);
+  figures.p999_us = rank(0.999);
+  figures.max_us = 1e-3 * static_cast<double>(periods.back());
+  return figures;
+}
+
 Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period) {
   Deadline result{deadline + period, 0};
   if (period <= 0 || result.next >= now) return result;
@@ -117,6 +136,10 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
     throw sim::InputError("SimServerOptions: status_period = " +
                           std::to_string(options_.status_period) + " s, grab_timeout = " +
                           std::to_string(options_.grab_timeout) + " s: both must be > 0");
+  }
+  if (!(options_.posture_transition >= 0.0) || !std::isfinite(options_.posture_transition)) {
+    throw sim::InputError("SimServerOptions: posture_transition = " +
+                          std::to_string(options_.posture_transition) + " s: must be >= 0");
   }
   Rebuild(scene_);
   mode_ = options_.mode;
@@ -147,6 +170,9 @@ SimServer::SimServer(bus::MessageBus& bus, sim::SceneDescription scene, SimServe
         grab_seq_ = g.seq;
       },
       options_.receive_policy);
+  // Room for four status periods of frames, so a late status loses none; never grown.
+  frame_periods_.reserve(static_cast<std::size_t>(
+      std::clamp(4.0 * options_.status_period * scene_.frame_rate, 64.0, 1e6)));
   period_start_ = std::chrono::steady_clock::now();
 }
 
@@ -192,15 +218,25 @@ void SimServer::Step() {
 
 std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_frames) {
   const auto period = static_cast<std::int64_t>(std::llround(1e9 / scene_.frame_rate));
-  std::int64_t deadline = MonotonicNow();
+  const auto now = options_.clock_now ? options_.clock_now : MonotonicNow;
+  const auto sleep_until = options_.clock_sleep_until
+                               ? options_.clock_sleep_until
+                               : std::function<void(std::int64_t)>(SleepUntil);
+  std::int64_t deadline = now();
+  std::int64_t previous_wake = -1;
   std::int64_t steps = 0;
   while (!stop.load(std::memory_order_relaxed) && (max_frames <= 0 || steps < max_frames)) {
+    const std::int64_t wake = now();
+    if (previous_wake >= 0 && frame_periods_.size() < frame_periods_.capacity()) {
+      frame_periods_.push_back(wake - previous_wake);
+    }
+    previous_wake = wake;
     Step();
     ++steps;
-    const Deadline next = NextDeadline(deadline, MonotonicNow(), period);
+    const Deadline next = NextDeadline(deadline, now(), period);
     overruns_ += next.missed;
     deadline = next.next;
-    SleepUntil(deadline);
+    sleep_until(deadline);
   }
   return steps;
 }
@@ -248,6 +284,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_UNDO: Undo(); return;
     case C::KIND_REDO: Redo(); return;
     case C::KIND_SET_SOLVER: SetSolver(command.solver); return;
+    case C::KIND_SET_POSTURE: SetPosture(command); return;
     case C::KIND_LOAD_AVATAR:
     case C::KIND_LOAD_COSTUME:
     case C::KIND_LOAD_ANIMATION:
@@ -259,7 +296,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
       return;
     default:
       ++ignored_.commands_refused;
-      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 13); ignored");
+      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 14); ignored");
   }
 }
 
@@ -325,18 +362,90 @@ void SimServer::Redo() {
   ++model_revision_;
 }
 
+// Only the solver changes (Simulation::SetSolver): the cloth state, the edited rest lengths,
+// the undo and redo history, the held grab, the frame number and the avatar's clock stay;
+// the model revision too (same springs, same rest lengths).
 void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
-  sim::SceneDescription scene = scene_;
   try {
-    scene.solver = ToSolverSettings(solver);
-    Rebuild(scene);
+    const sim::SolverSettings settings = ToSolverSettings(solver);
+    simulation_->SetSolver(settings);
+    scene_.solver = settings;
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
+  }
+}
+
+namespace {
+
+std::string FormatAngles(const std::vector<double>& angles) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%g, %g, %g)", angles[0], angles[1], angles[2]);
+  return text;
+}
+
+/// The posture a SET_POSTURE command names for `skeleton`: the named joints rotated by their
+/// angles (degrees about the joint's rest x, y, z axes, applied in that order, as
+/// assets/scene_file.cc ParsePosture), every other joint at rest, the avatar turned by
+/// heading_degrees about +y and left at `root_translation`. Throws InputError naming the
+/// field for an unknown or unmapped joint name, non-finite angles or heading.
+sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& skeleton,
+                    const Eigen::Vector3d& root_translation) {
+  const double degree = std::acos(-1.0) / 180.0;
+  sim::Pose pose;
+  pose.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
+  pose.root_translation = root_translation;
+  if (!std::isfinite(command.heading_degrees) || std::abs(command.heading_degrees) > 360.0) {
+    throw sim::InputError("command SET_POSTURE: heading_degrees = " +
+                          std::to_string(command.heading_degrees) +
+                          ": must be finite, within [-360, 360]");
+  }
+  pose.orientation = Eigen::AngleAxisd(command.heading_degrees * degree, Eigen::Vector3d::UnitY());
+  for (int i = 0; i < command.num_joints; ++i) {
+    const std::string field = "command SET_POSTURE: joint_names[" + std::to_string(i) + "] = '" +
+                              command.joint_names[i] + "'";
+    const std::optional<sim::HAnimJoint> joint = sim::ParseHAnimName(command.joint_names[i]);
+    if (!joint) throw sim::InputError(field + ": not an H-Anim joint name (e.g. 'l_shoulder')");
+    const int index = skeleton.Find(*joint);
+    if (index < 0) throw sim::InputError(field + ": the avatar maps no joint onto it");
+    const std::vector<double>& a = command.joint_angles[i];
+    if (a.size() != 3) {
+      throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) +
+                            "] holds " + std::to_string(a.size()) + " values: must be 3");
+    }
+    if (!std::isfinite(a[0]) || !std::isfinite(a[1]) || !std::isfinite(a[2])) {
+      throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) + "] = " +
+                            FormatAngles(a) + " degrees for '" + command.joint_names[i] +
+                            "': must be finite");
+    }
+    pose.rotations[index] = Eigen::AngleAxisd(a[0] * degree, Eigen::Vector3d::UnitX()) *
+                            Eigen::AngleAxisd(a[1] * degree, Eigen::Vector3d::UnitY()) *
+                            Eigen::AngleAxisd(a[2] * degree, Eigen::Vector3d::UnitZ());
+  }
+  return pose;
+}
+
+}  // namespace
+
+// The cloth keeps its state: only the body moves, gradually (posture_transition), and the
+// cloth follows it through contacts and attachments. The server's scene takes the posture
+// too, so a STOP rebuilds in it.
+void SimServer::SetPosture(const costume_lcm::command& command) {
+  const sim::AvatarMotion* avatar = simulation_->avatar();
+  if (avatar == nullptr || !scene_.avatar) {
+    ++ignored_.commands_refused;
+    Warn("command SET_POSTURE: the scene has no avatar; ignored");
     return;
   }
-  Warn("command SET_SOLVER: simulation rebuilt with the new solver from frame 0; edits and "
-       "state were not carried over");
+  try {
+    const sim::Pose posture = PostureOf(command, avatar->avatar().skeleton(),
+                                        avatar->settings().posture.root_translation);
+    simulation_->SetPosture(posture, options_.posture_transition);
+    scene_.avatar->motion.posture = posture;
+  } catch (const sim::InputError& error) {
+    ++ignored_.commands_refused;
+    Warn(std::string(error.what()) + "; posture unchanged");
+  }
 }
 
 // ---- grabs -------------------------------------------------------------------------------
@@ -554,6 +663,13 @@ void SimServer::PublishStatus() {
   m.max_frame_time_ms = period_max_work_ms_;
   m.ticks = ticks_;
   m.overruns = overruns_;
+  m.missed_ticks = overruns_;
+  const PeriodFigures periods = ComputePeriodFigures(frame_periods_);
+  frame_periods_.clear();
+  m.period_p50_us = periods.p50_us;
+  m.period_p99_us = periods.p99_us;
+  m.period_p999_us = periods.p999_us;
+  m.period_max_us = periods.max_us;
   m.solver_iterations = last_iterations_;
   m.mode = ToLcmMode(mode_);
   m.playback = ToLcmPlayback(playback_);

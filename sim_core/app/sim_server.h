@@ -12,6 +12,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -59,11 +60,30 @@ struct SimServerOptions {
   double status_period = 1.0;
   /// A grab whose messages stop for this long is released (the haptic server died) [s] > 0.
   double grab_timeout = 0.25;
+  /// SET_POSTURE moves the avatar to the new posture over this much simulated time [s] >= 0,
+  /// so the cloth follows the body instead of being thrown off by a jump.
+  double posture_transition = 0.5;
   /// Acceptance of grab and command messages (size, age, order).
   bus::ReceivePolicy receive_policy = {};
   /// Process name in status.
   std::string process_name = "sim_server";
+  /// The clock Run paces frames on [ns] and its absolute sleep; empty: CLOCK_MONOTONIC and
+  /// clock_nanosleep(TIMER_ABSTIME). Tests script wake-ups with them.
+  std::function<std::int64_t()> clock_now = nullptr;
+  std::function<void(std::int64_t)> clock_sleep_until = nullptr;
 };
+
+/// Frame-period figures of one status period, as status.period_*_us carries them.
+struct PeriodFigures {
+  double p50_us = 0.0;   ///< median period [µs]
+  double p99_us = 0.0;   ///< 99th percentile [µs]
+  double p999_us = 0.0;  ///< 99.9th percentile [µs]
+  double max_us = 0.0;   ///< longest [µs]
+};
+
+/// Nearest-rank percentiles of `periods` [ns] (any order; sorted in place). Zeros when empty.
+/// Allocates nothing; never throws.
+PeriodFigures ComputePeriodFigures(std::vector<std::int64_t>& periods);
 
 /// Grab and command messages the server received but did not act on, since start.
 struct IgnoredCounts {
@@ -102,6 +122,8 @@ class SimServer {
   void Warn(std::string warning);
 
   const sim::Simulation& simulation() const { return *simulation_; }
+  /// The scene a STOP rebuilds (with the postures and solver set since start).
+  const sim::SceneDescription& scene() const { return scene_; }
   Mode mode() const { return mode_; }
   Playback playback() const { return playback_; }
   /// Frames advanced since the scene was (re)built: cloth_frame.frame.
@@ -109,6 +131,8 @@ class SimServer {
   /// +1 at each rest-length change (stretch elimination, undo, redo) and rebuild.
   std::int64_t model_revision() const { return model_revision_; }
   std::int64_t ticks() const { return ticks_; }
+  /// Frame deadlines Run passed over because a frame (or a wake-up) came too late, since
+  /// start: status.overruns and status.missed_ticks.
   std::int64_t overruns() const { return overruns_; }
   /// Redo stack depth (sphere edits undone that REDO can re-apply).
   int redo_depth() const { return static_cast<int>(redo_.size()); }
@@ -135,6 +159,7 @@ class SimServer {
   void Undo();
   void Redo();
   void SetSolver(const costume_lcm::solver_parameters& solver);
+  void SetPosture(const costume_lcm::command& command);
   void ApplyLatestGrab();
   void ReleaseGrab();
   void PublishFrame();
@@ -197,6 +222,9 @@ class SimServer {
   std::int64_t period_ticks_ = 0;
   double period_work_ms_ = 0.0;
   double period_max_work_ms_ = 0.0;
+  /// Wake-to-wake frame periods Run measured in this status period [ns] (capacity reserved
+  /// once; periods beyond it are not recorded).
+  std::vector<std::int64_t> frame_periods_;
   std::chrono::steady_clock::time_point period_start_;
 };
 

@@ -13,6 +13,7 @@
 #include "assets/scene_file.h"
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
+#include "sim_core/app/grab_acknowledger.h"
 #include "sim_core/app/sim_server.h"
 #include "sim_core/common/input_error.h"
 
@@ -45,6 +46,8 @@ int Run(const Options& options) {
       options.editing ? costume::sim_app::Mode::kEditing : costume::sim_app::Mode::kAnimation;
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   costume::sim_app::SimServer server(bus, scene, server_options);
+  // Grab receipts from a receive thread of their own (haptic_bench's transport round trip).
+  const costume::sim_app::GrabAcknowledger acknowledger(options.lcm_url, reach);
   namespace ch = costume::bus;
   std::printf("%d particles at %.0f Hz on %s\n"
               "  publishes %s, %s, %s\n  listens to %s, %s, %s\n",

@@ -30,7 +30,25 @@ AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr
   Evaluate(0.0);
 }
 
-void AvatarMotion::Evaluate(double t) {
+void AvatarMotion::SetPosture(const Pose& posture) {
+  const int n = avatar_->skeleton().num_joints();
+  if (static_cast<int>(posture.rotations.size()) != n) {
+    throw InputError("avatar '" + avatar_->name() + "': posture has " +
+                     std::to_string(posture.rotations.size()) + " joint rotations, the skeleton has " +
+                     std::to_string(n));
+  }
+  bool finite = posture.root_translation.allFinite() && posture.orientation.coeffs().allFinite();
+  for (const Eigen::Quaterniond& q : posture.rotations) finite = finite && q.coeffs().allFinite();
+  if (!finite) {
+    throw InputError("avatar '" + avatar_->name() + "': posture holds a non-finite value");
+  }
+  previous_ = pose_;
+  has_previous_ = true;
+  settings_.posture = posture;
+  ComputeJointWorld(avatar_->skeleton(), settings_.posture, posture_world_);
+}
+
+void AvatarMotion::Evaluate(double t, double posture_blend) {
   const double clip_time = t - settings_.fit_time;
   const double reach_time = 0.5 * settings_.fit_time;
   if (t < reach_time) {
@@ -47,6 +65,10 @@ void AvatarMotion::Evaluate(double t) {
     const double blend =
         settings_.blend_time > 0.0 ? std::min(1.0, clip_time / settings_.blend_time) : 1.0;
     InterpolatePoses(settings_.posture, retargeted_, blend, pose_);
+  }
+  if (has_previous_ && posture_blend < 1.0) {
+    InterpolatePoses(previous_, pose_, std::max(0.0, posture_blend), blended_);
+    std::swap(pose_, blended_);
   }
   ComputeJointWorld(avatar_->skeleton(), pose_, joint_world_);
   SkinVertices(*avatar_, joint_world_, skinning_, vertices_);

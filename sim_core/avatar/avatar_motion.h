@@ -34,9 +34,19 @@ class AvatarMotion {
   AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
                AvatarMotionSettings settings);
 
-  /// Poses, forward kinematics and skinning at scene time t [s]. Never throws; allocates
-  /// only on the first call.
-  void Evaluate(double t);
+  /// Poses, forward kinematics and skinning at scene time t [s]. With `posture_blend` in
+  /// [0, 1) after a SetPosture, the pose is the spherical blend from the pose the avatar had
+  /// when SetPosture was called (weight 1 − blend) to the pose at t with the new posture
+  /// (weight blend): the caller moves the body gradually, so the cloth can follow. 1 (the
+  /// default) is the plain pose at t, bit for bit as before any SetPosture. Never throws;
+  /// allocates only on the first call.
+  void Evaluate(double t, double posture_blend = 1.0);
+
+  /// Replaces the designer's posture (rotations and placement; the clip, fit and blend times
+  /// stay) and remembers the current pose as the start of the transition Evaluate blends
+  /// over. Throws InputError when `posture` does not have one rotation per joint or holds a
+  /// non-finite value.
+  void SetPosture(const Pose& posture);
 
   const Avatar& avatar() const { return *avatar_; }
   const std::shared_ptr<const Avatar>& shared_avatar() const { return avatar_; }
@@ -55,6 +65,9 @@ class AvatarMotion {
   std::optional<Retargeter> retargeter_;
   AvatarMotionSettings settings_;
   Pose rest_, clip_pose_, retargeted_, pose_;
+  /// The pose when SetPosture was last called, and a scratch pose for the blend.
+  Pose previous_, blended_;
+  bool has_previous_ = false;
   std::vector<Eigen::Isometry3d> joint_world_, posture_world_, skinning_;
   Points vertices_;
 };

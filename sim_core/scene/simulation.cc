@@ -24,9 +24,10 @@ double MillisecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 std::string GarmentContext(const SceneDescription& scene, const GarmentSpec& garment) {
+  // Appended piece by piece: GCC 12 warns (-Wrestrict, falsely) about ":" + to_string here.
   std::string where = scene.source;
-  if (garment.source_line > 0) where += ":" + std::to_string(garment.source_line);
-  return where + ": garment '" + garment.name + "'";
+  if (garment.source_line > 0) where.append(":").append(std::to_string(garment.source_line));
+  return where.append(": garment '").append(garment.name).append("'");
 }
 
 /// The material a garment names: the scene's own first, then the built-in ones. Blender's
@@ -195,7 +196,8 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
       model_(std::move(model)),
       garments_(std::move(garments)),
       pyramid_(MakePyramid(model_, settings)),
-      stepper_(model_, settings, MakeStepSolver(*model_, settings, pyramid_)),
+      stepper_(std::make_unique<ImplicitStepper>(model_, settings,
+                                                 MakeStepSolver(*model_, settings, pyramid_))),
       state_(ClothState::AtRest(*model_)) {
   for (const SphereObstacleSpec& s : scene_.spheres) {
     spheres_.push_back({s.center, s.radius, s.thickness,
@@ -212,9 +214,9 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     attachments_ = std::move(attachments);
   }
   if (scene_.effects.self_collision) {
-    SelfCollisionSettings settings;
-    if (scene_.avatar) settings.thickness = scene_.avatar->thickness;
-    self_collision_ = std::make_unique<SelfCollision>(model_, settings);
+    SelfCollisionSettings self;
+    if (scene_.avatar) self.thickness = scene_.avatar->thickness;
+    self_collision_ = std::make_unique<SelfCollision>(model_, self);
     start_positions_ = state_.positions;
   }
   contacts_.reserve(model_->num_particles());
@@ -246,11 +248,16 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
 // The avatar moves to where it will be at the end of the step first, so contacts target the
 // body's new surface and attached particles land where the body takes them.
 void Simulation::MoveAvatar(double t, double h) {
-  avatar_->Evaluate(t);
+  double blend = 1.0;  // no transition: exactly the pose at t
+  if (posture_duration_ > 0.0) {
+    blend = std::min(1.0, (state_.time + h - posture_start_) / posture_duration_);
+    if (blend >= 1.0) posture_duration_ = 0.0;
+  }
+  avatar_->Evaluate(t, blend);
   body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
   for (const BodyAttachment& a : attachments_) {
     const Eigen::Vector3d target = avatar_->joint_world()[a.joint] * a.local;
-    stepper_.SetPinVelocity(a.particle,
+    stepper_->SetPinVelocity(a.particle,
                             (target - state_.positions.row(a.particle).transpose()) / h);
   }
 }
@@ -280,7 +287,7 @@ void Simulation::StepOnce(FrameReport& report) {
   FindContacts(h, report);
   ReleaseAdhesiveContacts();
   if (self_collision_) start_positions_ = state_.positions;
-  const StepReport step_report = stepper_.Step(state_, h, contacts_);
+  const StepReport step_report = stepper_->Step(state_, h, contacts_);
   std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
   for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
   report.steps += 1;
@@ -319,20 +326,27 @@ bool Simulation::SetGrab(const Grab& grab) {
   grab_ = grab;
   if (!grabbing_) StartGrab();
   grabbing_ = true;
-  if (grab_.coupling_stiffness > 0.0) {
-    stepper_.SetAppliedForces(nullptr);
-    stepper_.SetAnchors(&anchor_targets_, &anchor_stiffness_);
-  } else {
-    stepper_.SetAnchors(nullptr, nullptr);
-    stepper_.SetAppliedForces(&applied_);
-  }
+  ConnectGrab();
   return true;
+}
+
+void Simulation::ConnectGrab() {
+  if (grabbing_ && grab_.coupling_stiffness > 0.0) {
+    stepper_->SetAppliedForces(nullptr);
+    stepper_->SetAnchors(&anchor_targets_, &anchor_stiffness_);
+  } else if (grabbing_) {
+    stepper_->SetAnchors(nullptr, nullptr);
+    stepper_->SetAppliedForces(&applied_);
+  } else {
+    stepper_->SetAppliedForces(nullptr);
+    stepper_->SetAnchors(nullptr, nullptr);
+  }
 }
 
 void Simulation::ReleaseGrab() {
   grabbing_ = false;
-  stepper_.SetAppliedForces(nullptr);
-  stepper_.SetAnchors(nullptr, nullptr);
+  stepper_->SetAppliedForces(nullptr);
+  stepper_->SetAnchors(nullptr, nullptr);
   grabbed_.clear();
   grab_feedback_.setZero();
 }
@@ -390,7 +404,7 @@ int Simulation::EliminateStretchEnergy(const Eigen::Vector3d& centre, double rad
   undo_.push_back(pyramid_ ? pyramid_->LevelModels()
                            : std::vector<std::shared_ptr<const ClothModel>>{model_});
   model_ = model_->WithRestLengths(rest);
-  stepper_.ReplaceModel(model_);
+  stepper_->ReplaceModel(model_);
   if (pyramid_) pyramid_->UpdateRegion(model_, state_.positions, region);
   return changed;
 }
@@ -400,8 +414,49 @@ bool Simulation::UndoEdit() {
   const std::vector<std::shared_ptr<const ClothModel>> models = std::move(undo_.back());
   undo_.pop_back();
   model_ = models.front();
-  stepper_.ReplaceModel(model_);
+  if (pyramid_ && static_cast<int>(models.size()) != pyramid_->num_levels()) {
+    // Saved before a SetSolver (level 0 only): this solver's pyramid is rebuilt around it.
+    BuildSolver(StepperSettingsOf(scene_));
+    return true;
+  }
+  stepper_->ReplaceModel(model_);
   if (pyramid_) pyramid_->RestoreLevelModels(models);
+  return true;
+}
+
+void Simulation::BuildSolver(const StepperSettings& settings) {
+  auto pyramid = MakePyramid(model_, settings);
+  auto stepper = std::make_unique<ImplicitStepper>(model_, settings,
+                                                   MakeStepSolver(*model_, settings, pyramid));
+  pyramid_ = std::move(pyramid);
+  stepper_ = std::move(stepper);
+  ConnectGrab();
+}
+
+// Only the solver changes: the state, the (edited) model, the grab and the avatar's clock
+// stay. Pin velocities are set again before every step (MoveAvatar). The undo history keeps
+// each revision's level-0 model; a pyramid's coarse levels are rebuilt from the current model
+// now and from the restored one on an undo (rather than carried through the old pyramid).
+void Simulation::SetSolver(const SolverSettings& solver) {
+  SceneDescription scene = scene_;
+  scene.solver = solver;
+  ValidateScene(scene);  // throws before anything changes
+  RequireStableStep(*model_, 1.0 / (scene.frame_rate * solver.substeps), scene.source);
+  BuildSolver(StepperSettingsOf(scene));
+  scene_ = std::move(scene);
+  for (std::vector<std::shared_ptr<const ClothModel>>& revision : undo_) revision.resize(1);
+}
+
+bool Simulation::SetPosture(const Pose& posture, double transition_time) {
+  if (!avatar_) return false;
+  if (!(transition_time >= 0.0) || !std::isfinite(transition_time)) {
+    throw InputError(scene_.source + ": posture transition_time = " +
+                     std::to_string(transition_time) + " s: must be finite and >= 0");
+  }
+  avatar_->SetPosture(posture);  // throws before anything changes
+  scene_.avatar->motion.posture = posture;
+  posture_start_ = state_.time;
+  posture_duration_ = transition_time;
   return true;
 }
 

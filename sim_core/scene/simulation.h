@@ -104,6 +104,14 @@ class Simulation {
   /// Restores the rest lengths before the last EliminateStretchEnergy (repeatable down to
   /// the model the scene was built with); false when there is nothing to undo.
   bool UndoEdit();
+  /// Changes the solver settings (method, levels, tolerance, iterations, substeps, strain
+  /// limit) in place: the state, the edited rest lengths, the undo history, the grab and the
+  /// avatar's clock are kept, so the positions at the switch are bit for bit those before it.
+  /// The new solver is built around the current model (a pyramid's coarse levels from the
+  /// edited level 0). Throws InputError (ValidateScene, RequireStableStep) and changes
+  /// nothing for settings the scene would refuse.
+  void SetSolver(const SolverSettings& solver);
+
   /// Edits that UndoEdit can still take back.
   int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
 
@@ -119,8 +127,16 @@ class Simulation {
   /// simulated time spent frozen.
   double avatar_time() const;
 
+  /// The designer poses the avatar (paper §6) while the cloth keeps its state: the body
+  /// moves from its current pose to `posture` (rotations per joint, placement) over
+  /// `transition_time` [s] >= 0 of simulated time, frozen avatar clock or not, and the cloth
+  /// follows it through contacts and attachments. The scene's posture becomes `posture` (a
+  /// later rebuild uses it). Returns false and changes nothing without an avatar. Throws
+  /// InputError for a posture of the wrong size, non-finite values or a negative time.
+  bool SetPosture(const Pose& posture, double transition_time);
+
   const SceneDescription& scene() const { return scene_; }
-  const ClothModel& model() const { return stepper_.model(); }
+  const ClothModel& model() const { return stepper_->model(); }
   std::shared_ptr<const ClothModel> shared_model() const { return model_; }
   const ClothState& state() const { return state_; }
   ClothState& mutable_state() { return state_; }
@@ -144,6 +160,10 @@ class Simulation {
   void StepOnce(FrameReport& report);
   void MoveAvatar(double t, double h);
   void StartGrab();
+  /// Points the stepper at the grab's forces or anchors (or at none when not grabbing).
+  void ConnectGrab();
+  /// A new pyramid (when the method uses one) and stepper around model_ for `settings`.
+  void BuildSolver(const StepperSettings& settings);
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts();
@@ -154,7 +174,8 @@ class Simulation {
   std::vector<GarmentRange> garments_;
   /// The quincunx pyramid, for the hierarchical and multigrid solvers (null otherwise).
   std::shared_ptr<QuincunxPyramid> pyramid_;
-  ImplicitStepper stepper_;
+  /// Rebuilt by SetSolver (hence a pointer); never null.
+  std::unique_ptr<ImplicitStepper> stepper_;
   ClothState state_;
   std::vector<SphereObstacle> spheres_;
   std::unique_ptr<AvatarMotion> avatar_;
@@ -186,6 +207,10 @@ class Simulation {
   bool avatar_frozen_ = false;
   double frozen_avatar_time_ = 0.0;
   double avatar_lag_ = 0.0;
+  /// The posture transition (SetPosture): started at simulated time `posture_start_` [s],
+  /// lasting `posture_duration_` [s] (0: none under way).
+  double posture_start_ = 0.0;
+  double posture_duration_ = 0.0;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
   /// friction, a negative one releases the contact.
   std::vector<double> normal_impulse_;

@@ -11,6 +11,7 @@
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
 #include "bus/typed_bus.h"
+#include "haptic_server/mouse_device.h"
 #include "haptic_server/simulated_device.h"
 
 namespace costume::haptics {
@@ -76,16 +77,25 @@ class IoFixture : public ::testing::Test {
  protected:
   void Build(const std::string& trajectory, int publish_every = 1) {
     device_ = std::make_unique<SimulatedDevice>(ParseTrajectory(trajectory, "test"));
-    ASSERT_TRUE(device_->Open().ok);
+    BuildAround(*device_, publish_every);
+  }
+  /// The same with the GUI's mouse as the device, fed from COSTUME_POINTER.
+  void BuildMouse(int publish_every = 1) {
+    mouse_ = std::make_unique<MouseDevice>();
+    BuildAround(*mouse_, publish_every);
+    io_->SetPointerDevice(mouse_.get());
+  }
+  void BuildAround(HapticDevice& device, int publish_every) {
+    ASSERT_TRUE(device.Open().ok);
     workspace_.scale = 2.0;
     HapticServerIoOptions options;
     options.radius = 0.07;
     options.publish_every = publish_every;
     options.capacity = {1000, 1000, 16};
     options.status_period = 1e9;  // status only when a test asks
-    io_ = std::make_unique<HapticServerIo>(bus_, clock_, patches_, outgoing_, *device_,
+    io_ = std::make_unique<HapticServerIo>(bus_, clock_, patches_, outgoing_, device,
                                            workspace_, options);
-    tick_ = std::make_unique<HapticTick>(*device_, patches_, outgoing_, workspace_,
+    tick_ = std::make_unique<HapticTick>(device, patches_, outgoing_, workspace_,
                                          ForceSafetyOptions{});
     HapticLoopOptions loop_options;
     loop_options.realtime_priority = 0;
@@ -138,6 +148,7 @@ class IoFixture : public ::testing::Test {
   OutgoingQueue outgoing_;
   WorkspaceTransform workspace_;
   std::unique_ptr<SimulatedDevice> device_;
+  std::unique_ptr<MouseDevice> mouse_;
   std::unique_ptr<HapticServerIo> io_;
   std::unique_ptr<HapticTick> tick_;
   std::unique_ptr<HapticLoop> loop_;
@@ -362,6 +373,117 @@ TEST_F(IoFixture, MalformedStaleAndInvalidMessagesAreCountedWithoutACrash) {
   PublishChunk((patch.Chunk(7, 1)));
   RunTicks(1);
   EXPECT_EQ(io_->counts().num_patches_handed, 1);
+}
+
+// Status carries the loop's period figures of its own status period. Scripted wake-up
+// latencies (as haptic_loop_test): 40 µs late on ticks 100..109 and 300 µs late on tick 500
+// give periods 1.04/0.96 ms and 1.3/0.7 ms among 1,999 of 1 ms: by hand, p50 = p99 = 1 ms,
+// p99.9 (rank 1998 of 1999) = 1.04 ms, max 1.3 ms. Then a wake-up 2.5 ms late: two deadlines
+// skipped (missed_ticks 2), a 3.5 ms period, then 0.5 ms, in the second period only.
+TEST_F(IoFixture, StatusCarriesTheLoopPeriodFiguresOfEachStatusPeriod) {
+  Build(kHoldGrab);
+  std::vector<std::int64_t> latency(2000, 0);
+  latency[500] = 300'000;
+  for (int k = 100; k < 110; ++k) latency[k] = 40'000;
+  clock_.ScriptLatencies(latency.data(), 2000);
+  loop_->Run(2000);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_EQ(status_.size(), 1u);
+  EXPECT_DOUBLE_EQ(status_[0].period_p50_us, 1000.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_p99_us, 1000.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_p999_us, 1040.0);
+  EXPECT_DOUBLE_EQ(status_[0].period_max_us, 1300.0);
+  EXPECT_EQ(status_[0].missed_ticks, 0);
+
+  std::vector<std::int64_t> late(200, 0);
+  late[50] = 2'500'000;
+  clock_.ScriptLatencies(late.data(), 200);
+  loop_->Run(200);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_EQ(status_.size(), 2u);
+  EXPECT_EQ(status_[1].missed_ticks, 2);
+  EXPECT_DOUBLE_EQ(status_[1].period_max_us, 3500.0);
+  EXPECT_DOUBLE_EQ(status_[1].period_p999_us, 3500.0);  // rank 199 of 199
+  EXPECT_DOUBLE_EQ(status_[1].period_p99_us, 1000.0);   // rank 198: below the 3.5 ms one
+  EXPECT_DOUBLE_EQ(status_[1].period_p50_us, 1000.0);
+}
+
+// The GUI's mouse as the device: pointer samples (scene frame) on COSTUME_POINTER, through the
+// receive filter, into the MouseDevice the tick reads like any other device. A scripted
+// sequence hovers over the patch, presses, pulls 1 cm along −x while the "simulation" keeps
+// sending patches, and leaves the view. By hand: the selected particle moves with the tip,
+// so the spring to particle 1 is 0.11 m long against a rest length of 0.08 m: feedback
+// k·0.03 = 3 N along +x, and the grab carries F_h = −3 N.
+TEST_F(IoFixture, PointerSamplesDriveTheMouseDeviceAndTheGrabFollows) {
+  BuildMouse();
+  bus::Publisher<costume_lcm::pointer_sample> pointer(bus_, bus::kPointerChannel);
+  auto send = [&](double x, int buttons, bool inside) {
+    costume_lcm::pointer_sample p{};
+    p.utime = bus::NowUtime();
+    p.position[0] = x;
+    p.buttons = buttons;
+    p.inside_view = inside;
+    ASSERT_TRUE(pointer.Publish(p));
+  };
+  RunTicks(3);
+  EXPECT_TRUE(grabs_.empty() || grabs_.back().mode == costume_lcm::grab::MODE_HOVER);
+  send(0.0, 0, true);  // hover at the patch's centre
+  RunTicks(3);
+  ASSERT_FALSE(grabs_.empty());
+  EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_HOVER);
+  EXPECT_EQ(grabs_.back().centre[0], 0.0);
+  send(0.0, 1, true);  // press
+  RunTicks(2);
+  EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_GRAB);
+  EXPECT_EQ(grabs_.back().grab_id, 0);
+  const TwoParticlePatch patch;
+  // Pull: 1 mm per 16-tick frame for 10 frames, the patch sent each frame as the simulation
+  // would (its centre stays where the grab started: the local model is the tick's).
+  for (int k = 1; k <= 10; ++k) {
+    send(-0.001 * k, 1, true);
+    PublishPatch(patch, frame_++);
+    RunTicks(16);
+    EXPECT_NEAR(grabs_.back().centre[0], -0.001 * k, 1e-15) << k;
+    EXPECT_EQ(grabs_.back().grab_id, 0);
+  }
+  // Hold there through the 200 ms ramp.
+  RunWithPatches(patch, 300);
+  const double expected = static_cast<float>(patch.stiffness) *
+                          (0.01 + static_cast<float>(patch.length) -
+                           static_cast<double>(static_cast<float>(patch.rest_length)));
+  EXPECT_NEAR(feedback_.back().requested_force[0], expected, 1e-6);
+  EXPECT_NEAR(expected, 3.0, 1e-5);
+  EXPECT_NEAR(grabs_.back().force[0], -expected, 1e-6);
+  EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_GRAB);
+  EXPECT_GT(feedback_.back().force[0], 2.0);  // the ramp is done
+  // The pointer leaves the view: no data, buttons released, the grab ends and the force
+  // fades to zero.
+  send(0.0, 1, false);
+  RunWithPatches(patch, 64);
+  EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_HOVER);
+  EXPECT_EQ(feedback_.back().force[0], 0.0);
+  EXPECT_GT(tick_->counters().num_read_faults[static_cast<int>(DeviceFault::kNoData)], 0);
+  EXPECT_EQ(io_->counts().num_pointer_samples, 13);  // hover, press, 10 pulls, leave
+  // A non-finite sample inside the view is dropped and counted; a stale one is filtered.
+  send(std::nan(""), 1, true);
+  costume_lcm::pointer_sample old{};
+  old.utime = bus::NowUtime() - 5'000'000;
+  old.inside_view = true;
+  pointer.Publish(old);
+  RunTicks(2);
+  EXPECT_EQ(io_->counts().num_pointer_invalid, 1);
+  EXPECT_EQ(io_->pointer_receive_counts().stale, 1);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_FALSE(status_.empty());
+  EXPECT_EQ(status_.back().dropped_stale, 1);
+  // Back in the view and pressed again: a new grab.
+  send(0.0, 1, true);
+  RunTicks(2);
+  EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_GRAB);
+  EXPECT_EQ(grabs_.back().grab_id, 1);
 }
 
 TEST(GrabTracker, RisingEdgesNumberGrabsAndStretchReliefIsAnEdge) {
