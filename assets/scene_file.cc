@@ -61,10 +61,6 @@ std::string Join(const std::vector<std::string>& items) {
   return text;
 }
 
-std::string Join(std::initializer_list<std::string_view> items) {
-  return Join(std::vector<std::string>(items.begin(), items.end()));
-}
-
 std::string Quote(std::string_view text) { return "\"" + std::string(text) + "\""; }
 
 /// A TOML value as a message quotes it: numbers in shortest form, strings quoted.

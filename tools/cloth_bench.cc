@@ -1,7 +1,8 @@
 /// @file
 /// cloth_bench: the hang and drape scenes of docs/BENCHMARKS.md, one JSON object per run,
 /// with the peers' figures (measured on the same kind of machine) beside ours.
-/// Single-threaded; medians over the run's frames.
+/// Single-threaded; medians over the run's frames. The solvers of one scene, material and N
+/// run side by side, frame by frame, and the later ones report their speed-up over the first.
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -97,14 +98,19 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-json Measure(const Run& run) {
-  const SceneDescription scene = MakeScene(run);
-  auto sim = Simulation::Build(scene);
+/// One configuration's simulation and what its frames measured.
+struct Measurement {
+  Run run;
+  SceneDescription scene;
+  std::unique_ptr<Simulation> sim;
   std::vector<double> ms;
-  long coarse_iterations = 0;
-  long iterations = 0, unconverged = 0, rolled_back = 0, strain_corrections = 0;
+  long iterations = 0, coarse_iterations = 0, unconverged = 0, rolled_back = 0;
+  long strain_corrections = 0;
   double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
-  for (int f = 0; f < run.frames; ++f) {
+
+  explicit Measurement(const Run& r) : run(r), scene(MakeScene(r)), sim(Simulation::Build(scene)) {}
+
+  void AdvanceFrame() {
     const auto report = sim->AdvanceFrame();
     ms.push_back(report.wall_ms);
     iterations += report.iterations;
@@ -115,41 +121,68 @@ json Measure(const Run& run) {
     penetration = std::max(penetration, report.max_penetration);
     min_distance = std::min(min_distance, MinSphereDistance(*sim));
   }
-  const auto& x = sim->state().positions;
-  const auto strain = costume::sim::StructuralStrain(sim->model(), x);
-  json out = {{"scene", run.scene},
-              {"material", run.material},
-              {"n", run.n},
-              {"solver", run.solver},
-              {"dt", sim->step()},
-              {"substeps", scene.solver.substeps},
-              {"levels", sim->pyramid() ? sim->pyramid()->num_levels() : 1},
-              {"tolerance", run.tolerance},
-              {"strain_limit", run.strain_limit},
-              {"frames", run.frames},
-              {"ms_per_frame_median", Median(ms)},
-              {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
-              {"iterations_per_frame", static_cast<double>(iterations) / run.frames},
-              {"coarse_iterations_per_frame", static_cast<double>(coarse_iterations) / run.frames},
-              {"frames_unconverged", unconverged},
-              {"steps_rolled_back", rolled_back},
-              {"strain_corrections", strain_corrections},
-              {"max_strain", strain.max},
-              {"mean_strain", strain.mean},
-              {"nan", !x.allFinite()}};
-  if (!scene.spheres.empty()) {
-    out["min_sphere_distance"] = min_distance;
-    out["sphere_radius"] = scene.spheres[0].radius;
-    out["max_shell_penetration_before_projection"] = penetration;
-  }
-  for (const Peer& peer : kPeers) {
-    if (run.scene == peer.scene && run.material == peer.material && run.n == peer.n) {
-      out[std::string(peer.name) + "_ms"] = peer.ms;
-      out[std::string(peer.name) + "_max_strain"] = peer.max_strain;
-      out[std::string("speedup_vs_") + peer.name] = peer.ms / Median(ms);
+
+  json Report() const {
+    const auto& x = sim->state().positions;
+    const auto strain = costume::sim::StructuralStrain(sim->model(), x);
+    const double frames = static_cast<double>(run.frames);
+    json out = {{"scene", run.scene},
+                {"material", run.material},
+                {"n", run.n},
+                {"solver", run.solver},
+                {"dt", sim->step()},
+                {"substeps", scene.solver.substeps},
+                {"levels", sim->pyramid() ? sim->pyramid()->num_levels() : 1},
+                {"tolerance", run.tolerance},
+                {"strain_limit", run.strain_limit},
+                {"frames", run.frames},
+                {"ms_per_frame_median", Median(ms)},
+                {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
+                {"iterations_per_frame", static_cast<double>(iterations) / frames},
+                {"coarse_iterations_per_frame", static_cast<double>(coarse_iterations) / frames},
+                {"frames_unconverged", unconverged},
+                {"steps_rolled_back", rolled_back},
+                {"strain_corrections", strain_corrections},
+                {"max_strain", strain.max},
+                {"mean_strain", strain.mean},
+                {"nan", !x.allFinite()}};
+    if (!scene.spheres.empty()) {
+      out["min_sphere_distance"] = min_distance;
+      out["sphere_radius"] = scene.spheres[0].radius;
+      out["max_shell_penetration_before_projection"] = penetration;
     }
+    for (const Peer& peer : kPeers) {
+      if (run.scene == peer.scene && run.material == peer.material && run.n == peer.n) {
+        out[std::string(peer.name) + "_ms"] = peer.ms;
+        out[std::string(peer.name) + "_max_strain"] = peer.max_strain;
+        out[std::string("speedup_vs_") + peer.name] = peer.ms / Median(ms);
+      }
+    }
+    return out;
   }
-  return out;
+};
+
+/// Runs `runs` (one scene, material and N, several solvers) side by side: frame f of every
+/// solver before frame f + 1 of any, so a shared machine's load falls on all of them alike.
+/// Prints one JSON line per solver; from the second solver on, with its speed relative to the
+/// first: the ratio of medians and the median of the per-frame ratios.
+void MeasureSideBySide(const std::vector<Run>& runs) {
+  std::vector<std::unique_ptr<Measurement>> measurements;
+  for (const Run& run : runs) measurements.push_back(std::make_unique<Measurement>(run));
+  for (int f = 0; f < runs.front().frames; ++f) {
+    for (auto& m : measurements) m->AdvanceFrame();
+  }
+  const Measurement& first = *measurements.front();
+  for (const auto& m : measurements) {
+    json out = m->Report();
+    if (m.get() != &first) {
+      std::vector<double> ratios;
+      for (std::size_t f = 0; f < m->ms.size(); ++f) ratios.push_back(first.ms[f] / m->ms[f]);
+      out["speedup_vs_" + first.run.solver + "_median_ratio"] = Median(ratios);
+      out["speedup_vs_" + first.run.solver + "_ratio_of_medians"] = Median(first.ms) / Median(m->ms);
+    }
+    std::cout << out.dump() << std::endl;
+  }
 }
 
 }  // namespace
@@ -187,14 +220,16 @@ int main(int argc, char** argv) {
     for (const auto& scene : scenes) {
       for (const auto& material : materials) {
         for (int n : sizes) {
+          std::vector<Run> runs;
           for (const auto& solver : solvers) {
             Run run = base;
             run.scene = scene;
             run.material = material;
             run.n = n;
             run.solver = solver;
-            std::cout << Measure(run).dump() << std::endl;
+            runs.push_back(run);
           }
+          MeasureSideBySide(runs);
         }
       }
     }

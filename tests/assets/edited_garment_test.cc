@@ -94,6 +94,37 @@ TEST(EditedGarment, EditedRestLengthsAreKept) {
   EXPECT_EQ(RestLengths(reloaded->model()), edited);
 }
 
+// From a scene of two garments, the second comes out with its own indices: the same model
+// as when it is built alone.
+TEST(EditedGarment, IsTakenOutOfAMergedModel) {
+  SceneDescription two = test::HangScene(5);
+  sim::GarmentSpec second = two.garments[0];
+  second.name = "second";
+  second.panel->cols = second.panel->rows = 7;
+  second.panel->origin.z() = 1.0;
+  for (Eigen::Vector3d& pin : second.pin_points) pin.z() += 1.5;
+  two.garments.push_back(second);
+  auto merged = Simulation::Build(two);
+  const EditedGarment taken = EditedGarmentFromSimulation(*merged, "second");
+
+  SceneDescription alone = test::HangScene(7);
+  alone.garments[0] = second;
+  auto single = Simulation::Build(alone);
+  const sim::ClothModel& expected = single->model();
+  ASSERT_EQ(taken.model->num_particles(), expected.num_particles());
+  EXPECT_TRUE(taken.model->rest_positions() == expected.rest_positions());
+  EXPECT_TRUE(taken.model->masses() == expected.masses());
+  EXPECT_EQ(taken.model->pinned(), expected.pinned());
+  ASSERT_EQ(taken.model->num_springs(), expected.num_springs());
+  for (int s = 0; s < expected.num_springs(); ++s) {
+    EXPECT_EQ(taken.model->springs()[s].a, expected.springs()[s].a);
+    EXPECT_EQ(taken.model->springs()[s].b, expected.springs()[s].b);
+    EXPECT_EQ(taken.model->springs()[s].rest_length, expected.springs()[s].rest_length);
+  }
+  EXPECT_EQ(taken.model->triangles(), expected.triangles());
+  EXPECT_EQ(taken.model->lattice_cols(), 0);  // the merged model has no lattice shape
+}
+
 TEST(EditedGarment, TakesItsMaterialFromTheScene) {
   sim::Material silk;
   silk.name = "silk";
