@@ -285,15 +285,11 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_REDO: Redo(); return;
     case C::KIND_SET_SOLVER: SetSolver(command.solver); return;
     case C::KIND_SET_POSTURE: SetPosture(command); return;
-    case C::KIND_LOAD_AVATAR:
-    case C::KIND_LOAD_COSTUME:
-    case C::KIND_LOAD_ANIMATION:
-    case C::KIND_SET_MATERIAL:
-    case C::KIND_SAVE_VERSION:
-      ++ignored_.commands_refused;
-      Warn("command " + CommandName(command.kind) +
-           ": not available until the database issue; ignored");
-      return;
+    case C::KIND_LOAD_AVATAR: Load(LoadKind::kAvatar, command); return;
+    case C::KIND_LOAD_COSTUME: Load(LoadKind::kCostume, command); return;
+    case C::KIND_LOAD_ANIMATION: Load(LoadKind::kAnimation, command); return;
+    case C::KIND_SET_MATERIAL: SetMaterial(command); return;
+    case C::KIND_SAVE_VERSION: SaveVersion(command); return;
     default:
       ++ignored_.commands_refused;
       Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 14); ignored");
@@ -373,6 +369,111 @@ void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
+  }
+}
+
+// ---- the catalogue ---------------------------------------------------------------------
+
+SceneCatalog* SimServer::OpenCatalog(const std::string& command_name) {
+  if (catalog_) return catalog_.get();
+  if (!options_.open_catalog) {
+    Warn("command " + command_name + ": the server was started without a catalogue; ignored");
+    return nullptr;
+  }
+  try {
+    catalog_ = options_.open_catalog();
+  } catch (const std::exception& error) {  // InputError, or a library's own
+    Warn("command " + command_name + ": the catalogue " + options_.catalog_url +
+         " could not be opened (" + error.what() + "); ignored");
+    return nullptr;
+  }
+  return catalog_.get();
+}
+
+// The scene with the entry in it is built first; only when that succeeds does it replace the
+// running simulation (back to frame 0, as STOP), keeping mode and playback.
+void SimServer::Load(LoadKind kind, const costume_lcm::command& command) {
+  const std::string name = CommandName(command.kind);
+  SceneCatalog* catalog = OpenCatalog(name);
+  if (catalog == nullptr) {
+    ++ignored_.commands_refused;
+    return;
+  }
+  sim::SceneDescription scene = scene_;
+  try {
+    const std::string entry = catalog->Load(kind, command.database_id, command.name, scene);
+    try {
+      Rebuild(scene);
+    } catch (const sim::InputError& error) {
+      throw sim::InputError(entry + " cannot be simulated: " + error.what());
+    }
+  } catch (const std::exception& error) {
+    ++ignored_.commands_refused;
+    Warn("command " + name + " refused, simulation unchanged: " + error.what());
+  }
+}
+
+// Rebuilt with the new fabric (from frame 0): the springs' stiffness and damping come from the
+// material when the model is built. Garments with a prebuilt model (saved edits) keep their
+// springs and take only friction and drag from it.
+void SimServer::SetMaterial(const costume_lcm::command& command) {
+  const costume_lcm::material_parameters& p = command.material;
+  const int count = static_cast<int>(scene_.garments.size());
+  if (command.garment < -1 || command.garment >= count) {
+    ++ignored_.commands_refused;
+    Warn("command SET_MATERIAL: garment = " + std::to_string(command.garment) +
+         ": must be -1 (every garment) or in [0, " + std::to_string(count - 1) + "]; ignored");
+    return;
+  }
+  sim::SceneDescription scene = scene_;
+  for (int g = 0; g < count; ++g) {
+    if (command.garment >= 0 && g != command.garment) continue;
+    sim::GarmentSpec& garment = scene.garments[g];
+    sim::Material material;
+    material.name = garment.name + "_fabric";
+    material.density = p.density;
+    material.stretch_stiffness = p.stretch_stiffness;
+    material.shear_stiffness = p.shear_stiffness;
+    material.bending_rigidity = p.bending_rigidity;
+    material.damping = p.damping;
+    material.air_drag = p.air_drag;
+    material.friction = p.friction;
+    material.structural_spring_k = p.structural_spring_k;
+    material.shear_spring_k = p.shear_spring_k;
+    material.bending_spring_k = p.bending_spring_k;
+    std::erase_if(scene.materials,
+                  [&](const sim::Material& m) { return m.name == material.name; });
+    scene.materials.push_back(material);
+    garment.material = material.name;
+  }
+  try {
+    Rebuild(scene);  // ValidateScene checks the material's ranges
+  } catch (const sim::InputError& error) {
+    ++ignored_.commands_refused;
+    Warn(std::string("command SET_MATERIAL refused, fabric unchanged: ") + error.what());
+  }
+}
+
+void SimServer::SaveVersion(const costume_lcm::command& command) {
+  SceneCatalog* catalog = OpenCatalog("SAVE_VERSION");
+  if (catalog == nullptr) {
+    ++ignored_.commands_refused;
+    return;
+  }
+  if (scene_.garments.empty()) {
+    ++ignored_.commands_refused;
+    Warn("command SAVE_VERSION: the scene has no garment; nothing saved");
+    return;
+  }
+  for (const sim::GarmentSpec& garment : scene_.garments) {
+    try {
+      const SavedVersion saved = catalog->SaveVersion(*simulation_, garment.name, command.name);
+      Warn("command SAVE_VERSION: saved " + saved.entry + " version " +
+           std::to_string(saved.version) + " '" + command.name + "'");
+    } catch (const std::exception& error) {
+      ++ignored_.commands_refused;
+      Warn("command SAVE_VERSION: garment '" + garment.name + "' not saved: " + error.what());
+    }
   }
 }
 

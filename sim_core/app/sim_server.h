@@ -51,6 +51,36 @@ struct Deadline {
 /// accumulates: deadlines stay on the original grid. Never throws; never allocates.
 Deadline NextDeadline(std::int64_t deadline, std::int64_t now, std::int64_t period);
 
+/// What a LOAD_* command loads.
+enum class LoadKind { kAvatar, kCostume, kAnimation };
+
+/// A garment saved by SAVE_VERSION.
+struct SavedVersion {
+  /// The catalogue entry as messages name it ("garment 'skirt' (id 7)").
+  std::string entry;
+  /// The version number the save made, >= 2 for a seeded entry.
+  int version = 0;
+};
+
+/// The catalogue as the server uses it, behind an interface so that the server library links
+/// no database (sim_core/app/catalog_link.h implements it over catalog::Catalog; tests may
+/// script it).
+class SceneCatalog {
+ public:
+  virtual ~SceneCatalog() = default;
+  /// Changes `scene` as LOAD_AVATAR, LOAD_COSTUME or LOAD_ANIMATION asks for the entry `id`
+  /// (> 0) or, when id <= 0, the entry of that kind called `name`; returns the entry as
+  /// messages name it. Throws sim::InputError naming the entry (unknown id or name, wrong
+  /// kind, data its importer refuses) and then leaves `scene` unchanged.
+  virtual std::string Load(LoadKind kind, std::int64_t id, const std::string& name,
+                           sim::SceneDescription& scene) = 0;
+  /// Stores garment `garment` of `simulation` (its current rest lengths included) as a new
+  /// version of the catalogue's garment entry of the same name, labelled `label`. Throws
+  /// sim::InputError naming the garment when it has no entry or the save fails.
+  virtual SavedVersion SaveVersion(const sim::Simulation& simulation, const std::string& garment,
+                                   const std::string& label) = 0;
+};
+
 struct SimServerOptions {
   /// Mode at start.
   Mode mode = Mode::kAnimation;
@@ -65,6 +95,12 @@ struct SimServerOptions {
   double posture_transition = 0.5;
   /// Acceptance of grab and command messages (size, age, order).
   bus::ReceivePolicy receive_policy = {};
+  /// Opens the catalogue at the first command that needs it (LOAD_*, SAVE_VERSION); called
+  /// again at the next such command after a failure (an InputError it throws becomes a
+  /// status warning). Empty: those commands are refused with a warning.
+  std::function<std::unique_ptr<SceneCatalog>()> open_catalog = nullptr;
+  /// The catalogue's URL as warnings name it (password starred out).
+  std::string catalog_url;
   /// Process name in status.
   std::string process_name = "sim_server";
   /// The clock Run paces frames on [ns] and its absolute sleep; empty: CLOCK_MONOTONIC and
@@ -160,6 +196,10 @@ class SimServer {
   void Redo();
   void SetSolver(const costume_lcm::solver_parameters& solver);
   void SetPosture(const costume_lcm::command& command);
+  SceneCatalog* OpenCatalog(const std::string& command_name);
+  void Load(LoadKind kind, const costume_lcm::command& command);
+  void SetMaterial(const costume_lcm::command& command);
+  void SaveVersion(const costume_lcm::command& command);
   void ApplyLatestGrab();
   void ReleaseGrab();
   void PublishFrame();
@@ -169,6 +209,7 @@ class SimServer {
   bus::MessageBus& bus_;
   sim::SceneDescription scene_;
   SimServerOptions options_;
+  std::unique_ptr<SceneCatalog> catalog_;  ///< opened lazily (OpenCatalog)
   std::unique_ptr<sim::Simulation> simulation_;
 
   bus::Publisher<costume_lcm::cloth_frame> frame_publisher_;

@@ -13,6 +13,8 @@
 #include "assets/scene_file.h"
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
+#include "catalog/catalog.h"
+#include "sim_core/app/catalog_link.h"
 #include "sim_core/app/grab_acknowledger.h"
 #include "sim_core/app/sim_server.h"
 #include "sim_core/common/input_error.h"
@@ -27,6 +29,7 @@ struct Options {
   std::string scene_file;
   std::string builtin = "garment";
   std::string lcm_url;
+  std::string catalog_url = costume::catalog::DefaultCatalogUrl();
   bool allow_network = false;
   bool paused = false;
   bool editing = false;
@@ -44,6 +47,11 @@ int Run(const Options& options) {
   server_options.start_playing = !options.paused;
   server_options.mode =
       options.editing ? costume::sim_app::Mode::kEditing : costume::sim_app::Mode::kAnimation;
+  // Opened at the first LOAD_* or SAVE_VERSION: a server without a catalogue still starts.
+  server_options.catalog_url = costume::catalog::RedactedUrl(options.catalog_url);
+  server_options.open_catalog = [url = options.catalog_url] {
+    return costume::sim_app::OpenSceneCatalog(url);
+  };
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   costume::sim_app::SimServer server(bus, scene, server_options);
   // Grab receipts from a receive thread of their own (haptic_bench's transport round trip).
@@ -75,6 +83,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--lcm-url", options.lcm_url,
                  "LCM URL; default $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0");
+  app.add_option("--catalog", options.catalog_url,
+                 "Catalogue URL for LOAD_* and SAVE_VERSION (sqlite:<path> or postgresql://...); "
+                 "opened at the first such command")
+      ->capture_default_str();
   app.add_flag("--allow-network", options.allow_network,
                "Accept a URL whose traffic leaves this machine (udpm ttl >= 1)");
   app.add_option("--frames", options.frames, "Stop after this many frames (0: run until a signal)")

@@ -412,7 +412,7 @@ TEST_F(SimServerTest, UnavailableCommandsWarnInStatusWithoutCrashing) {
   ASSERT_FALSE(received_.statuses.empty());
   const costume_lcm::status& status = received_.statuses.back();
   ASSERT_EQ(status.num_warnings, 3);
-  EXPECT_NE(status.warnings[0].find("not available until the database issue"),
+  EXPECT_NE(status.warnings[0].find("started without a catalogue"),
             std::string::npos);
   EXPECT_NE(status.warnings[1].find("solver.method = 77"), std::string::npos);
   EXPECT_EQ(server_->ignored().commands_refused, 3);
