@@ -87,9 +87,18 @@ class DatabaseCatalog final : public CatalogSource {
 
   void ApplyToScene(EntryKind kind, const CatalogItem& item, sim::SceneDescription& scene) override {
     switch (kind) {
-      case EntryKind::kAvatar:
-        RequireAvatar(scene, item).avatar = catalog::LoadAvatar(*db_, item.id);
+      case EntryKind::kAvatar: {
+        // As the server (sim_core/app/catalog_link.cc): a scene without avatar gets one; a
+        // posture for another skeleton is dropped (rest pose, same placement).
+        auto avatar = catalog::LoadAvatar(*db_, item.id);
+        if (!scene.avatar) scene.avatar.emplace();
+        sim::Pose& posture = scene.avatar->motion.posture;
+        if (posture.rotations.size() != static_cast<std::size_t>(avatar->skeleton().num_joints())) {
+          posture.rotations.clear();
+        }
+        scene.avatar->avatar = std::move(avatar);
         return;
+      }
       case EntryKind::kAnimation: {
         sim::AvatarSpec& avatar = RequireAvatar(scene, item);
         avatar.clip = catalog::LoadClip(*db_, item.id, avatar.avatar->shared_skeleton());

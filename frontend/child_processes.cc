@@ -70,6 +70,7 @@ QStringList ChildProcesses::SimServerArguments() const {
   }
   if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
   if (options_.editing) args << "--editing";
+  if (!options_.catalog_url.isEmpty()) args << "--catalog" << options_.catalog_url;
   return args;
 }
 

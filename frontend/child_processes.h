@@ -20,6 +20,8 @@ struct ServerOptions {
   QString builtin = "garment";  ///< --builtin for the simulation server (when scene_file is empty)
   QString scene_file;        ///< --scene for the simulation server
   QString trajectory;        ///< --trajectory for the simulated device
+  QString catalog_url;       ///< --catalog for the simulation server ("" = its default, the
+                             ///< same catalog::DefaultCatalogUrl() the GUI's lists use)
   double radius = 0.05;      ///< --radius of the haptic grab [m]
   bool editing = false;      ///< start the simulation server in mode B
 };

@@ -52,6 +52,7 @@ int Run(QApplication& app, const Arguments& args) {
   options.servers.builtin = QString::fromStdString(args.builtin);
   options.servers.scene_file = QString::fromStdString(args.scene);
   options.servers.trajectory = QString::fromStdString(args.trajectory);
+  options.servers.catalog_url = QString::fromStdString(args.catalog);  // same ids as the lists
   options.servers.radius = args.radius;
   options.servers.editing = args.editing;
   std::string warning;
