@@ -222,5 +222,52 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   EXPECT_FALSE(window.children().device_running());
 }
 
+TEST(DesignerWindow, DoubleClickingACostumeLoadsItOnTheServerAndInTheView) {
+  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
+  costume::testing::TestApp();
+  // A fresh catalogue, seeded with the built-ins, shared by the lists and the server.
+  const QString folder = QString(COSTUME_BUILD_DIR) + "/designer_window_catalog";
+  QDir(folder).removeRecursively();
+  QDir().mkpath(folder);
+  const std::string url = "sqlite:" + (folder + "/catalog.sqlite").toStdString();
+  std::string warning;
+  auto catalog = OpenCatalogSource(url, &warning);
+  ASSERT_TRUE(warning.empty()) << warning;
+  bus::LcmBus bus(bus::kDefaultLcmUrl);
+  FrontendOptions options;
+  options.start_sim_server = true;
+  options.servers.bin_dir = COSTUME_BUILD_DIR;
+  options.servers.lcm_url = QString::fromStdString(bus.url());
+  options.servers.catalog_url = QString::fromStdString(url);
+  MainWindow window(bus, options, std::move(catalog));
+  window.resize(1280, 780);
+  window.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&window));
+  window.StartBusThread();
+  window.StartChildren();
+  const int skirt = window.mirror().num_particles();
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame().has_value(), 60000);
+  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->frame >= 30, 60000);
+
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  const QList<QListWidgetItem*> cape = costumes->findItems("cape", Qt::MatchExactly);
+  ASSERT_EQ(cape.size(), 1);
+  costumes->scrollToItem(cape[0]);
+  const QPoint at = costumes->visualItemRect(cape[0]).center();
+  QTest::mouseClick(costumes->viewport(), Qt::LeftButton, Qt::NoModifier, at);
+  QTest::mouseDClick(costumes->viewport(), Qt::LeftButton, Qt::NoModifier, at);
+  QTRY_VERIFY_WITH_TIMEOUT(window.pending_mirror() != nullptr ||
+                               window.mirror().num_particles() != skirt, 5000);
+  // The server rebuilds with the cape (a second or so) and its frames start again at 0.
+  QTRY_VERIFY_WITH_TIMEOUT(window.mirror().num_particles() != skirt, 60000);
+  EXPECT_EQ(window.pending_mirror(), nullptr);
+  QTRY_VERIFY_WITH_TIMEOUT(static_cast<int>(window.view().cloth_positions().size()) ==
+                               window.mirror().num_particles(), 10000);
+  EXPECT_FALSE(window.message_log()->toPlainText().contains("refused"))
+      << window.message_log()->toPlainText().toStdString();
+  std::printf("cape loaded: %d particles (skirt %d)\n", window.mirror().num_particles(), skirt);
+  window.close();
+}
+
 }  // namespace
 }  // namespace costume::frontend
