@@ -45,19 +45,22 @@ void FakeClock::ScriptLatencies(const std::int64_t* latencies, int count) {
   script_next_ = 0;
 }
 
-RealtimeStatus TryRealtimePriority(int priority) {
-  RealtimeStatus status;
-  status.priority = priority;
+std::string TryThreadFifoPriority(int priority) {
   sched_param param{};
   param.sched_priority = priority;
   const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
-  status.realtime = error == 0;
-  if (!status.realtime) {
-    status.reason = std::string("SCHED_FIFO priority ") + std::to_string(priority) +
-                    " refused: " + std::strerror(error) +
-                    "; grant CAP_SYS_NICE (setcap cap_sys_nice+ep <program>) or an rtprio "
-                    "limit in /etc/security/limits.conf. Running at normal priority.";
-  }
+  if (error == 0) return "";
+  return std::string("SCHED_FIFO priority ") + std::to_string(priority) + " refused: " +
+         std::strerror(error) +
+         "; grant CAP_SYS_NICE (setcap cap_sys_nice+ep <program>) or an rtprio "
+         "limit in /etc/security/limits.conf. Running at normal priority.";
+}
+
+RealtimeStatus TryRealtimePriority(int priority) {
+  RealtimeStatus status;
+  status.priority = priority;
+  status.reason = TryThreadFifoPriority(priority);
+  status.realtime = status.reason.empty();
   status.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
   if (!status.memory_locked) {
     const int lock_error = errno;

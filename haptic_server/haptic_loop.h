@@ -87,6 +87,11 @@ struct RealtimeStatus {
   std::string reason;
 };
 
+/// Asks for SCHED_FIFO at `priority` (1..99) for the calling thread only (no memory locking:
+/// for threads beside the tick, e.g. the LCM I/O thread). Returns "" when granted, otherwise
+/// what was refused, the errno text and the remedy. Allocates the text; never throws.
+std::string TryThreadFifoPriority(int priority);
+
 /// Asks for SCHED_FIFO at `priority` for the calling thread and locks memory; reports instead
 /// of throwing. Call on the loop thread before it starts ticking (allocates the reason text).
 RealtimeStatus TryRealtimePriority(int priority);

@@ -291,6 +291,7 @@ void HapticServerIoOptions::Validate() const {
   sim::RequireInRange("haptic server.device_id", device_id, 0, 127, "");
   sim::RequireInRange("haptic server.publish_every", publish_every, 1, 1000, "ticks");
   sim::RequirePositive("haptic server.status_period", status_period, "s");
+  sim::RequireInRange("haptic server.io_priority", io_priority, -99, 99, "");
 }
 
 namespace {
@@ -457,6 +458,9 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
   if (loop_ != nullptr) {
     const RealtimeStatus rt = loop_->realtime_status();
     if (!rt.reason.empty()) warnings.push_back("real-time: " + rt.reason);
+  }
+  if (!io_priority_refusal_.empty()) warnings.push_back(io_priority_refusal_);
+  if (loop_ != nullptr) {
     const LoopCounters c = loop_->counters();
     // The fields carry totals since start and the period figures; the per-period counts as text.
     std::snprintf(line, sizeof line,
@@ -569,6 +573,10 @@ void HapticServerIo::PublishStatus() {
 void HapticServerIo::Start() {
   stop_.store(false);
   thread_ = std::thread([this] {
+    if (options_.io_priority > 0) {
+      const std::string refused = TryThreadFifoPriority(options_.io_priority);
+      io_priority_refusal_ = refused.empty() ? "" : "real-time (I/O thread): " + refused;
+    }
     while (!stop_.load(std::memory_order_relaxed)) Poll(2);
   });
 }

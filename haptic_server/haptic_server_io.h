@@ -253,6 +253,11 @@ struct HapticServerIoOptions {
   int publish_every = 4;
   /// Status period [s] > 0, on the loop clock.
   double status_period = 1.0;
+  /// SCHED_FIFO priority the I/O thread asks for at Start (1..99; <= 0: stay at normal
+  /// priority). It carries the round trip (patches in, grabs out), so it runs above ordinary
+  /// work but below the 1 kHz tick (HapticLoopOptions::realtime_priority, 80 by default). A
+  /// refusal is repeated in every status's warnings, as the tick's is.
+  int io_priority = 70;
   /// Size limits of an assembled patch.
   PatchCapacity capacity;
   /// Checks on received haptic_patch chunks (age, order, size).
@@ -380,6 +385,9 @@ class HapticServerIo {
   HapticServerIoCounts counts_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  /// What Start's thread was refused ("" when granted or not asked); written by the thread
+  /// before its first Poll, read by it (status) or after Stop.
+  std::string io_priority_refusal_;
 };
 
 }  // namespace costume::haptics

@@ -57,6 +57,7 @@ struct Arguments {
   std::vector<double> offset{0.0, 0.0, 0.0};
   int publish_every = 4;
   int priority = 80;
+  int io_priority = 70;
 };
 
 /// The device named on the command line. Throws InputError with what to do instead.
@@ -150,6 +151,7 @@ int Run(const Arguments& args) {
   io_options.radius = args.radius;
   io_options.coupling_stiffness = args.coupling;
   io_options.publish_every = args.publish_every;
+  io_options.io_priority = args.io_priority;
   // Constructed before the tick runs: it reserves the patch slots the tick reads.
   HapticServerIo io(lcm, clock, patches, outgoing, device, workspace, io_options);
   HapticTick tick(device, patches, outgoing, workspace, ForceSafetyOptions{});
@@ -226,6 +228,10 @@ int main(int argc, char** argv) {
                  "publish device_state, feedback, grab every n ticks (4: 250 Hz)")
       ->capture_default_str();
   app.add_option("--priority", args.priority, "SCHED_FIFO priority, 1..99 (<= 0: normal)")
+      ->capture_default_str();
+  app.add_option("--io-priority", args.io_priority,
+                 "SCHED_FIFO priority of the LCM I/O thread, below the tick's (<= 0: normal)")
+      ->check(CLI::Range(-99, 99))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {

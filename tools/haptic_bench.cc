@@ -20,6 +20,8 @@
 /// falls back to memq:// with the simulation server in-process, and says so in "transport".
 
 #include <CLI/CLI.hpp>
+#include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -325,28 +327,55 @@ json RoundTrip(bus::MessageBus& bus, double seconds,
 }
 
 /// Over UDP multicast to a costume_sim_server process (inside the namespace).
-json RoundTripOverUdp(const std::string& sim_server, double seconds) {
+/// Back to normal scheduling for the calling thread (after a TryThreadFifoPriority).
+void NormalPriority() {
+  sched_param param{};
+  pthread_setschedparam(pthread_self(), SCHED_OTHER, &param);
+}
+
+/// `io_priority`: the SCHED_FIFO priority this thread asks for while it plays the haptic
+/// server's I/O thread (asked after the server is spawned, so the server does not inherit it:
+/// its acknowledger asks for its own, --ack-priority).
+json RoundTripOverUdp(const std::string& sim_server, double seconds, int io_priority,
+                      int ack_priority) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() /
                                     ("haptic_bench_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "scene.toml") << HangingSheet();
   bus::LcmBus bus("udpm://239.255.76.67:7667?ttl=0");
   bool up = false;
+  std::string ack_refusal;
   bus::Subscribe<costume_lcm::status>(bus, bus::kSimStatusChannel,
-                                      [&up](const costume_lcm::status&) { up = true; });
+                                      [&](const costume_lcm::status& status) {
+                                        up = true;
+                                        for (const std::string& w : status.warnings) {
+                                          if (w.find("grab acknowledger") != std::string::npos) {
+                                            ack_refusal = w;
+                                          }
+                                        }
+                                      });
   const pid_t sim = Spawn({sim_server, "--scene", (dir / "scene.toml").string(), "--editing",
-                           "--lcm-url", "udpm://239.255.76.67:7667?ttl=0"});
+                           "--lcm-url", "udpm://239.255.76.67:7667?ttl=0", "--ack-priority",
+                           std::to_string(ack_priority)});
   const std::int64_t give_up = SteadyNs() + 10'000'000'000;
   while (!up && SteadyNs() < give_up) bus.HandleSubscriptions(50);
   json result;
   if (!up) {
     result = {{"error", "the simulation server did not come up: " + sim_server}};
   } else {
+    const std::string io_refusal =
+        io_priority > 0 ? TryThreadFifoPriority(io_priority) : "not asked";
     result = RoundTrip(bus, seconds, [&bus](std::int64_t until) {
       for (std::int64_t now = SteadyNs(); now < until; now = SteadyNs()) {
         bus.HandleSubscriptions(static_cast<int>(std::max<std::int64_t>(1, (until - now) / 1'000'000)));
       }
     });
+    NormalPriority();
+    result["io_thread_fifo_priority"] = io_priority;
+    result["io_thread_fifo_granted"] = io_priority > 0 && io_refusal.empty();
+    result["sim_server_ack_thread_fifo_priority"] = ack_priority;
+    result["sim_server_ack_thread_fifo_refused"] = !ack_refusal.empty();
+    if (!ack_refusal.empty()) result["sim_server_ack_thread_refusal"] = ack_refusal;
   }
   Terminate(sim);
   std::filesystem::remove_all(dir);
@@ -412,6 +441,8 @@ int main(int argc, char** argv) {
   bool in_netns = false;
   bool no_namespace = false;
   int priority = 80;
+  int io_priority = 70;
+  int ack_priority = 70;
   int repeats = 2000;
   std::string sim_server = std::string(COSTUME_BUILD_DIR) + "/sim_core/app/costume_sim_server";
   std::vector<std::string> cases = {"idle", "with_sim_server", "other_core_loaded"};
@@ -421,6 +452,12 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--cases", cases, "Loop cases: idle, with_sim_server, other_core_loaded");
   app.add_option("--priority", priority, "SCHED_FIFO priority to ask for (0: don't)");
+  app.add_option("--io-priority", io_priority,
+                 "SCHED_FIFO priority of the round trip's receiving thread, as the haptic "
+                 "server's I/O thread (0: don't)");
+  app.add_option("--ack-priority", ack_priority,
+                 "The simulation server's --ack-priority (its grab acknowledger's SCHED_FIFO "
+                 "priority; 0: normal)");
   app.add_option("--repeats", repeats, "Feedback timing repetitions per patch size")
       ->check(CLI::PositiveNumber);
   app.add_option("--sim-server", sim_server, "The costume_sim_server executable");
@@ -469,7 +506,7 @@ int main(int argc, char** argv) {
     }
   }
   if (!skip_roundtrip) {
-    result["round_trip"] = in_netns ? RoundTripOverUdp(sim_server, roundtrip_seconds)
+    result["round_trip"] = in_netns ? RoundTripOverUdp(sim_server, roundtrip_seconds, io_priority, ack_priority)
                                     : RoundTripInProcess(roundtrip_seconds);
   }
   std::cout << result.dump(2) << std::endl;

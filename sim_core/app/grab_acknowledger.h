@@ -21,8 +21,10 @@ namespace costume::sim_app {
 class GrabAcknowledger {
  public:
   /// Opens an LCM instance on `url` with `reach` (as bus::LcmBus, which throws InputError for
-  /// a refused URL) and starts the thread.
-  GrabAcknowledger(const std::string& url, bus::Reach reach);
+  /// a refused URL) and starts the thread, which first asks for SCHED_FIFO at `priority`
+  /// (1..99; <= 0: stays at normal priority): the acks carry the haptic round trip, so the
+  /// thread should not wait behind the 60 Hz frame's work. Returns once the thread has asked.
+  GrabAcknowledger(const std::string& url, bus::Reach reach, int priority = 0);
   /// Stops the thread (within ~10 ms) and joins it.
   ~GrabAcknowledger();
   GrabAcknowledger(const GrabAcknowledger&) = delete;
@@ -30,11 +32,15 @@ class GrabAcknowledger {
 
   /// Acknowledgements published since start (any thread).
   std::int64_t num_acks() const { return num_acks_.load(std::memory_order_relaxed); }
+  /// Why the priority asked for was refused (errno text and remedy); empty when it was
+  /// granted or none was asked for.
+  const std::string& priority_refusal() const { return priority_refusal_; }
 
  private:
   std::unique_ptr<bus::LcmBus> bus_;
   std::atomic<bool> stop_{false};
   std::atomic<std::int64_t> num_acks_{0};
+  std::string priority_refusal_;  ///< written by the thread before the constructor returns
   std::thread thread_;
 };
 

@@ -786,6 +786,7 @@ void SimServer::PublishStatus() {
   m.dropped_stale = commands.stale + grabs.stale;
   m.dropped_out_of_order = commands.out_of_order + grabs.out_of_order;
   m.warnings = warnings_;
+  if (!standing_warning_.empty()) m.warnings.insert(m.warnings.begin(), standing_warning_);
   m.num_warnings = static_cast<std::int16_t>(m.warnings.size());
   status_publisher_.Publish(m);
   warnings_.clear();

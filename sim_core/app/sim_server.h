@@ -156,6 +156,9 @@ class SimServer {
   void PublishStatus();
   /// Adds a warning to the next status (which is then published at the end of this Step).
   void Warn(std::string warning);
+  /// A warning repeated in every status from now on (e.g. a real-time priority refused to a
+  /// thread of the process), so a GUI that starts later still sees it. Empty: none.
+  void SetStandingWarning(std::string warning) { standing_warning_ = std::move(warning); }
 
   const sim::Simulation& simulation() const { return *simulation_; }
   /// The scene a STOP rebuilds (with the postures and solver set since start).
@@ -258,6 +261,7 @@ class SimServer {
   IgnoredCounts ignored_;
   // Status accounting.
   std::vector<std::string> warnings_;
+  std::string standing_warning_;
   std::int64_t ticks_ = 0;
   std::int64_t overruns_ = 0;
   std::int64_t period_ticks_ = 0;

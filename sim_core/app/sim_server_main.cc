@@ -34,6 +34,7 @@ struct Options {
   bool paused = false;
   bool editing = false;
   long long frames = 0;
+  int ack_priority = 70;
 };
 
 int Run(const Options& options) {
@@ -55,7 +56,14 @@ int Run(const Options& options) {
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   costume::sim_app::SimServer server(bus, scene, server_options);
   // Grab receipts from a receive thread of their own (haptic_bench's transport round trip).
-  const costume::sim_app::GrabAcknowledger acknowledger(options.lcm_url, reach);
+  const costume::sim_app::GrabAcknowledger acknowledger(options.lcm_url, reach,
+                                                       options.ack_priority);
+  if (!acknowledger.priority_refusal().empty()) {
+    server.SetStandingWarning(acknowledger.priority_refusal());
+    std::printf("%s\n", acknowledger.priority_refusal().c_str());
+  } else if (options.ack_priority > 0) {
+    std::printf("grab acknowledger: SCHED_FIFO granted at priority %d\n", options.ack_priority);
+  }
   namespace ch = costume::bus;
   std::printf("%d particles at %.0f Hz on %s\n"
               "  publishes %s, %s, %s\n  listens to %s, %s, %s\n",
@@ -91,6 +99,11 @@ int main(int argc, char** argv) {
                "Accept a URL whose traffic leaves this machine (udpm ttl >= 1)");
   app.add_option("--frames", options.frames, "Stop after this many frames (0: run until a signal)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--ack-priority", options.ack_priority,
+                 "SCHED_FIFO priority of the grab-ack receive thread, below the haptic tick's 80 "
+                 "(<= 0: normal priority)")
+      ->check(CLI::Range(-99, 99))
+      ->capture_default_str();
   app.add_flag("--paused", options.paused, "Start stopped at frame 0 (send PLAY to run)");
   app.add_flag("--editing", options.editing, "Start in mode B (editing) instead of mode A");
   CLI11_PARSE(app, argc, argv);

@@ -21,6 +21,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <set>
 #include <thread>
 
 #include "bus/channels.h"
@@ -83,11 +84,15 @@ int Wait(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-/// The cloth's frames as they arrive: frame number → position of one watched particle.
+/// The cloth's frames as they arrive: frame number → position of one watched particle, and
+/// the seq of the last grab message the simulation had taken in when it made the frame
+/// (cloth_frame.grab_seq), which ties each frame to what the device was doing.
 struct FrameLog {
   int particle = 0;
   std::map<int64_t, Eigen::Vector3d> positions;
+  std::map<int64_t, int64_t> grab_seq;
   void OnFrame(const costume_lcm::cloth_frame& frame) {
+    grab_seq[frame.frame] = frame.grab_seq;
     const int i = particle - frame.first_particle;
     if (i < 0 || i >= frame.num_particles) return;
     positions[frame.frame] = Eigen::Vector3d(frame.x[i], frame.y[i], frame.z[i]);
@@ -97,24 +102,62 @@ struct FrameLog {
 /// What the listener saw of one two-process run.
 struct ProcessRun {
   std::map<int64_t, Eigen::Vector3d> positions;  // watched particle per frame [m]
+  std::map<int64_t, int64_t> grab_seq;           // cloth_frame.grab_seq per frame
   int grabs = 0, patches = 0;
+  std::set<int64_t> patch_frames;  // frames a haptic_patch chunk was published for
   double strongest = 0.0;  // largest F_h in a grab message [N]
   int undo_depth = 0;      // the simulation server's largest reported undo depth
   int sim_exit = -1, haptic_exit = -1;
+  int64_t first_press_seq = -1;    // the first pressed grab message's seq
+  int64_t first_release_seq = -1;  // the first unpressed one after it
 
   /// The watched particle at a time [s] (the first frame at or after it).
-  Eigen::Vector3d At(double seconds) const {
-    const auto found = positions.lower_bound(static_cast<int64_t>(seconds * 60));
+  Eigen::Vector3d At(double seconds) const { return AtFrame(static_cast<int64_t>(seconds * 60)); }
+  /// The watched particle at frame `frame` (the first frame at or after it that arrived).
+  Eigen::Vector3d AtFrame(int64_t frame) const {
+    const auto found = positions.lower_bound(frame);
     return found == positions.end() ? positions.rbegin()->second : found->second;
   }
+  /// The first frame the simulation made after taking in grab message `seq` (or a later
+  /// one); −1 when none did. Frame numbers are simulated time (1/60 s each), whatever the
+  /// wall-clock speed the loaded machine allowed.
+  int64_t FrameAfterGrab(int64_t seq) const {
+    if (seq < 0) return -1;
+    for (const auto& [frame, taken] : grab_seq) {
+      if (taken >= seq) return frame;
+    }
+    return -1;
+  }
+  int64_t PressFrame() const { return FrameAfterGrab(first_press_seq); }
+  int64_t ReleaseFrame() const { return FrameAfterGrab(first_release_seq); }
+};
+
+/// How long a run lasts.
+struct RunLength {
+  /// The simulation server stops by itself after this many frames (--frames); 0: it runs
+  /// until the release has been followed by `settle_frames` frames, then gets SIGTERM.
+  int frames = 0;
+  /// Frames to simulate after the frame that took in the release (frames == 0).
+  int settle_frames = 0;
+  /// The device's trajectory length (the haptic server's --seconds) [s].
+  double device_seconds = 0.0;
+  /// The haptic server (and its trajectory) starts once this frame has arrived (>= 1): the
+  /// cloth settles for this much simulated time first, however slowly the machine runs.
+  int frames_before_device = 1;
 };
 
 /// Writes `scene` and `trajectory` to a temporary folder, starts costume_sim_server (editing
-/// mode, `frames` frames) and costume_haptic_server (simulated device at `offset`, grab
-/// radius `radius`) and listens to the cloth frames, grabs and patches until both are done.
-ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory, int frames,
-                        const std::vector<std::string>& offset, const std::string& radius,
-                        int particle, const std::filesystem::path& record = {},
+/// mode) and, once its first cloth frame arrived, costume_haptic_server (simulated device at
+/// `offset`, grab radius `radius`), and listens to the cloth frames, grabs and patches until
+/// the run is over (`length`). Nothing waits on fixed wall-clock times: on a loaded machine
+/// the 60 Hz loop skips deadlines and simulated time falls behind the device's wall-clock
+/// trajectory, so the test locates the press and the release in simulated time through
+/// cloth_frame.grab_seq and waits for the frames it needs (a generous time limit only guards
+/// against a hang).
+ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory,
+                        const RunLength& length, const std::vector<std::string>& offset,
+                        const std::string& radius, int particle,
+                        const std::filesystem::path& record = {},
                         const std::function<void(bus::LcmBus&, int)>& during = nullptr) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("costume_grab_test_" + std::to_string(getpid()));
@@ -136,42 +179,82 @@ ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory,
   bus::Subscribe<costume_lcm::cloth_frame>(
       listener, bus::kClothFrameChannel,
       [&log](const costume_lcm::cloth_frame& frame) { log.OnFrame(frame); });
-  bus::Subscribe<costume_lcm::grab>(listener, bus::kGrabChannel, [&run](const costume_lcm::grab& grab) {
+  bool pressed_seen = false;
+  bus::Subscribe<costume_lcm::grab>(listener, bus::kGrabChannel, [&](const costume_lcm::grab& grab) {
+    const bool pressed = grab.mode == costume_lcm::grab::MODE_GRAB && (grab.buttons & 1) != 0;
+    if (pressed && run.first_press_seq < 0) run.first_press_seq = grab.seq;
+    if (pressed) pressed_seen = true;
+    if (!pressed && pressed_seen && run.first_release_seq < 0) run.first_release_seq = grab.seq;
     if (grab.mode != costume_lcm::grab::MODE_GRAB) return;
     ++run.grabs;
     run.strongest = std::max(run.strongest,
                              Eigen::Vector3d(grab.force[0], grab.force[1], grab.force[2]).norm());
   });
   bus::Subscribe<costume_lcm::haptic_patch>(
-      listener, bus::kHapticPatchChannel, [&run](const costume_lcm::haptic_patch&) { ++run.patches; });
+      listener, bus::kHapticPatchChannel, [&run](const costume_lcm::haptic_patch& p) {
+        ++run.patches;
+        run.patch_frames.insert(p.frame);
+      });
   bus::Subscribe<costume_lcm::status>(listener, bus::kSimStatusChannel, [&run](const costume_lcm::status& s) {
     run.undo_depth = std::max(run.undo_depth, static_cast<int>(s.undo_depth));
   });
 
   const std::string root = COSTUME_BUILD_DIR;
-  const pid_t sim = Spawn(Concat({root + "/sim_core/app/costume_sim_server", "--scene",
-                                  (dir / "scene.toml").string(), "--editing", "--frames",
-                                  std::to_string(frames)},
-                                 UrlArgs("--allow-network")));
+  std::vector<std::string> sim_args = {root + "/sim_core/app/costume_sim_server", "--scene",
+                                       (dir / "scene.toml").string(), "--editing"};
+  if (length.frames > 0) sim_args = Concat(sim_args, {"--frames", std::to_string(length.frames)});
+  const pid_t sim = Spawn(Concat(sim_args, UrlArgs("--allow-network")));
+  // Only a server that is up can take the device's grabs, and the cloth settles for
+  // frames_before_device frames: the trajectory starts after that.
+  const auto started = std::chrono::steady_clock::now();
+  const auto give_up =
+      started + std::chrono::seconds(60 + static_cast<int>(
+                                              10 * (length.device_seconds + length.frames / 60.0 +
+                                                    (length.settle_frames +
+                                                     length.frames_before_device) / 60.0)));
+  while ((log.grab_seq.empty() || log.grab_seq.rbegin()->first < length.frames_before_device) &&
+         std::chrono::steady_clock::now() < give_up) {
+    listener.HandleSubscriptions(50);
+  }
   const pid_t haptic = Spawn(OnHapticHost(Concat(
       {root + "/haptic_server/costume_haptic_server", "--device", "simulated", "--trajectory",
        (dir / "pull.traj").string(), "--offset", offset[0], offset[1], offset[2], "--radius",
-       radius, "--seconds", std::to_string(frames / 60.0), "--priority", "0"},
+       radius, "--seconds", std::to_string(length.device_seconds), "--priority", "0"},
       UrlArgs("--lan"))));
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(frames / 60 + 15);
-  while (std::chrono::steady_clock::now() < until &&
-         static_cast<int>(log.positions.size()) < frames) {
+  bool haptic_done = false;
+  while (std::chrono::steady_clock::now() < give_up) {
     listener.HandleSubscriptions(50);
     if (during) during(listener, static_cast<int>(log.positions.size()));
+    int status = 0;
+    if (!haptic_done && waitpid(haptic, &status, WNOHANG) == haptic) {
+      haptic_done = true;
+      run.haptic_exit = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    }
+    if (length.frames > 0) {
+      if (haptic_done && static_cast<int>(log.positions.size()) >= length.frames) break;
+      int sim_status = 0;
+      if (haptic_done && waitpid(sim, &sim_status, WNOHANG) == sim) {  // done, frames lost
+        run.sim_exit = WIFEXITED(sim_status) ? WEXITSTATUS(sim_status) : -1;
+        break;
+      }
+      continue;
+    }
+    if (!haptic_done || log.grab_seq.empty()) continue;
+    run.grab_seq = log.grab_seq;
+    const int64_t release = run.ReleaseFrame();
+    if (release < 0 && run.first_release_seq >= 0) continue;  // not taken in yet
+    if (release < 0 || log.grab_seq.rbegin()->first >= release + length.settle_frames) break;
   }
-  run.haptic_exit = Wait(haptic);
-  run.sim_exit = Wait(sim);
+  if (!haptic_done) run.haptic_exit = Wait(haptic);
+  if (length.frames == 0) kill(sim, SIGTERM);
+  if (run.sim_exit < 0) run.sim_exit = Wait(sim);
   if (logger > 0) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     kill(logger, SIGINT);
     Wait(logger);
   }
   run.positions = std::move(log.positions);
+  run.grab_seq = std::move(log.grab_seq);
   std::filesystem::remove_all(dir);
   return run;
 }
@@ -190,52 +273,72 @@ std::string HangingSheet(int n, const std::string& material) {
 
 bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
 
-// Case 1 on stiff cotton (33 × 33): the device rests 3 s at the sheet's middle, presses,
-// pulls 10 cm along +z (out of the sheet) in 1 s, holds to 5 s, releases and waits to 9 s.
+// Case 1 on stiff cotton (33 × 33): after 2 s of simulated time the device comes, rests 1 s
+// at the sheet's middle, presses,
+// pulls 10 cm along +z (out of the sheet) in 1 s, holds 2 s, releases; the simulation then
+// runs 4 s more (simulated time: 240 frames after the one that took in the release).
 TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
   if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
   const ProcessRun run = RunProcesses(
       HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n"),
-      "0.0 0 0 0 0\n3.0 0 0 0 0\n3.0 0 0 0 1\n4.0 0 0 0.10 1\n5.0 0 0 0.10 1\n"
-      "5.0 0 0 0.10 0\n9.0 0 0 0.10 0\n",
-      540, {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16);
+      "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 0 0.10 1\n4.0 0 0 0.10 1\n"
+      "4.0 0 0 0.10 0\n5.0 0 0 0.10 0\n",
+      {.frames = 0, .settle_frames = 240, .device_seconds = 5.0, .frames_before_device = 120},
+      {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16);
   EXPECT_EQ(run.haptic_exit, 0);
   EXPECT_EQ(run.sim_exit, 0);
-  ASSERT_GE(run.positions.size(), 500u) << "cloth frames lost";
-  const Eigen::Vector3d rest = run.At(2.9), pulled = run.At(4.9), released = run.At(8.9);
-  std::printf("case 1, middle particle z: rest %.4f m, pulled %.4f m, 4 s after release %.4f m; "
-              "%d grab messages (strongest F_h %.3f N), %d patch chunks\n",
-              rest.z(), pulled.z(), released.z(), run.grabs, run.strongest, run.patches);
-  // The device held the button 2 s at 250 Hz: ~500 grab messages; the simulation answered
-  // every frame of it with a patch (one chunk each for this small selection).
-  EXPECT_GT(run.grabs, 400);
-  EXPECT_GT(run.patches, 100);
+  const int64_t press = run.PressFrame(), release = run.ReleaseFrame();
+  ASSERT_GT(press, 1) << "the simulation never took in the press";
+  ASSERT_GT(release, press) << "the simulation never took in the release";
+  const Eigen::Vector3d rest = run.AtFrame(press - 1), pulled = run.AtFrame(release - 1),
+                        released = run.AtFrame(release + 240);
+  ASSERT_GE(run.positions.rbegin()->first, release + 240) << "cloth frames lost";
+  std::printf("case 1, middle particle z: rest %.4f m (frame %lld), pulled %.4f m (frame %lld), "
+              "4 s after release %.4f m; %d grab messages (strongest F_h %.3f N), %d patch "
+              "chunks for %zu frames\n",
+              rest.z(), static_cast<long long>(press - 1), pulled.z(),
+              static_cast<long long>(release - 1), released.z(), run.grabs, run.strongest,
+              run.patches, run.patch_frames.size());
+  // The device held the button 3 s at 250 Hz (~750 grab messages; fewer when its loop skips
+  // ticks under load); the simulation answered every frame it held the grab with a patch
+  // (one chunk each for this small selection; a few may be lost on a loaded listener).
+  EXPECT_GT(run.grabs, 150);
+  int64_t answered = 0;
+  for (int64_t f = press; f < release; ++f) answered += run.patch_frames.count(f);
+  EXPECT_GE(answered, (release - press) * 9 / 10) << "of " << release - press << " frames";
   EXPECT_GT(pulled.z() - rest.z(), 0.08);                               // followed the 10 cm pull
   // and came back (the stiff sheet still swings a centimetre or so 4 s later)
   EXPECT_LT((released - rest).norm(), 0.2 * (pulled - rest).norm());
 }
 
-// Case 2 on a soft sheet (17 × 17, 20 N/m, so the pull stretches it): the device rests 8 s at
-// the middle of the bottom edge, presses, pulls 10 cm down in 1 s, presses the stretch button
-// (bit 1: KIND_ELIMINATE_STRETCH over the grab's sphere) while holding, releases at 10 s and
-// waits to 16 s. The pull stretches the whole height of the sheet, so the sphere (1.5 m)
-// covers it all, pinned corners included; the stretched cloth then stays down instead of
-// springing back.
+// Case 2 on a soft sheet (17 × 17, 20 N/m, so the pull stretches it): the sheet settles for 8 s
+// of simulated time, then the device rests 1 s at the middle of the bottom edge, presses, pulls 10 cm down in 1 s, presses
+// the stretch button (bit 1: KIND_ELIMINATE_STRETCH over the grab's sphere) while holding,
+// releases 1 s later; the simulation then runs 6 s more (360 frames after the release frame).
+// The pull stretches the whole height of the sheet, so the sphere (1.5 m) covers it all,
+// pinned corners included; the stretched cloth then stays down instead of springing back.
 TEST(GrabRelease, StretchMadePermanentWhileHeldStaysAfterRelease) {
   if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
   const ProcessRun run = RunProcesses(
       HangingSheet(17, "[[material]]\nname = \"cloth\"\nstretch_stiffness = 20\n"
                        "shear_stiffness = 20\nbending_rigidity = 1e-6\n"),
-      "0.0 0 0 0 0\n8.0 0 0 0 0\n8.0 0 0 0 1\n9.0 0 -0.10 0 1\n9.4 0 -0.10 0 1\n"
-      "9.4 0 -0.10 0 3\n9.6 0 -0.10 0 3\n9.6 0 -0.10 0 1\n10.0 0 -0.10 0 1\n"
-      "10.0 0 -0.10 0 0\n16.0 0 -0.10 0 0\n",
-      960, {"0", "-1.03", "-0.5"}, "1.5", 16 * 17 + 8);
+      "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 -0.10 0 1\n2.4 0 -0.10 0 1\n"
+      "2.4 0 -0.10 0 3\n2.6 0 -0.10 0 3\n2.6 0 -0.10 0 1\n3.0 0 -0.10 0 1\n"
+      "3.0 0 -0.10 0 0\n4.0 0 -0.10 0 0\n",
+      {.frames = 0, .settle_frames = 360, .device_seconds = 4.0, .frames_before_device = 480},
+      {"0", "-1.03", "-0.5"}, "1.5", 16 * 17 + 8);
   EXPECT_EQ(run.haptic_exit, 0);
   EXPECT_EQ(run.sim_exit, 0);
-  ASSERT_GE(run.positions.size(), 900u) << "cloth frames lost";
-  const Eigen::Vector3d rest = run.At(7.9), pulled = run.At(9.9), after = run.At(15.9);
-  std::printf("case 2, bottom middle y: rest %.4f m, pulled %.4f m, 6 s after release %.4f m; "
-              "undo depth %d\n", rest.y(), pulled.y(), after.y(), run.undo_depth);
+  const int64_t press = run.PressFrame(), release = run.ReleaseFrame();
+  ASSERT_GT(press, 1) << "the simulation never took in the press";
+  ASSERT_GT(release, press) << "the simulation never took in the release";
+  ASSERT_GE(run.positions.rbegin()->first, release + 360) << "cloth frames lost";
+  const Eigen::Vector3d rest = run.AtFrame(press - 1), pulled = run.AtFrame(release - 1),
+                        after = run.AtFrame(release + 360);
+  std::printf("case 2, bottom middle y: rest %.4f m (frame %lld), pulled %.4f m (frame %lld), "
+              "6 s after release %.4f m; undo depth %d\n",
+              rest.y(), static_cast<long long>(press - 1), pulled.y(),
+              static_cast<long long>(release - 1), after.y(), run.undo_depth);
   EXPECT_EQ(run.undo_depth, 1);  // the stretch button reached the simulation once
   EXPECT_LT(pulled.y(), rest.y() - 0.05);                                  // stretched down
   // It stays down: the new rest lengths are the stretched ones, so only gravity's own sag on
@@ -291,8 +394,8 @@ TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
       scene,
       "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 0 0.10 1\n3.0 0 0 0.10 1\n"
       "3.0 0 0 0.10 0\n4.0 0 0 0.10 0\n",
-      240, {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16, dir / "session.lcm",
-      DroppedCommands{});
+      {.frames = 240, .settle_frames = 0, .device_seconds = 4.0, .frames_before_device = 1},
+      {"0", "-0.5", "-0.5"}, "0.05", 16 * 33 + 16, dir / "session.lcm", DroppedCommands{});
   ASSERT_EQ(run.sim_exit, 0);
   ASSERT_GT(run.grabs, 100);
   // The live server dropped them: no STOP took it back to frame 0 (frames only increase).
@@ -353,7 +456,12 @@ TEST(GrabRelease, KilledSimulationFadesTheForceWithinFiftyMillisecondsAndRestart
   const std::string root = COSTUME_BUILD_DIR;
   const std::vector<std::string> sim_args = {root + "/sim_core/app/costume_sim_server", "--scene",
                                              (dir / "scene.toml").string(), "--editing"};
+  bool sim_up = false;
+  bus::Subscribe<costume_lcm::status>(listener, bus::kSimStatusChannel,
+                                      [&sim_up](const costume_lcm::status&) { sim_up = true; });
   pid_t sim = Spawn(sim_args);
+  // The device's clock starts with the haptic server: start it once the server is up.
+  for (int i = 0; i < 1200 && !sim_up; ++i) listener.HandleSubscriptions(50);
   const pid_t haptic = Spawn({root + "/haptic_server/costume_haptic_server", "--device",
                               "simulated", "--trajectory", (dir / "pull.traj").string(),
                               "--offset", "0", "-0.5", "-0.5", "--seconds", "12", "--priority",
@@ -394,7 +502,17 @@ TEST(GrabRelease, KilledSimulationFadesTheForceWithinFiftyMillisecondsAndRestart
               held, (zero_at - last_patch) / 1e3, resumed);
   EXPECT_GT(held, 0.05);
   ASSERT_GE(zero_at, 0) << "the force never reached zero after the kill";
-  EXPECT_LE(zero_at - last_patch, 50'000 + 4'000);  // 50 ms, plus one 250 Hz publication
+  // The safety property: no force is commanded later than 50 ms after the last patch (plus
+  // one 250 Hz publication). Asserted on the samples, not on when the first zero came: on a
+  // loaded machine the 1 kHz loop (normal priority here) may skip ticks, so the first tick
+  // after the deadline can come a few ms late — with zero force, which is what matters.
+  for (std::size_t i = killed_at; i < feedback.size() && feedback[i].utime < last_patch + 2'000'000;
+       ++i) {
+    if (feedback[i].utime > last_patch + 50'000 + 4'000) {
+      EXPECT_EQ(feedback[i].force, 0.0) << (feedback[i].utime - last_patch) / 1e3
+                                        << " ms after the last patch";
+    }
+  }
   EXPECT_GT(resumed, 0.05);
 }
 

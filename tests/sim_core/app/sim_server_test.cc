@@ -419,6 +419,18 @@ TEST_F(SimServerTest, UnavailableCommandsWarnInStatusWithoutCrashing) {
   EXPECT_EQ(received_.frame, 2);
 }
 
+// A refused real-time priority (the grab acknowledger's) is repeated in every status, first,
+// without making the server publish status every frame.
+TEST_F(SimServerTest, AStandingWarningIsInEveryStatusWithoutForcingOne) {
+  server_->SetStandingWarning("grab acknowledger: SCHED_FIFO priority 70 refused");
+  Step(130);  // status at ticks 60 and 120 (status_period 1 s at 60 Hz)
+  ASSERT_EQ(received_.statuses.size(), 2u);
+  for (const costume_lcm::status& status : received_.statuses) {
+    ASSERT_EQ(status.num_warnings, 1);
+    EXPECT_EQ(status.warnings[0], "grab acknowledger: SCHED_FIFO priority 70 refused");
+  }
+}
+
 TEST_F(SimServerTest, SetSolverChangesTheSolverInPlace) {
   Step(5);
   command solver{};
