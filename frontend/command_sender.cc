@@ -57,12 +57,29 @@ costume_lcm::material_parameters ToMessage(const sim::Material& material) {
   return p;
 }
 
-CommandSender::CommandSender(bus::MessageBus& bus)
-    : commands_(bus, bus::kCommandChannel), pointer_(bus, bus::kPointerChannel) {}
+CommandSender::CommandSender(bus::MessageBus& bus, bus::ResendPolicy resend)
+    : commands_(bus, bus::kCommandChannel, resend), pointer_(bus, bus::kPointerChannel) {}
 
 bool CommandSender::Send(Command& message) {
   message.utime = bus::NowUtime();
-  return commands_.Publish(message);
+  return commands_.Send(message, message.utime);
+}
+
+std::vector<std::string> CommandSender::ResendDue() {
+  std::vector<std::string> lines;
+  if (commands_.ResendDue(bus::NowUtime()) == 0) return lines;
+  for (const Command& c : commands_.given_up()) {
+    lines.push_back("warning: command kind " + std::to_string(c.kind) + " (seq " +
+                    std::to_string(c.seq) + ") not acknowledged by the simulation server "
+                    "after resending; given up");
+  }
+  return lines;
+}
+
+bool CommandSender::SetSelectionRadius(double radius) {
+  Command message = Blank(Command::KIND_SET_SELECTION_RADIUS);
+  message.radius = radius;
+  return Send(message);
 }
 
 bool CommandSender::Load(EntryKind kind, std::int64_t database_id, const std::string& name) {

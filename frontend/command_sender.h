@@ -4,13 +4,16 @@
 /// (lcm_types/command.lcm) and the mouse as a haptic device on COSTUME_POINTER
 /// (lcm_types/pointer_sample.lcm). One method per command, filling exactly the fields its
 /// kind reads and leaving the others zero. Call from the GUI thread only (the publishers
-/// number their messages).
+/// number their messages). Commands are resent until a cloth_frame acknowledges them
+/// (bus/command_resender.h): the window feeds Acknowledge from its frames and calls ResendDue
+/// every ResendPolicy::period_us.
 
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "bus/command_resender.h"
 #include "bus/message_bus.h"
 #include "bus/typed_bus.h"
 #include "lcm_types/costume_lcm/command.hpp"
@@ -38,8 +41,8 @@ costume_lcm::material_parameters ToMessage(const sim::Material& material);
 /// Publishes the GUI's commands and pointer samples on `bus`.
 class CommandSender {
  public:
-  /// `bus` must outlive the sender.
-  explicit CommandSender(bus::MessageBus& bus);
+  /// `bus` must outlive the sender. Throws InputError for an invalid `resend` policy.
+  explicit CommandSender(bus::MessageBus& bus, bus::ResendPolicy resend = {});
 
   /// LOAD_*: by database id (> 0), else by name. False when the bus refused the message.
   bool Load(EntryKind kind, std::int64_t database_id, const std::string& name);
@@ -63,6 +66,16 @@ class CommandSender {
   bool SaveVersion(const std::string& label);
   /// SET_POSTURE: the listed joints' rotations and the avatar's heading about +y [degrees].
   bool SetPosture(const std::vector<JointAngles>& joints, double heading_degrees);
+  /// SET_SELECTION_RADIUS: the haptic server's grab sphere [m] from its next grab.
+  bool SetSelectionRadius(double radius);
+
+  /// A cloth_frame's command_seq: the commands up to it were taken in; no more resends.
+  void Acknowledge(std::int64_t command_seq) { commands_.Acknowledge(command_seq); }
+  /// Resends the unacknowledged commands that are due; returns one line per command given
+  /// up (for the message log).
+  std::vector<std::string> ResendDue();
+  /// Resends and acknowledgements so far.
+  const bus::ResendCounts& resend_counts() const { return commands_.counts(); }
 
   /// A pointer sample: `position` [m] in the scene frame, `buttons` bit 0 grab, bit 1
   /// eliminate stretch; `inside_view` false when the pointer left the view.
@@ -74,7 +87,7 @@ class CommandSender {
  private:
   bool Send(costume_lcm::command& message);
 
-  bus::Publisher<costume_lcm::command> commands_;
+  bus::CommandResender commands_;
   bus::Publisher<costume_lcm::pointer_sample> pointer_;
 };
 

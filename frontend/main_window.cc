@@ -14,6 +14,7 @@
 #include <QStatusBar>
 #include <QStyle>
 #include <QTabWidget>
+#include <QTimer>
 #include <QToolBar>
 #include <QVBoxLayout>
 
@@ -344,6 +345,12 @@ void MainWindow::BuildStatusBar() {
 }
 
 void MainWindow::ConnectSignals() {
+  // Unacknowledged commands are resent (command_sender.h); given-up ones go to the log.
+  auto* resend = new QTimer(this);
+  connect(resend, &QTimer::timeout, this, [this] {
+    for (const std::string& line : sender_->ResendDue()) Log(QString::fromStdString(line));
+  });
+  resend->start(static_cast<int>(bus::ResendPolicy{}.period_us / 1000));
   connect(link_.get(), &BusLink::clothChunk, this, &MainWindow::OnClothChunk);
   connect(link_.get(), &BusLink::simStatus, this, &MainWindow::OnSimStatus);
   connect(link_.get(), &BusLink::hapticStatus, this, &MainWindow::OnHapticStatus);
@@ -385,7 +392,8 @@ void MainWindow::ConnectSignals() {
   });
   connect(radius_, &QDoubleSpinBox::valueChanged, this, [this](double r) {
     view_->SetSelectionRadius(r);
-    children_->options().radius = r;
+    children_->options().radius = r;   // a device connected later starts with it
+    sender_->SetSelectionRadius(r);    // a running haptic server takes it from its next grab
   });
   connect(stretch_, &QPushButton::clicked, this,
           [this] { sender_->EliminateStretch(StretchCentre(), radius_->value()); });
@@ -460,6 +468,7 @@ Eigen::Vector3d MainWindow::StretchCentre() const {
 }
 
 void MainWindow::OnClothChunk(const costume_lcm::cloth_frame& chunk) {
+  sender_->Acknowledge(chunk.command_seq);  // every chunk: a lost one must not hold resends
   std::optional<ClothFrame> frame = assembler_.Add(chunk);
   if (!frame) return;
   AdoptPendingMirror(*frame);

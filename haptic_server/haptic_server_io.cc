@@ -287,7 +287,7 @@ DeviceFault ReleasableDevice::Read(DeviceState& state) {
 // ---- HapticServerIo ---------------------------------------------------------------------
 
 void HapticServerIoOptions::Validate() const {
-  sim::RequirePositive("haptic server.radius", radius, "m");
+  sim::RequireInRange("haptic server.radius", radius, kMinRadius, kMaxRadius, "m");
   sim::RequireInRange("haptic server.device_id", device_id, 0, 127, "");
   sim::RequireInRange("haptic server.publish_every", publish_every, 1, 1000, "ticks");
   sim::RequirePositive("haptic server.status_period", status_period, "s");
@@ -319,7 +319,7 @@ HapticServerIo::HapticServerIo(bus::MessageBus& bus, LoopClock& clock, PatchMail
       device_state_out_(bus, bus::kDeviceStateChannel),
       feedback_out_(bus, bus::kFeedbackChannel),
       grab_out_(bus, bus::kGrabChannel),
-      command_out_(bus, bus::kHapticCommandChannel),
+      command_out_(bus, bus::kHapticCommandChannel, options.resend),
       status_out_(bus, bus::kHapticStatusChannel) {
   workspace_.Validate("haptic server workspace");
   const PatchCapacity& cap = options_.capacity;
@@ -328,6 +328,13 @@ HapticServerIo::HapticServerIo(bus::MessageBus& bus, LoopClock& clock, PatchMail
       bus_, bus::kHapticPatchChannel,
       [this](const costume_lcm::haptic_patch& chunk) { OnPatchChunk(chunk); },
       options_.patch_policy);
+  command_receive_ = bus::Subscribe<costume_lcm::command>(
+      bus_, bus::kCommandChannel,
+      [this](const costume_lcm::command& command) { OnGuiCommand(command); },
+      options_.command_policy);
+  bus_.Subscribe(bus::kClothFrameChannel,
+                 [this](std::span<const std::uint8_t> payload) { OnClothFrame(payload); });
+  radius_ = next_radius_ = options_.radius;
   const std::int64_t now_ns = clock_.Now();
   utime_offset_ = bus::NowUtime() - now_ns / 1000;
   last_status_ns_ = now_ns;
@@ -372,6 +379,43 @@ void HapticServerIo::OnPointerSample(const costume_lcm::pointer_sample& sample) 
   ++counts_.num_pointer_samples;
 }
 
+void HapticServerIo::OnGuiCommand(const costume_lcm::command& command) {
+  if (command.kind != costume_lcm::command::KIND_SET_SELECTION_RADIUS) return;  // the server's
+  if (!(command.radius >= kMinRadius && command.radius <= kMaxRadius)) {
+    ++counts_.num_radius_refused;
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "command SET_SELECTION_RADIUS: radius = %g m: must be in [%g, %g] m; kept %g m",
+                  command.radius, kMinRadius, kMaxRadius, next_radius_);
+    command_warnings_.emplace_back(line);
+    return;
+  }
+  ++counts_.num_radius_commands;
+  next_radius_ = command.radius;
+  if (grabs_.state().mode != costume_lcm::grab::MODE_GRAB) radius_ = next_radius_;
+}
+
+void HapticServerIo::OnClothFrame(std::span<const std::uint8_t> payload) {
+  // Frames are the simulation's acknowledgement of device-button commands; decoding every
+  // chunk (up to 60 kB at 60 Hz) is wasted work while nothing waits for one.
+  if (!command_out_.has_pending()) return;
+  if (!bus::Decode(payload, ack_frame_)) return;
+  command_out_.Acknowledge(ack_frame_.haptic_command_seq);
+}
+
+void HapticServerIo::ResendCommands() {
+  if (command_out_.ResendDue(ToUtime(clock_.Now())) > 0) {
+    for (const costume_lcm::command& c : command_out_.given_up()) {
+      command_warnings_.push_back("command kind " + std::to_string(c.kind) + " seq " +
+                                  std::to_string(c.seq) +
+                                  " given up: no cloth_frame acknowledged it (is the "
+                                  "simulation server running?)");
+    }
+  }
+  counts_.num_commands_resent = command_out_.counts().num_resent;
+  counts_.num_commands_given_up = command_out_.counts().num_given_up;
+}
+
 void HapticServerIo::OnPatchChunk(const costume_lcm::haptic_patch& chunk) {
   if (!assembler_.Add(chunk)) return;
   PatchAssemblyCounts& counts = assembler_.mutable_counts();
@@ -405,6 +449,7 @@ void HapticServerIo::Poll(int timeout_ms) {
   DrainOutgoing();  // first, so a patch arriving now is checked against the latest grab
   if (bus_.HandleSubscriptions(timeout_ms) < 0) ++num_transport_failures_;
   DrainOutgoing();
+  ResendCommands();
   const std::int64_t now = clock_.Now();
   if (static_cast<double>(now - last_status_ns_) * 1e-9 >= options_.status_period) {
     PublishStatus();
@@ -416,6 +461,7 @@ void HapticServerIo::DrainOutgoing() {
   while (outgoing_.TryPop(state)) {
     ++counts_.num_states_drained;
     const GrabState& grab = grabs_.Update(state.buttons);
+    if (grab.mode != costume_lcm::grab::MODE_GRAB) radius_ = next_radius_;
     const bool due = state.sequence % options_.publish_every == 0;
     if (due || grab.changed) PublishState(state, grab, due);
     if (grab.stretch_relief_pressed) PublishStretchRelief(state, grab);
@@ -425,7 +471,7 @@ void HapticServerIo::DrainOutgoing() {
 void HapticServerIo::PublishState(const OutgoingDeviceState& state, const GrabState& grab,
                                   bool publish_all) {
   const std::int64_t utime = ToUtime(state.time_ns);
-  ToGrabMessage(state, grab, utime, options_.device_id, options_.radius,
+  ToGrabMessage(state, grab, utime, options_.device_id, radius_,
                 options_.coupling_stiffness, grab_msg_);
   if (grab_out_.Publish(grab_msg_)) ++counts_.num_grabs_published;
   else ++counts_.num_publish_refused;
@@ -446,8 +492,8 @@ void HapticServerIo::PublishStretchRelief(const OutgoingDeviceState& state,
   // The selection of the grab being held; hovering, the sphere at the tip.
   command.grab_id = grab.mode == costume_lcm::grab::MODE_GRAB ? grab.grab_id : -1;
   std::copy(state.tip_position.begin(), state.tip_position.end(), command.centre);
-  command.radius = options_.radius;
-  if (command_out_.Publish(command)) ++counts_.num_commands_published;
+  command.radius = radius_;
+  if (command_out_.Send(command, command.utime)) ++counts_.num_commands_published;
   else ++counts_.num_publish_refused;
 }
 
@@ -514,6 +560,8 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
                        std::to_string(counts_.num_pointer_invalid));
     last_pointer_invalid_ = counts_.num_pointer_invalid;
   }
+  for (std::string& w : command_warnings_) warnings.push_back(std::move(w));
+  command_warnings_.clear();
   if (num_transport_failures_ > 0) {
     warnings.push_back("LCM transport failed " + std::to_string(num_transport_failures_) +
                        " times since start");
@@ -559,10 +607,12 @@ void HapticServerIo::PublishStatus() {
   status.model_revision = -1;
   const bus::ReceiveCounts& r = *patch_receive_;
   const bus::ReceiveCounts q = pointer_receive_counts();
-  status.dropped_malformed = r.malformed + q.malformed;
-  status.dropped_oversized = r.oversized + q.oversized;
-  status.dropped_stale = r.stale + q.stale;
-  status.dropped_out_of_order = r.out_of_order + q.out_of_order;
+  const bus::ReceiveCounts& c = *command_receive_;
+  status.dropped_malformed = r.malformed + q.malformed + c.malformed;
+  status.dropped_oversized = r.oversized + q.oversized + c.oversized;
+  status.dropped_stale = r.stale + q.stale + c.stale;
+  // Includes the GUI's resent copies of commands already taken in (expected, not an alarm).
+  status.dropped_out_of_order = r.out_of_order + q.out_of_order + c.out_of_order;
   status.warnings = CollectWarnings(elapsed, periods);
   status.num_warnings = static_cast<std::int16_t>(status.warnings.size());
   if (status_out_.Publish(status)) ++counts_.num_status_published;

@@ -25,10 +25,12 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "bus/command_resender.h"
 #include "bus/message_bus.h"
 #include "bus/receive_filter.h"
 #include "bus/typed_bus.h"
@@ -36,6 +38,7 @@
 #include "haptic_server/haptic_loop.h"
 #include "haptic_server/haptic_tick.h"
 #include "haptic_server/mouse_device.h"
+#include "lcm_types/costume_lcm/cloth_frame.hpp"
 #include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/device_state.hpp"
 #include "lcm_types/costume_lcm/feedback.hpp"
@@ -236,9 +239,15 @@ class ReleasableDevice final : public HapticDevice {
   std::atomic<bool> released_{false};
 };
 
+/// The grab sphere radii the server accepts [m], from --radius or the GUI's
+/// KIND_SET_SELECTION_RADIUS command (the GUI's control offers the same range).
+inline constexpr double kMinRadius = 0.005;
+inline constexpr double kMaxRadius = 0.5;
+
 /// Options of HapticServerIo.
 struct HapticServerIoOptions {
-  /// Grab sphere radius r [m] > 0 (later set from the GUI).
+  /// Grab sphere radius r [m] in [kMinRadius, kMaxRadius] at start; the GUI changes it on a
+  /// running server (KIND_SET_SELECTION_RADIUS on COSTUME_COMMAND).
   double radius = 0.05;
   /// Stiffness of the simulation's implicit coupling between the sphere and the grabbed
   /// cloth (grab.coupling_stiffness) [N/m] >= 0; 0 sends F_h as a force instead, which the
@@ -264,6 +273,10 @@ struct HapticServerIoOptions {
   bus::ReceivePolicy patch_policy;
   /// Checks on received pointer samples (SetPointerDevice).
   bus::ReceivePolicy pointer_policy;
+  /// Checks on the GUI's commands (COSTUME_COMMAND; only SET_SELECTION_RADIUS is read here).
+  bus::ReceivePolicy command_policy;
+  /// Resending of the device buttons' commands until a cloth_frame acknowledges them.
+  bus::ResendPolicy resend;
   /// Throws costume::sim::InputError naming the field, value and allowed range.
   void Validate() const;
 };
@@ -279,6 +292,14 @@ struct HapticServerIoCounts {
   std::int64_t num_feedback_published = 0;
   std::int64_t num_grabs_published = 0;
   std::int64_t num_commands_published = 0;
+  /// Further copies of unacknowledged commands (bus::CommandResender).
+  std::int64_t num_commands_resent = 0;
+  /// Commands given up unacknowledged after ResendPolicy::max_resends copies (a warning).
+  std::int64_t num_commands_given_up = 0;
+  /// SET_SELECTION_RADIUS commands taken (applied or pending until the grab ends).
+  std::int64_t num_radius_commands = 0;
+  /// SET_SELECTION_RADIUS commands refused for a radius out of range (a warning).
+  std::int64_t num_radius_refused = 0;
   std::int64_t num_status_published = 0;
   /// Publishes the bus or the typed checks refused.
   std::int64_t num_publish_refused = 0;
@@ -293,7 +314,9 @@ struct HapticServerIoCounts {
 class HapticServerIo {
  public:
   /// `bus`, `clock` (the loop's), `patches` and `outgoing` (the tick's) and `device` must
-  /// outlive this. Subscribes to COSTUME_HAPTIC_PATCH and reserves every patch slot of
+  /// outlive this. Subscribes to COSTUME_HAPTIC_PATCH, to COSTUME_COMMAND (the GUI's
+  /// SET_SELECTION_RADIUS) and to COSTUME_CLOTH_FRAME (decoded only while a device-button
+  /// command waits for its acknowledgement, haptic_command_seq), and reserves every patch slot of
   /// `patches` to options.capacity (call before the tick runs). Throws InputError for bad
   /// options or workspace.
   HapticServerIo(bus::MessageBus& bus, LoopClock& clock, PatchMailbox& patches,
@@ -339,10 +362,17 @@ class HapticServerIo {
     return pointer_receive_ ? *pointer_receive_ : bus::ReceiveCounts{};
   }
   const GrabState& grab_state() const { return grabs_.state(); }
+  /// The radius [m] of the grab in progress, or of the next grab while hovering.
+  double radius() const { return radius_; }
+  /// The GUI's command subscription's counts.
+  const bus::ReceiveCounts& command_receive_counts() const { return *command_receive_; }
 
  private:
   void OnPatchChunk(const costume_lcm::haptic_patch& chunk);
   void OnPointerSample(const costume_lcm::pointer_sample& sample);
+  void OnGuiCommand(const costume_lcm::command& command);
+  void OnClothFrame(std::span<const std::uint8_t> payload);
+  void ResendCommands();
   void DrainOutgoing();
   void PublishState(const OutgoingDeviceState& state, const GrabState& grab, bool publish_all);
   void PublishStretchRelief(const OutgoingDeviceState& state, const GrabState& grab);
@@ -361,11 +391,19 @@ class HapticServerIo {
   GrabTracker grabs_;
   std::shared_ptr<const bus::ReceiveCounts> patch_receive_;
   std::shared_ptr<const bus::ReceiveCounts> pointer_receive_;
+  std::shared_ptr<const bus::ReceiveCounts> command_receive_;
+  // The sphere radius [m]: radius_ for grab messages and commands; a GUI change arrives in
+  // next_radius_ and becomes radius_ while hovering, so a grab keeps the radius it began with.
+  // The tick never reads the radius (grab messages are assembled here), so nothing crosses to it.
+  double radius_ = 0.05;
+  double next_radius_ = 0.05;
+  costume_lcm::cloth_frame ack_frame_{};  // decode buffer of OnClothFrame (capacity kept)
+  std::vector<std::string> command_warnings_;  // for the next status
   MouseDevice* mouse_ = nullptr;
   bus::Publisher<costume_lcm::device_state> device_state_out_;
   bus::Publisher<costume_lcm::feedback> feedback_out_;
   bus::Publisher<costume_lcm::grab> grab_out_;
-  bus::Publisher<costume_lcm::command> command_out_;
+  bus::CommandResender command_out_;
   bus::Publisher<costume_lcm::status> status_out_;
   costume_lcm::device_state device_state_msg_{};
   costume_lcm::feedback feedback_msg_{};

@@ -209,7 +209,9 @@ int main(int argc, char** argv) {
   app.add_option("--device-log", args.device_log, "playback device: recorded device log file");
   app.add_option("--openhaptics-device", args.openhaptics_name,
                  "OpenHaptics device configuration name (empty: the default device)");
-  app.add_option("--radius", args.radius, "grab sphere radius [m]")->capture_default_str();
+  app.add_option("--radius", args.radius, "grab sphere radius [m]")
+      ->check(CLI::Range(costume::haptics::kMinRadius, costume::haptics::kMaxRadius))
+      ->capture_default_str();
   app.add_option("--coupling", args.coupling,
                  "stiffness of the simulation's implicit grab coupling [N/m]; 0 sends F_h as a "
                  "force instead")

@@ -290,9 +290,10 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_LOAD_ANIMATION: Load(LoadKind::kAnimation, command); return;
     case C::KIND_SET_MATERIAL: SetMaterial(command); return;
     case C::KIND_SAVE_VERSION: SaveVersion(command); return;
+    case C::KIND_SET_SELECTION_RADIUS: return;  // the haptic server's (the grab's radius)
     default:
       ++ignored_.commands_refused;
-      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 14); ignored");
+      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 15); ignored");
   }
 }
 

@@ -180,8 +180,24 @@ TEST_F(MainWindowTest, PlaybackAndModeControlsSendTheirKinds) {
   EXPECT_EQ(c.mode, Command::MODE_ANIMATION);
 }
 
+TEST_F(MainWindowTest, TheRadiusControlSendsSetSelectionRadiusForARunningHapticServer) {
+  window_->radius_box()->setValue(0.12);
+  const Command c = One();
+  EXPECT_EQ(c.kind, Command::KIND_SET_SELECTION_RADIUS);
+  EXPECT_DOUBLE_EQ(c.radius, 0.12);
+  // Typed into the box: sent when editing finishes (keyboard tracking off), once.
+  window_->radius_box()->clear();
+  QTest::keyClicks(window_->radius_box(), "0.3");
+  EXPECT_TRUE(Sent().empty());
+  QTest::keyClick(window_->radius_box(), Qt::Key_Return);
+  const Command typed = One();
+  EXPECT_EQ(typed.kind, Command::KIND_SET_SELECTION_RADIUS);
+  EXPECT_DOUBLE_EQ(typed.radius, 0.3);
+}
+
 TEST_F(MainWindowTest, EditingControlsSendStretchUndoRedoAndSave) {
   window_->radius_box()->setValue(0.12);
+  EXPECT_EQ(One().kind, Command::KIND_SET_SELECTION_RADIUS);
   window_->stretch_button()->click();
   const Command c = One();
   EXPECT_EQ(c.kind, Command::KIND_ELIMINATE_STRETCH);

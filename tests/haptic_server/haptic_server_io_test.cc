@@ -13,6 +13,9 @@
 #include "bus/typed_bus.h"
 #include "haptic_server/mouse_device.h"
 #include "haptic_server/simulated_device.h"
+#include "sim_core/app/sim_server.h"
+#include "tests/support/dropping_bus.h"
+#include "tests/support/test_scenes.h"
 
 namespace costume::haptics {
 namespace {
@@ -93,7 +96,7 @@ class IoFixture : public ::testing::Test {
     options.publish_every = publish_every;
     options.capacity = {1000, 1000, 16};
     options.status_period = 1e9;  // status only when a test asks
-    io_ = std::make_unique<HapticServerIo>(bus_, clock_, patches_, outgoing_, device,
+    io_ = std::make_unique<HapticServerIo>(*io_bus_, clock_, patches_, outgoing_, device,
                                            workspace_, options);
     tick_ = std::make_unique<HapticTick>(device, patches_, outgoing_, workspace_,
                                          ForceSafetyOptions{});
@@ -143,6 +146,7 @@ class IoFixture : public ::testing::Test {
   }
 
   bus::LcmBus bus_{"memq://"};
+  bus::MessageBus* io_bus_ = &bus_;  // what the server under test publishes on
   FakeClock clock_{1'000'000'000};
   PatchMailbox patches_;
   OutgoingQueue outgoing_;
@@ -484,6 +488,91 @@ TEST_F(IoFixture, PointerSamplesDriveTheMouseDeviceAndTheGrabFollows) {
   RunTicks(2);
   EXPECT_EQ(grabs_.back().mode, costume_lcm::grab::MODE_GRAB);
   EXPECT_EQ(grabs_.back().grab_id, 1);
+}
+
+// ---- commands: resent until acknowledged; the GUI's selection radius --------------------
+
+// The stretch-relief button's command loses its first datagram; a real simulation server
+// (memq://, stepped every 16 ticks) still applies it exactly once (model revision +1), and
+// nothing is resent after a cloth_frame's haptic_command_seq acknowledged it.
+TEST_F(IoFixture, AStretchCommandWhoseFirstCopyIsLostIsAppliedOnceAndNotResentAfterItsAck) {
+  testing::DroppingBus lossy(bus_, bus::kHapticCommandChannel, 1);
+  io_bus_ = &lossy;
+  // Device (0.25, 0, -0.25) is scene (0.5, 0, -0.5) (scale 2): the 17×17 sheet's pinned
+  // corner, whose neighbours (1/16 m) stay inside the 0.07 m sphere while the sheet falls.
+  // Stretch button at 50 ms.
+  Build("0 0.25 0 -0.25 0\n0.0505 0.25 0 -0.25 0\n0.0505 0.25 0 -0.25 2\n"
+        "0.2 0.25 0 -0.25 2\n0.2 0.25 0 -0.25 0\n");
+  const sim_app::SimServerOptions server_options;  // named: GCC 12 warns on a temporary
+  sim_app::SimServer server(bus_, test::HangScene(17), server_options);
+  const std::int64_t revision0 = server.model_revision();
+  auto run = [&](int ticks) {
+    for (int t = 0; t < ticks; ++t) {
+      RunTicks(1);
+      if (t % 16 == 0) server.Step();  // 60 Hz
+    }
+  };
+  run(400);
+  EXPECT_EQ(server.model_revision(), revision0 + 1);
+  EXPECT_EQ(lossy.published(), 2);  // the lost copy and one resend 100 ms later
+  EXPECT_EQ(io_->counts().num_commands_resent, 1);
+  EXPECT_EQ(io_->counts().num_commands_given_up, 0);
+  run(1000);  // a second: no resend after the acknowledgement, no second application
+  EXPECT_EQ(lossy.published(), 2);
+  EXPECT_EQ(server.model_revision(), revision0 + 1);
+}
+
+// Without a simulation server nothing acknowledges: five resends 100 ms apart, then a
+// warning in status naming the command.
+TEST_F(IoFixture, AnUnacknowledgedCommandIsGivenUpWithAWarningInStatus) {
+  testing::DroppingBus counting(bus_, bus::kHapticCommandChannel, 0);
+  io_bus_ = &counting;
+  Build("0 0 0 0 0\n0.0105 0 0 0 0\n0.0105 0 0 0 2\n0.05 0 0 0 2\n0.05 0 0 0 0\n");
+  RunTicks(1000);
+  EXPECT_EQ(counting.published(), 6);
+  EXPECT_EQ(io_->counts().num_commands_given_up, 1);
+  io_->PublishStatus();
+  io_->Poll(0);
+  ASSERT_FALSE(status_.empty());
+  bool warned = false;
+  for (const std::string& w : status_.back().warnings) {
+    warned = warned || w.find("given up") != std::string::npos;
+  }
+  EXPECT_TRUE(warned);
+}
+
+// SET_SELECTION_RADIUS on COSTUME_COMMAND: taken while hovering at once; during a grab the
+// grab keeps its radius and the new one applies from the next grab; out of range is refused.
+TEST_F(IoFixture, TheGuisSelectionRadiusAppliesFromTheNextGrab) {
+  // Grab held 0.1–0.3 s and again from 0.5 s.
+  Build("0 0 0 0 0\n0.1005 0 0 0 0\n0.1005 0 0 0 1\n0.3005 0 0 0 1\n0.3005 0 0 0 0\n"
+        "0.5005 0 0 0 0\n0.5005 0 0 0 1\n");
+  bus::Publisher<costume_lcm::command> gui(bus_, bus::kCommandChannel);
+  auto set_radius = [&](double r) {
+    costume_lcm::command c{};
+    c.utime = bus::NowUtime();
+    c.kind = costume_lcm::command::KIND_SET_SELECTION_RADIUS;
+    c.radius = r;
+    ASSERT_TRUE(gui.Publish(c));
+  };
+  RunTicks(50);
+  set_radius(0.12);  // hovering: at once
+  RunTicks(100);     // t = 150 ms, grabbing
+  EXPECT_EQ(io_->radius(), 0.12);
+  set_radius(0.2);  // during the grab: kept for the next one
+  set_radius(0.9);  // out of range: refused
+  RunTicks(100);    // t = 250 ms, still grabbing
+  EXPECT_EQ(io_->radius(), 0.12);
+  RunTicks(400);    // released at 300 ms, grabbing again from 500 ms
+  EXPECT_EQ(io_->radius(), 0.2);
+  EXPECT_EQ(io_->counts().num_radius_commands, 2);
+  EXPECT_EQ(io_->counts().num_radius_refused, 1);
+  // What the simulation was told: grab 0 at 0.12 m throughout, grab 1 at 0.2 m.
+  for (const costume_lcm::grab& g : grabs_) {
+    if (g.mode != costume_lcm::grab::MODE_GRAB) continue;
+    EXPECT_EQ(g.radius, g.grab_id == 0 ? 0.12 : 0.2) << "grab " << g.grab_id;
+    EXPECT_EQ(g.gaussian_sigma, g.radius / 2);
+  }
 }
 
 TEST(GrabTracker, RisingEdgesNumberGrabsAndStretchReliefIsAnEdge) {
