@@ -240,9 +240,10 @@ class ReleasableDevice final : public HapticDevice {
 };
 
 /// The grab sphere radii the server accepts [m], from --radius or the GUI's
-/// KIND_SET_SELECTION_RADIUS command (the GUI's control offers the same range).
-inline constexpr double kMinRadius = 0.005;
-inline constexpr double kMaxRadius = 0.5;
+/// KIND_SET_SELECTION_RADIUS command: 1 mm (below a particle spacing) to 10 m (a sphere over a
+/// whole scene, as the stretch test's 1.5 m). The GUI's control offers 0.005–0.5 m.
+inline constexpr double kMinRadius = 0.001;
+inline constexpr double kMaxRadius = 10.0;
 
 /// Options of HapticServerIo.
 struct HapticServerIoOptions {

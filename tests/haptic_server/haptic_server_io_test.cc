@@ -560,7 +560,7 @@ TEST_F(IoFixture, TheGuisSelectionRadiusAppliesFromTheNextGrab) {
   RunTicks(100);     // t = 150 ms, grabbing
   EXPECT_EQ(io_->radius(), 0.12);
   set_radius(0.2);  // during the grab: kept for the next one
-  set_radius(0.9);  // out of range: refused
+  set_radius(20.0);  // out of range (above 10 m): refused
   RunTicks(100);    // t = 250 ms, still grabbing
   EXPECT_EQ(io_->radius(), 0.12);
   RunTicks(400);    // released at 300 ms, grabbing again from 500 ms
