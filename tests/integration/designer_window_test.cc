@@ -18,12 +18,13 @@
 #include "bus/lcm_bus.h"
 #include "frontend/main_window.h"
 #include "render/camera.h"
+#include "tests/support/network_namespace.h"
 #include "tests/support/qt_app.h"
 
 namespace costume::frontend {
 namespace {
 
-bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
+using costume::testing::InNetworkNamespace;
 
 /// The colour at `pixel` of `image` as RGB in [0, 1].
 Eigen::Vector3f ColourAt(const QImage& image, const Eigen::Vector2d& pixel) {
@@ -71,7 +72,7 @@ Eigen::Vector3d HeadCentre(const std::vector<Eigen::Vector3f>& vertices) {
 }
 
 TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
   costume::testing::TestApp();
   // A stand-in ffmpeg first on PATH (this machine has none): records its arguments and
   // writes the video file, so the export's video step runs end to end.
@@ -223,7 +224,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
 }
 
 TEST(DesignerWindow, DoubleClickingACostumeLoadsItOnTheServerAndInTheView) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << "run through ctest: it needs Xvfb and a network namespace";
   costume::testing::TestApp();
   // A fresh catalogue, seeded with the built-ins, shared by the lists and the server.
   const QString folder = QString(COSTUME_BUILD_DIR) + "/designer_window_catalog";

@@ -9,7 +9,6 @@
 // grab.coupling_stiffness) and then returns to rest.
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 
 #include <Eigen/Core>
@@ -33,11 +32,19 @@
 #include "lcm_types/costume_lcm/grab.hpp"
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
 #include "lcm_types/costume_lcm/status.hpp"
-
-extern char** environ;
+#include "tests/support/child_process.h"
+#include "tests/support/network_namespace.h"
+#include "tests/support/test_scenes.h"
 
 namespace costume {
 namespace {
+
+using testing::InNetworkNamespace;
+using testing::kNeedsNetworkNamespace;
+using testing::Spawn;
+using testing::Wait;
+using test::HangingSheetScene;
+using test::kStiffCottonCloth;
 
 /// The LCM URL of the run: COSTUME_LCM_URL when the two-host setup sets it (ttl=1 over a veth
 /// pair), else the default (ttl=0).
@@ -65,23 +72,6 @@ std::vector<std::string> OnHapticHost(std::vector<std::string> argv) {
 std::vector<std::string> Concat(std::vector<std::string> a, const std::vector<std::string>& b) {
   a.insert(a.end(), b.begin(), b.end());
   return a;
-}
-
-/// Starts `argv` as a child process; returns its pid.
-pid_t Spawn(std::vector<std::string> argv) {
-  std::vector<char*> args;
-  for (std::string& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  pid_t pid = 0;
-  EXPECT_EQ(posix_spawn(&pid, args[0], nullptr, nullptr, args.data(), environ), 0) << argv[0];
-  return pid;
-}
-
-/// Waits for `pid`; returns its exit status, or −1 when it did not exit normally.
-int Wait(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 /// The cloth's frames as they arrive: frame number → position of one watched particle, and
@@ -259,28 +249,15 @@ ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory,
   return run;
 }
 
-/// A 1 m sheet built already hanging in the plane z = −0.5 from its two top corners.
-std::string HangingSheet(int n, const std::string& material) {
-  return "name = \"hanging\"\nduration = 60.0\n"
-         "[solver]\nmethod = \"pcg\"\ntolerance = 1e-3\nstrain_limit = 0.0\n" +
-         material +
-         "[[garment]]\nname = \"sheet\"\nmaterial = \"cloth\"\n"
-         "pin_points = [[-0.5, 0, -0.5], [0.5, 0, -0.5]]\n"
-         "[garment.panel]\norigin = [-0.5, 0, -0.5]\nu_axis = [1, 0, 0]\n"
-         "v_axis = [0, -1, 0]\nsize = [1.0, 1.0]\nresolution = [" +
-         std::to_string(n) + ", " + std::to_string(n) + "]\n";
-}
-
-bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
 
 // Case 1 on stiff cotton (33 × 33): after 2 s of simulated time the device comes, rests 1 s
 // at the sheet's middle, presses,
 // pulls 10 cm along +z (out of the sheet) in 1 s, holds 2 s, releases; the simulation then
 // runs 4 s more (simulated time: 240 frames after the one that took in the release).
 TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << kNeedsNetworkNamespace;
   const ProcessRun run = RunProcesses(
-      HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n"),
+      HangingSheetScene(33, kStiffCottonCloth),
       "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 0 0.10 1\n4.0 0 0 0.10 1\n"
       "4.0 0 0 0.10 0\n5.0 0 0 0.10 0\n",
       {.frames = 0, .settle_frames = 240, .device_seconds = 5.0, .frames_before_device = 120},
@@ -318,9 +295,9 @@ TEST(GrabRelease, PulledClothFollowsTheDeviceAndReturnsToRestWhenReleased) {
 // The pull stretches the whole height of the sheet, so the sphere (1.5 m) covers it all,
 // pinned corners included; the stretched cloth then stays down instead of springing back.
 TEST(GrabRelease, StretchMadePermanentWhileHeldStaysAfterRelease) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << kNeedsNetworkNamespace;
   const ProcessRun run = RunProcesses(
-      HangingSheet(17, "[[material]]\nname = \"cloth\"\nstretch_stiffness = 20\n"
+      HangingSheetScene(17, "[[material]]\nname = \"cloth\"\nstretch_stiffness = 20\n"
                        "shear_stiffness = 20\nbending_rigidity = 1e-6\n"),
       "0.0 0 0 0 0\n1.0 0 0 0 0\n1.0 0 0 0 1\n2.0 0 -0.10 0 1\n2.4 0 -0.10 0 1\n"
       "2.4 0 -0.10 0 3\n2.6 0 -0.10 0 3\n2.6 0 -0.10 0 1\n3.0 0 -0.10 0 1\n"
@@ -383,12 +360,11 @@ struct DroppedCommands {
 // cloth frame bit for bit — also with stale and out-of-order commands in the session, which the
 // live server dropped and the replay must drop again, judged on the log's receive times.
 TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << kNeedsNetworkNamespace;
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("costume_replay_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
-  const std::string scene =
-      HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n");
+  const std::string scene = HangingSheetScene(33, kStiffCottonCloth);
   std::ofstream(dir / "scene.toml") << scene;
   const ProcessRun run = RunProcesses(
       scene,
@@ -415,12 +391,11 @@ TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
 // zero within 50 ms of the last patch; it keeps running, and once a new simulation server is
 // up it grabs again and renders force again.
 TEST(GrabRelease, KilledSimulationFadesTheForceWithinFiftyMillisecondsAndRestartResumes) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << kNeedsNetworkNamespace;
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / ("costume_kill_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
-  std::ofstream(dir / "scene.toml")
-      << HangingSheet(33, "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n");
+  std::ofstream(dir / "scene.toml") << HangingSheetScene(33, kStiffCottonCloth);
   // Rest 2 s, press and pull 10 cm out of the sheet and hold (the server is killed at 5 s
   // and restarted at 7 s with the cloth back at rest, 10 cm from the hand); at 9 s the hand
   // goes back to the cloth, lets go, grabs again at 10 s and pulls again by 11 s.

@@ -9,9 +9,6 @@
 // status dropped_* counters rose by exactly what was sent, and that a valid grab (pointer
 // samples, as the GUI sends them) still pulls the cloth.
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 
 #include <chrono>
 #include <cmath>
@@ -35,36 +32,18 @@
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
 #include "lcm_types/costume_lcm/pointer_sample.hpp"
 #include "lcm_types/costume_lcm/status.hpp"
-
-extern char** environ;
+#include "tests/support/child_process.h"
+#include "tests/support/network_namespace.h"
+#include "tests/support/test_scenes.h"
 
 namespace costume {
 namespace {
 
-bool InNamespace() { return std::getenv("COSTUME_IN_NETNS") != nullptr; }
-
-pid_t Spawn(std::vector<std::string> argv) {
-  std::vector<char*> args;
-  for (std::string& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  pid_t pid = 0;
-  EXPECT_EQ(posix_spawn(&pid, args[0], nullptr, nullptr, args.data(), environ), 0) << argv[0];
-  return pid;
-}
-
-/// True while `pid` has not exited.
-bool Running(pid_t pid) {
-  int status = 0;
-  return waitpid(pid, &status, WNOHANG) == 0;
-}
-
-/// SIGTERM, then its exit status (−1 when it did not exit normally).
-int Terminate(pid_t pid) {
-  kill(pid, SIGTERM);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using testing::InNetworkNamespace;
+using testing::kNeedsNetworkNamespace;
+using testing::Running;
+using testing::Spawn;
+using testing::Terminate;
 
 /// The drops one batch of bad traffic must add to a receiver's status, per channel.
 struct Drops {
@@ -147,23 +126,12 @@ void ExpectDropsRose(const costume_lcm::status& before, const costume_lcm::statu
       << who;
 }
 
-/// A 1 m sheet built already hanging in the plane z = −0.5 from its two top corners.
-std::string HangingSheet() {
-  return "name = \"hanging\"\nduration = 60.0\n"
-         "[solver]\nmethod = \"pcg\"\ntolerance = 1e-3\nstrain_limit = 0.0\n"
-         "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n"
-         "[[garment]]\nname = \"sheet\"\nmaterial = \"cloth\"\n"
-         "pin_points = [[-0.5, 0, -0.5], [0.5, 0, -0.5]]\n"
-         "[garment.panel]\norigin = [-0.5, 0, -0.5]\nu_axis = [1, 0, 0]\n"
-         "v_axis = [0, -1, 0]\nsize = [1.0, 1.0]\nresolution = [33, 33]\n";
-}
-
 TEST(MalformedTraffic, BothProcessesCountAndDropItKeepRunningAndStillGrab) {
-  if (!InNamespace()) GTEST_SKIP() << "run through ctest: it needs a private network namespace";
+  if (!InNetworkNamespace()) GTEST_SKIP() << kNeedsNetworkNamespace;
   const std::filesystem::path dir = std::filesystem::temp_directory_path() /
                                     ("costume_malformed_test_" + std::to_string(getpid()));
   std::filesystem::create_directories(dir);
-  std::ofstream(dir / "scene.toml") << HangingSheet();
+  std::ofstream(dir / "scene.toml") << test::HangingSheetScene(33, test::kStiffCottonCloth);
 
   bus::LcmBus bus;  // the default URL: udpm, ttl = 0, inside the namespace
   StatusLog sim_status, haptic_status;

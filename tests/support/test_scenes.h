@@ -2,6 +2,8 @@
 /// @file
 /// Small scenes for tests, built directly (no file), so each test states its physics.
 
+#include <string>
+
 #include "sim_core/scene/scene_description.h"
 
 namespace costume::test {
@@ -30,5 +32,23 @@ inline sim::SceneDescription DrapeScene(int n, const sim::Material& material = {
   scene.spheres.push_back(sim::SphereObstacleSpec{});
   return scene;
 }
+
+/// Scene-file text (docs/scene_format.md) for the multi-process tests: a 1 m sheet of n×n
+/// particles built already hanging in the plane z = −0.5 from its two top corners, PCG at
+/// tolerance 1e-3, no strain limit; `material` is a `[[material]]` table named "cloth".
+inline std::string HangingSheetScene(int n, const std::string& material) {
+  return "name = \"hanging\"\nduration = 60.0\n"
+         "[solver]\nmethod = \"pcg\"\ntolerance = 1e-3\nstrain_limit = 0.0\n" +
+         material +
+         "[[garment]]\nname = \"sheet\"\nmaterial = \"cloth\"\n"
+         "pin_points = [[-0.5, 0, -0.5], [0.5, 0, -0.5]]\n"
+         "[garment.panel]\norigin = [-0.5, 0, -0.5]\nu_axis = [1, 0, 0]\n"
+         "v_axis = [0, -1, 0]\nsize = [1.0, 1.0]\nresolution = [" +
+         std::to_string(n) + ", " + std::to_string(n) + "]\n";
+}
+
+/// The `[[material]]` table of stiff cotton named "cloth", for HangingSheetScene.
+inline const std::string kStiffCottonCloth =
+    "[[material]]\nname = \"cloth\"\nbase = \"stiff_cotton\"\n";
 
 }  // namespace costume::test
