@@ -34,6 +34,7 @@ struct Run {
   int frames = 120;
   double strain_limit = 0.1;
   int levels = 0;
+  bool per_frame = false;
 };
 
 /// A peer's figure from docs/BENCHMARKS.md: ms per frame and max strain.
@@ -109,6 +110,7 @@ struct Measurement {
   SceneDescription scene;
   std::unique_ptr<Simulation> sim;
   std::vector<double> ms;
+  std::vector<int> frame_iterations;
   long iterations = 0, coarse_iterations = 0, unconverged = 0, rolled_back = 0;
   long strain_corrections = 0;
   double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
@@ -118,6 +120,7 @@ struct Measurement {
   void AdvanceFrame() {
     const auto report = sim->AdvanceFrame();
     ms.push_back(report.wall_ms);
+    frame_iterations.push_back(report.iterations);
     iterations += report.iterations;
     coarse_iterations += report.coarse_iterations;
     unconverged += report.converged ? 0 : 1;
@@ -151,6 +154,7 @@ struct Measurement {
                 {"max_strain", strain.max},
                 {"mean_strain", strain.mean},
                 {"nan", !x.allFinite()}};
+    if (run.per_frame) out["iterations_each_frame"] = frame_iterations;
     if (!scene.spheres.empty()) {
       out["min_sphere_distance"] = min_distance;
       out["sphere_radius"] = scene.spheres[0].radius;
@@ -221,6 +225,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 10.0))->capture_default_str();
   app.add_option("--frames", base.frames, "Frames per run (60 per second)")
       ->check(CLI::Range(1, 100000))->capture_default_str();
+  app.add_flag("--per-frame", base.per_frame,
+               "Also print each frame's level-0 iterations (iterations_each_frame)");
   CLI11_PARSE(app, argc, argv);
   try {
     for (const auto& scene : scenes) {

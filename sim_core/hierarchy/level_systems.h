@@ -11,8 +11,8 @@
 
 #include "sim_core/hierarchy/galerkin_operator.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
-#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/filtered_pcg.h"
+#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/spring_forces.h"
 #include "sim_core/solver/system_matrix.h"
 
@@ -63,6 +63,7 @@ class LevelSystems {
   /// Level l >= 1.
   LevelSystem& level(int l) { return *levels_[l]; }
   const QuincunxPyramid& pyramid() const { return *pyramid_; }
+  /// How the coarse matrices are made.
   CoarseOperator coarse_operator() const { return coarse_; }
 
  private:
