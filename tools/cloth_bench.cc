@@ -74,10 +74,13 @@ SceneDescription MakeScene(const Run& run) {
   garment.panel->cols = garment.panel->rows = run.n;
   garment.material = run.material;
   scene.solver.method = MethodNamed(run.solver);
-  // "multigrid_rediscretised": the V-cycle on the coarse models instead of Galerkin products.
-  if (run.solver == "multigrid_rediscretised") {
+  // "multigrid_galerkin" / "multigrid_rediscretised": the V-cycle's coarse operators named
+  // ("multigrid" takes the scene's, rediscretised by default).
+  if (run.solver == "multigrid_galerkin" || run.solver == "multigrid_rediscretised") {
     scene.solver.method = SolverMethod::kMultigrid;
-    scene.solver.coarse_operator = costume::sim::CoarseOperator::kRediscretised;
+    scene.solver.coarse_operator = run.solver == "multigrid_galerkin"
+                                       ? costume::sim::CoarseOperator::kGalerkin
+                                       : costume::sim::CoarseOperator::kRediscretised;
   }
   scene.solver.levels = run.levels;
   scene.solver.tolerance = run.tolerance;
@@ -210,8 +213,8 @@ int main(int argc, char** argv) {
   app.add_option("--n", sizes, "Lattice sizes N (N×N particles)")->check(CLI::Range(3, 1025))
       ->capture_default_str();
   app.add_option("--solver", solvers, "Solvers")
-      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "multigrid_rediscretised",
-                             "direct"}))
+      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "multigrid_galerkin",
+                             "multigrid_rediscretised", "direct"}))
       ->capture_default_str();
   app.add_option("--dt", base.dt, "Time step [s]; rounded to 1/60 s divided by an integer")
       ->check(CLI::Range(1e-5, 1.0 / 60.0))->capture_default_str();

@@ -3,7 +3,7 @@
 /// The implicit-step systems of the pyramid's coarse levels: rediscretised (each level's
 /// dynamic-equivalent model assembled at the restricted level-0 state: what the
 /// hierarchical step solves) or Galerkin products A_{l+1} = P_lᵀ A_l P_l of level 0's
-/// matrix (what the multigrid V-cycle uses by default; docs/pyramid.md).
+/// matrix (the multigrid V-cycle's alternative; docs/pyramid.md).
 
 #include <Eigen/Core>
 #include <memory>

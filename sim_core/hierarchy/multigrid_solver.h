@@ -4,8 +4,8 @@
 /// PCG, each iteration preconditioned by one V-cycle: damped block-Jacobi smoothing before
 /// and after, restriction Pᵀ to the next coarser level's dynamic-equivalent system,
 /// prolongation P back, CHOLMOD on the coarsest level. The coarse systems are Galerkin
-/// products PᵀAP of level 0's matrix (default) or the rediscretised dynamic-equivalent
-/// models. Same sweeps before and after and
+/// products PᵀAP of level 0's matrix or the rediscretised dynamic-equivalent models
+/// (default; docs/pyramid.md says why). Same sweeps before and after and
 /// R = Pᵀ make the V-cycle symmetric, as CG needs.
 
 #include <memory>
@@ -23,7 +23,7 @@ class MultigridSolver : public StepSolver, private PcgPreconditioner {
   /// picks the coarse levels' matrices (Galerkin products of level 0's or rediscretised).
   MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid, const PcgSettings& settings,
                   JacobianMode mode, const ExternalForces& external,
-                  CoarseOperator coarse = CoarseOperator::kGalerkin);
+                  CoarseOperator coarse = CoarseOperator::kRediscretised);
   ~MultigridSolver() override;
 
   SolveReport Solve(const ClothState& state, double h, const SystemMatrix& a,

@@ -32,7 +32,7 @@ struct StepperSettings {
   /// Pyramid levels for kHierarchical and kMultigrid, counting level 0; 0 = all.
   int levels = 0;
   /// The multigrid V-cycle's coarse matrices (kMultigrid only).
-  CoarseOperator coarse_operator = CoarseOperator::kGalerkin;
+  CoarseOperator coarse_operator = CoarseOperator::kRediscretised;
 };
 
 /// What happened in one step: the solve's report (iterations, residual, converged) plus

@@ -313,13 +313,13 @@ TEST(ParseSceneText, RefusesUnknownKeyListingAllowedOnes) {
                                 "substeps, strain_limit"));
 }
 
-TEST(ParseSceneText, ReadsTheMultigridCoarseOperatorGalerkinByDefault) {
+TEST(ParseSceneText, ReadsTheMultigridCoarseOperatorRediscretisedByDefault) {
   EXPECT_EQ(ParseSceneText(kMinimalScene, "test.toml", "").solver.coarse_operator,
-            sim::CoarseOperator::kGalerkin);
-  const std::string text = "[solver]\nmethod = \"multigrid\"\ncoarse_operator = \"rediscretised\"\n" +
+            sim::CoarseOperator::kRediscretised);
+  const std::string text = "[solver]\nmethod = \"multigrid\"\ncoarse_operator = \"galerkin\"\n" +
                            std::string(kMinimalScene);
   EXPECT_EQ(ParseSceneText(text, "test.toml", "").solver.coarse_operator,
-            sim::CoarseOperator::kRediscretised);
+            sim::CoarseOperator::kGalerkin);
   const std::string bad = "[solver]\ncoarse_operator = \"exact\"\n" + std::string(kMinimalScene);
   const std::string message = ErrorOf(bad);
   EXPECT_TRUE(Contains(message, "solver.coarse_operator"));
