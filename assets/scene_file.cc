@@ -398,7 +398,8 @@ void RefuseDuplicateName(std::map<std::string, toml::source_position>& seen, con
 
 sim::SolverSettings ParseSolver(const TableView& table) {
   table.RefuseUnknownKeys(
-      {"method", "tolerance", "max_iterations", "levels", "substeps", "strain_limit"});
+      {"method", "tolerance", "max_iterations", "levels", "coarse_operator", "substeps",
+       "strain_limit"});
   sim::SolverSettings solver;
   if (const std::optional<Field> method = table.Find("method")) {
     const std::string name =
@@ -411,6 +412,11 @@ sim::SolverSettings ParseSolver(const TableView& table) {
   solver.tolerance = NumberOr(table, "tolerance", solver.tolerance, kToleranceRange, "");
   solver.max_iterations = IntegerOr(table, "max_iterations", solver.max_iterations, 1, 100000);
   solver.levels = IntegerOr(table, "levels", solver.levels, 0, 16);
+  if (const std::optional<Field> coarse = table.Find("coarse_operator")) {
+    solver.coarse_operator = ReadChoice(*coarse, {"galerkin", "rediscretised"}) == "galerkin"
+                                 ? sim::CoarseOperator::kGalerkin
+                                 : sim::CoarseOperator::kRediscretised;
+  }
   solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, 1000);
   solver.strain_limit =
       NumberOr(table, "strain_limit", solver.strain_limit, kStrainLimitRange, "");

@@ -17,7 +17,7 @@ SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const S
   SolveReport report;
   const int top = levels_.num_levels() - 1;
   if (top == 0) dv.setZero();  // one level: the flat solve from zero, as the paper's top
-  levels_.Assemble(state, h, constraints);
+  levels_.Assemble(state, h, a, constraints);
   // Figure 5: the top level from zero, each result filtered into the next level's guess.
   for (int l = top; l >= 1; --l) {
     LevelSystem& level = levels_.level(l);

@@ -1,11 +1,13 @@
 #include "sim_core/hierarchy/level_systems.h"
 
+#include <utility>
+
 #include "sim_core/solver/implicit_system.h"
 
 namespace costume::sim {
 
-LevelSystem::LevelSystem(const ClothModel& model)
-    : a(model),
+LevelSystem::LevelSystem(const ClothModel& model, SystemMatrix matrix)
+    : a(std::move(matrix)),
       b(Eigen::VectorXd::Zero(3 * model.num_particles())),
       constraints(model.num_particles()),
       state(ClothState::AtRest(model)),
@@ -16,21 +18,33 @@ LevelSystem::LevelSystem(const ClothModel& model)
       t(Eigen::VectorXd::Zero(3 * model.num_particles())) {}
 
 LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
-                           const ExternalForces& external)
-    : pyramid_(std::move(pyramid)), mode_(mode), external_(external) {
+                           const ExternalForces& external, CoarseOperator coarse)
+    : pyramid_(std::move(pyramid)), mode_(mode), external_(external), coarse_(coarse) {
   levels_.resize(pyramid_->num_levels());
+  const SystemMatrix level0_pattern(*pyramid_->level(0).model);
   for (int l = 1; l < pyramid_->num_levels(); ++l) {
-    levels_[l] = std::make_unique<LevelSystem>(*pyramid_->level(l).model);
+    const ClothModel& model = *pyramid_->level(l).model;
+    if (coarse_ == CoarseOperator::kGalerkin) {
+      const SystemMatrix& finer = l == 1 ? level0_pattern : levels_[l - 1]->a;
+      galerkin_.emplace_back(finer, pyramid_->level(l), model.num_particles());
+      levels_[l] = std::make_unique<LevelSystem>(model, galerkin_.back().MakeCoarseMatrix());
+    } else {
+      levels_[l] = std::make_unique<LevelSystem>(model, SystemMatrix(model));
+    }
   }
 }
 
-void LevelSystems::Assemble(const ClothState& level0, double h,
+void LevelSystems::Assemble(const ClothState& level0, double h, const SystemMatrix& level0_a,
                             const Constraints& level0_constraints) {
   for (int l = 1; l < num_levels(); ++l) {
     LevelSystem& system = *levels_[l];
-    const ClothModel& model = *pyramid_->level(l).model;
-    pyramid_->RestrictState(l, level0, system.state);
-    AssembleImplicitSystem(model, system.state, h, mode_, external_, system.a, system.b);
+    if (coarse_ == CoarseOperator::kGalerkin) {
+      galerkin_[l - 1].Compute(l == 1 ? level0_a : levels_[l - 1]->a, system.a);
+    } else {
+      const ClothModel& model = *pyramid_->level(l).model;
+      pyramid_->RestrictState(l, level0, system.state);
+      AssembleImplicitSystem(model, system.state, h, mode_, external_, system.a, system.b);
+    }
     pyramid_->RestrictConstraints(l, level0_constraints, system.constraints);
     system.jacobi.Update(system.a, system.constraints);
   }

@@ -1,15 +1,18 @@
 #pragma once
 /// @file
-/// The implicit-step systems of the pyramid's coarse levels, assembled from the restricted
-/// level-0 state: what the hierarchical step solves and what the multigrid V-cycle uses as
-/// coarse-grid operators.
+/// The implicit-step systems of the pyramid's coarse levels: rediscretised (each level's
+/// dynamic-equivalent model assembled at the restricted level-0 state: what the
+/// hierarchical step solves) or Galerkin products A_{l+1} = P_lᵀ A_l P_l of level 0's
+/// matrix (the multigrid V-cycle's alternative; docs/pyramid.md).
 
 #include <Eigen/Core>
 #include <memory>
 #include <vector>
 
+#include "sim_core/hierarchy/galerkin_operator.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
 #include "sim_core/solver/filtered_pcg.h"
+#include "sim_core/solver/solver_method.h"
 #include "sim_core/solver/spring_forces.h"
 #include "sim_core/solver/system_matrix.h"
 
@@ -17,7 +20,8 @@ namespace costume::sim {
 
 /// One level's system and scratch vectors (all 3·n_l long).
 struct LevelSystem {
-  explicit LevelSystem(const ClothModel& model);
+  /// Matrix `matrix` over model's particles (the model's springs or a Galerkin pattern).
+  LevelSystem(const ClothModel& model, SystemMatrix matrix);
   SystemMatrix a;
   Eigen::VectorXd b;
   Constraints constraints;
@@ -41,24 +45,34 @@ struct FineWorkspace {
 
 class LevelSystems {
  public:
-  /// Allocates the systems of levels 1 .. pyramid.num_levels() − 1.
+  /// Allocates the systems of levels 1 .. pyramid.num_levels() − 1; for kGalerkin also the
+  /// products' patterns, level 0's being that of its model's springs.
   LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
-               const ExternalForces& external);
+               const ExternalForces& external,
+               CoarseOperator coarse = CoarseOperator::kRediscretised);
 
-  /// Assembles every coarse level at the restriction of `level0` for step h [s], with the
-  /// level-0 constraints restricted (pins and contacts of kept particles). Never allocates.
-  void Assemble(const ClothState& level0, double h, const Constraints& level0_constraints);
+  /// Sets every coarse level's matrix for step h [s] at level 0's state and matrix
+  /// `level0_a` (rediscretised: each coarse model assembled at the restriction of `level0`,
+  /// with its right-hand side; Galerkin: P_lᵀ A_l P_l level by level, right-hand sides left
+  /// alone), and restricts the level-0 constraints (pins and contacts of kept particles).
+  /// Never allocates.
+  void Assemble(const ClothState& level0, double h, const SystemMatrix& level0_a,
+                const Constraints& level0_constraints);
 
   int num_levels() const { return pyramid_->num_levels(); }
   /// Level l >= 1.
   LevelSystem& level(int l) { return *levels_[l]; }
   const QuincunxPyramid& pyramid() const { return *pyramid_; }
+  /// How the coarse matrices are made.
+  CoarseOperator coarse_operator() const { return coarse_; }
 
  private:
   std::shared_ptr<const QuincunxPyramid> pyramid_;
   JacobianMode mode_;
   ExternalForces external_;
+  CoarseOperator coarse_;
   std::vector<std::unique_ptr<LevelSystem>> levels_;  // [0] unused: level 0 is the stepper's
+  std::vector<GalerkinOperator> galerkin_;            // [l − 1] makes level l (kGalerkin)
 };
 
 /// ω = 2/3: the classic damping that makes Jacobi a smoother for Laplacian-like operators.

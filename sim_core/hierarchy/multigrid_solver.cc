@@ -4,9 +4,9 @@ namespace costume::sim {
 
 MultigridSolver::MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid,
                                  const PcgSettings& settings, JacobianMode mode,
-                                 const ExternalForces& external)
+                                 const ExternalForces& external, CoarseOperator coarse)
     : settings_(settings),
-      levels_(pyramid, mode, external),
+      levels_(pyramid, mode, external, coarse),
       fine_(pyramid->level(0).model->num_particles()) {
   if (pyramid->num_levels() > 1) {
     coarsest_ = std::make_unique<DirectSolver>(levels_.level(pyramid->num_levels() - 1).a);
@@ -18,18 +18,25 @@ MultigridSolver::~MultigridSolver() = default;
 SolveReport MultigridSolver::Solve(const ClothState& state, double h, const SystemMatrix& a,
                                    const Eigen::VectorXd& b, const Constraints& constraints,
                                    Eigen::VectorXd& dv) {
-  levels_.Assemble(state, h, constraints);
   SolveReport report;
-  if (coarsest_) {
-    LevelSystem& top = levels_.level(levels_.num_levels() - 1);
-    report.solved = coarsest_->Factorize(top.a, top.constraints);
-  }
-  Update(a, constraints);
+  report.solved = Prepare(state, h, a, constraints);
   const PcgReport pcg = fine_.pcg.Solve(a, b, constraints, settings_, *this, dv);
   report.iterations = pcg.iterations;
   report.relative_residual = pcg.relative_residual;
   report.converged = pcg.converged && report.solved;
   return report;
+}
+
+bool MultigridSolver::Prepare(const ClothState& state, double h, const SystemMatrix& a,
+                              const Constraints& constraints) {
+  levels_.Assemble(state, h, a, constraints);
+  bool factorized = true;
+  if (coarsest_) {
+    LevelSystem& top = levels_.level(levels_.num_levels() - 1);
+    factorized = coarsest_->Factorize(top.a, top.constraints);
+  }
+  Update(a, constraints);
+  return factorized;
 }
 
 void MultigridSolver::Update(const SystemMatrix& a, const Constraints& constraints) {

@@ -3,7 +3,9 @@
 /// Beyond the paper: the quincunx pyramid as a multigrid preconditioner. Level-0 filtered
 /// PCG, each iteration preconditioned by one V-cycle: damped block-Jacobi smoothing before
 /// and after, restriction Pᵀ to the next coarser level's dynamic-equivalent system,
-/// prolongation P back, CHOLMOD on the coarsest level. Same sweeps before and after and
+/// prolongation P back, CHOLMOD on the coarsest level. The coarse systems are Galerkin
+/// products PᵀAP of level 0's matrix or the rediscretised dynamic-equivalent models
+/// (default; docs/pyramid.md says why). Same sweeps before and after and
 /// R = Pᵀ make the V-cycle symmetric, as CG needs.
 
 #include <memory>
@@ -17,14 +19,28 @@ namespace costume::sim {
 
 class MultigridSolver : public StepSolver, private PcgPreconditioner {
  public:
-  /// `pyramid` must have at least one level; with only level 0 this is flat PCG.
+  /// `pyramid` must have at least one level; with only level 0 this is flat PCG. `coarse`
+  /// picks the coarse levels' matrices (Galerkin products of level 0's or rediscretised).
   MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid, const PcgSettings& settings,
-                  JacobianMode mode, const ExternalForces& external);
+                  JacobianMode mode, const ExternalForces& external,
+                  CoarseOperator coarse = CoarseOperator::kRediscretised);
   ~MultigridSolver() override;
 
   SolveReport Solve(const ClothState& state, double h, const SystemMatrix& a,
                     const Eigen::VectorXd& b, const Constraints& constraints,
                     Eigen::VectorXd& dv) override;
+
+  /// Sets up the V-cycle for level-0 matrix `a` (kept by reference until the next call) at
+  /// `state` for step h [s] under `constraints`: coarse matrices, restricted constraints,
+  /// smoothers, the coarsest factorisation. False when that factorisation failed. Never
+  /// allocates after the first call (CHOLMOD's workspace).
+  bool Prepare(const ClothState& state, double h, const SystemMatrix& a,
+               const Constraints& constraints);
+  /// z = M⁻¹ r by one V-cycle (3n vectors, r filtered): the preconditioner PCG applies,
+  /// public so its symmetry can be checked. Prepare first. Never allocates.
+  void ApplyCycle(const Eigen::VectorXd& r, Eigen::VectorXd& z) { Apply(r, z); }
+  /// The coarse levels' systems (level l >= 1), for tests and diagnostics.
+  LevelSystems& levels() { return levels_; }
 
   /// Damped block-Jacobi sweeps before and after the coarse correction, and their damping.
   static constexpr int kSweeps = 1;

@@ -22,7 +22,8 @@ std::unique_ptr<StepSolver> MakeStepSolver(const ClothModel& model, const Steppe
                                                   settings.jacobian, settings.external);
     case SolverMethod::kMultigrid:
       return std::make_unique<MultigridSolver>(std::move(pyramid), settings.pcg,
-                                               settings.jacobian, settings.external);
+                                               settings.jacobian, settings.external,
+                                               settings.coarse_operator);
     case SolverMethod::kDirect:
       return std::make_unique<DirectStepSolver>(model);
     case SolverMethod::kPcg:

@@ -30,6 +30,9 @@ struct SolverSettings {
   /// Pyramid levels the hierarchical and multigrid solvers use, counting level 0; 0 means
   /// as many as the lattice allows. 1 is the flat solver.
   int levels = 0;
+  /// The multigrid solver's coarse-level matrices: Galerkin products PᵀAP of level 0's
+  /// matrix or the coarse models rediscretised at the restricted state.
+  CoarseOperator coarse_operator = CoarseOperator::kRediscretised;
   /// Implicit steps per frame, >= 1; the step is 1/(frame_rate·substeps).
   int substeps = 1;
   /// Largest strain structural and shear springs keep after a step [-], in [0, 10]; 0

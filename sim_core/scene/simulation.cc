@@ -175,6 +175,7 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene) {
   settings.external.gravity = scene.gravity;
   settings.external.air_drag = scene.effects.air_drag;
   settings.levels = scene.solver.levels;
+  settings.coarse_operator = scene.solver.coarse_operator;
   return settings;
 }
 

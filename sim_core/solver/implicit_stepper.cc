@@ -18,6 +18,10 @@ const char* SolverMethodName(SolverMethod method) {
   return "unknown";
 }
 
+const char* CoarseOperatorName(CoarseOperator coarse) {
+  return coarse == CoarseOperator::kGalerkin ? "galerkin" : "rediscretised";
+}
+
 void RequireStableStep(const ClothModel& model, double h, const std::string& context) {
   double k_max = 0.0;
   for (const Spring& s : model.springs()) k_max = std::max(k_max, s.stiffness);

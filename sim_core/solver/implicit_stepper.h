@@ -31,6 +31,8 @@ struct StepperSettings {
   bool warm_start = true;
   /// Pyramid levels for kHierarchical and kMultigrid, counting level 0; 0 = all.
   int levels = 0;
+  /// The multigrid V-cycle's coarse matrices (kMultigrid only).
+  CoarseOperator coarse_operator = CoarseOperator::kRediscretised;
 };
 
 /// What happened in one step: the solve's report (iterations, residual, converged) plus

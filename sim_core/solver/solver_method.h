@@ -21,4 +21,18 @@ enum class SolverMethod {
 /// "pcg", "hierarchical", "multigrid" or "direct".
 const char* SolverMethodName(SolverMethod method);
 
+/// How the multigrid V-cycle gets its coarse-level matrices (docs/pyramid.md).
+enum class CoarseOperator {
+  /// A_{l+1} = P_lᵀ A_l P_l from level 0's matrix: consistent with it by construction,
+  /// whatever the tension (half the iterations on the hanging sheet under load).
+  kGalerkin,
+  /// Each coarse level's own dynamic-equivalent model assembled at the restricted state
+  /// (what the hierarchical step always solves; the default: at the loose default
+  /// tolerance the Galerkin cycle left the kicked skirt far more strained).
+  kRediscretised,
+};
+
+/// "galerkin" or "rediscretised".
+const char* CoarseOperatorName(CoarseOperator coarse);
+
 }  // namespace costume::sim

@@ -1,6 +1,7 @@
 #include "sim_core/solver/system_matrix.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace costume::sim {
 
@@ -11,6 +12,12 @@ SystemMatrix::SystemMatrix(const ClothModel& model)
   spring_ends_.reserve(model.springs().size());
   for (const Spring& s : model.springs()) spring_ends_.emplace_back(s.a, s.b);
 }
+
+SystemMatrix::SystemMatrix(int num_particles, std::vector<std::pair<int, int>> pairs)
+    : num_particles_(num_particles),
+      diagonal_(9 * static_cast<std::size_t>(num_particles), 0.0),
+      coupling_(6 * pairs.size(), 0.0),
+      spring_ends_(std::move(pairs)) {}
 
 void SystemMatrix::SetZero() {
   std::fill(diagonal_.begin(), diagonal_.end(), 0.0);

@@ -22,6 +22,11 @@ class SystemMatrix {
  public:
   /// Takes the spring ends of `model`. Allocates; call once per model revision.
   explicit SystemMatrix(const ClothModel& model);
+  /// A matrix over `num_particles` particles coupling the given pairs (a, b), a != b, each
+  /// pair at most once: any symmetric block-sparse matrix fits, a pair's coupling block
+  /// being minus its off-diagonal block (the multigrid's Galerkin coarse operators).
+  /// Allocates.
+  SystemMatrix(int num_particles, std::vector<std::pair<int, int>> pairs);
 
   /// Zeroes all values. Never allocates.
   void SetZero();
@@ -42,6 +47,13 @@ class SystemMatrix {
   int num_springs() const { return static_cast<int>(spring_ends_.size()); }
   /// Particles (a, b) of spring s.
   const std::pair<int, int>& spring_ends(int spring) const { return spring_ends_[spring]; }
+
+  /// The stored values, for products that write them in place: 9 per diagonal block
+  /// (row-major, full, springs included) and 6 per coupling block (xx, xy, xz, yy, yz, zz).
+  double* diagonal_values() { return diagonal_.data(); }
+  const double* diagonal_values() const { return diagonal_.data(); }
+  double* coupling_values() { return coupling_.data(); }
+  const double* coupling_values() const { return coupling_.data(); }
 
  private:
   int num_particles_;

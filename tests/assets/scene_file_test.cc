@@ -309,7 +309,22 @@ TEST(ParseSceneText, RefusesUnknownKeyListingAllowedOnes) {
   const std::string message = ErrorOf(text);
   EXPECT_TRUE(Contains(message, "test.toml:3:1: solver.tolerence = 0.5"));
   EXPECT_TRUE(Contains(message, "unknown key"));
-  EXPECT_TRUE(Contains(message, "method, tolerance, max_iterations, levels, substeps, strain_limit"));
+  EXPECT_TRUE(Contains(message, "method, tolerance, max_iterations, levels, coarse_operator, "
+                                "substeps, strain_limit"));
+}
+
+TEST(ParseSceneText, ReadsTheMultigridCoarseOperatorRediscretisedByDefault) {
+  EXPECT_EQ(ParseSceneText(kMinimalScene, "test.toml", "").solver.coarse_operator,
+            sim::CoarseOperator::kRediscretised);
+  const std::string text = "[solver]\nmethod = \"multigrid\"\ncoarse_operator = \"galerkin\"\n" +
+                           std::string(kMinimalScene);
+  EXPECT_EQ(ParseSceneText(text, "test.toml", "").solver.coarse_operator,
+            sim::CoarseOperator::kGalerkin);
+  const std::string bad = "[solver]\ncoarse_operator = \"exact\"\n" + std::string(kMinimalScene);
+  const std::string message = ErrorOf(bad);
+  EXPECT_TRUE(Contains(message, "solver.coarse_operator"));
+  EXPECT_TRUE(Contains(message, "galerkin"));
+  EXPECT_TRUE(Contains(message, "rediscretised"));
 }
 
 TEST(ParseSceneText, RefusesAMisspelledTableListingAllowedKeys) {
