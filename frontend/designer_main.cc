@@ -10,6 +10,8 @@
 #include <csignal>
 #include <cstdio>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "bus/lcm_bus.h"
 #include "frontend/main_window.h"
@@ -36,6 +38,20 @@ struct Arguments {
   std::string screenshot;
   double quit_after = 0.0;
 };
+
+/// The first of the arguments CLI11 left over that Qt would not take either: anything with two
+/// dashes (a mistyped option of ours) or a bare word not following a one-dash Qt option
+/// (-platform offscreen); "" when there is none. Qt ignores what it does not know, so without
+/// this check a typo would be dropped silently.
+std::string RefusedExtra(const std::vector<std::string>& extras) {
+  bool value_allowed = false;
+  for (const std::string& extra : extras) {
+    const bool one_dash = extra.size() > 1 && extra[0] == '-' && extra[1] != '-';
+    if (extra.rfind("--", 0) == 0 || (!one_dash && !value_allowed)) return extra;
+    value_allowed = one_dash;
+  }
+  return "";
+}
 
 int Run(QApplication& app, const Arguments& args) {
   using namespace costume;
@@ -121,6 +137,11 @@ int main(int argc, char** argv) {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
     return cli.exit(error);  // --help works without a display: no QApplication yet
+  }
+  if (const std::string refused = RefusedExtra(cli.remaining()); !refused.empty()) {
+    std::fprintf(stderr, "costume_designer: unknown option or argument '%s' (see --help; Qt's "
+                 "own options take one dash, e.g. -platform offscreen)\n", refused.c_str());
+    return 2;
   }
   QApplication app(argc, argv);
   try {
