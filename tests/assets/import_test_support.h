@@ -16,13 +16,14 @@
 
 #include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/skeleton.h"
+#include "tests/support/shared_data.h"
 
 namespace costume::assets::testing {
 
 namespace fs = std::filesystem;
 
-/// The shared test data folder (tests run from the repository root).
-inline const fs::path kData = "../shared/data";
+/// The shared test data folder.
+inline const fs::path& kData = ::costume::test::kSharedData;
 
 inline bool HaveData(const fs::path& relative) { return fs::exists(kData / relative); }
 

@@ -20,6 +20,7 @@
 #include "catalog/fabric_presets.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/scene/simulation.h"
+#include "tests/support/shared_data.h"
 #include "tests/support/test_scenes.h"
 
 namespace costume::catalog {
@@ -27,7 +28,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kSharedData = "../shared/data";
+using ::costume::test::kSharedData;
 
 class ImportTest : public testing::Test {
  protected:

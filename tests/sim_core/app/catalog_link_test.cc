@@ -22,6 +22,7 @@
 #include "sim_core/app/sim_server.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
+#include "tests/support/shared_data.h"
 #include "tests/support/test_scenes.h"
 
 namespace costume::sim_app {
@@ -32,7 +33,7 @@ using costume_lcm::command;
 using catalog::Kind;
 
 /// CesiumMan (a glTF avatar with its own skeleton), from the shared data folder.
-const fs::path kCesiumMan = "/work/shared/data/khronos-cesiumman/CesiumMan.glb";
+const fs::path kCesiumMan = ::costume::test::kSharedData / "khronos-cesiumman/CesiumMan.glb";
 
 /// The built-in humanoid walking in a coarse skirt (pattern "skirt", as the default scene's
 /// garment, so it maps onto the seeded entry "skirt").
