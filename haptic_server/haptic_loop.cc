@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sim_core/common/input_error.h"
+#include "sim_core/common/percentile.h"
 
 namespace costume::haptics {
 
@@ -72,8 +73,7 @@ RealtimeStatus TryRealtimePriority(int priority) {
 }
 
 std::int64_t NearestRankPercentile(const std::int64_t* sorted, std::int64_t n, double q) {
-  const auto rank = static_cast<std::int64_t>(std::ceil(q * static_cast<double>(n)));
-  return sorted[std::clamp<std::int64_t>(rank - 1, 0, n - 1)];
+  return sim::NearestRankPercentile(sorted, n, q);
 }
 
 PeriodStatistics ComputePeriodStatistics(const std::int64_t* periods, std::int64_t n,

@@ -13,6 +13,7 @@
 #include "bus/channels.h"
 #include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/common/percentile.h"
 
 namespace costume::sim_app {
 
@@ -103,14 +104,13 @@ PeriodFigures ComputePeriodFigures(std::vector<std::int64_t>& periods) {
   PeriodFigures figures;
   if (periods.empty()) return figures;
   std::sort(periods.begin(), periods.end());
-  const auto n = static_cast<double>(periods.size());
-  auto rank = [&](double q) {  // nearest rank: element ceil(q·n) − 1
-    const auto k = static_cast<std::size_t>(std::max(1.0, std::ceil(q * n))) - 1;
-    return 1e-3 * static_cast<double>(periods[std::min(k, periods.size() - 1)]);
+  const auto n = static_cast<std::int64_t>(periods.size());
+  auto us = [&](double q) {
+    return 1e-3 * static_cast<double>(sim::NearestRankPercentile(periods.data(), n, q));
   };
-  figures.p50_us = rank(0.50);
-  figures.p99_us = rank(0.99);
-  figures.p999_us = rank(0.999);
+  figures.p50_us = us(0.50);
+  figures.p99_us = us(0.99);
+  figures.p999_us = us(0.999);
   figures.max_us = 1e-3 * static_cast<double>(periods.back());
   return figures;
 }
