@@ -9,13 +9,17 @@ unshare -n --pid --fork --mount-proc true 2>/dev/null || { echo "no namespaces: 
 exec unshare -n --pid --fork --mount-proc sh -c '
   ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 1
   designer=$0
+  # A scratch folder: the log, and a catalogue of its own (not the user'"'"'s).
+  scratch=$(mktemp -d) || exit 1
+  trap "rm -rf $scratch" EXIT
+  export COSTUME_CATALOG="sqlite:$scratch/catalog.sqlite"
   servers() { ps -eo comm | grep -c "^costume_\(sim_ser\|haptic_\)"; }
   for signal in TERM KILL; do
     QT_QPA_PLATFORM=xcb xvfb-run -a -s "-screen 0 1280x800x24" "$designer" --device mouse \
-        > /tmp/designer_children.log 2>&1 &
+        > $scratch/designer.log 2>&1 &
     n=0
     while [ "$(servers)" -lt 2 ] && [ $n -lt 300 ]; do sleep 0.1; n=$((n + 1)); done
-    [ "$(servers)" -eq 2 ] || { echo "FAIL: the servers did not start"; cat /tmp/designer_children.log; exit 1; }
+    [ "$(servers)" -eq 2 ] || { echo "FAIL: the servers did not start"; cat $scratch/designer.log; exit 1; }
     sleep 2
     gui=$(ps -eo pid,comm | awk "\$2 ~ /^costume_design/ {print \$1}")
     echo "SIG$signal to the GUI ($gui), its servers running: $(servers)"
