@@ -11,6 +11,8 @@
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <time.h>
 #include <vector>
 
 #include "assets/scene_file.h"
@@ -26,7 +28,9 @@ using costume::sim::SolverMethod;
 using nlohmann::json;
 
 struct Run {
-  std::string scene, material, solver;
+  /// `solver` is the method's name (or multigrid_galerkin / multigrid_rediscretised); `label`
+  /// the whole --solver spec as given, naming the run in the output.
+  std::string scene, material, solver, label;
   int n = 33;
   double dt = 1.0 / 60.0;
   double tolerance = 1e-2;
@@ -68,6 +72,48 @@ SolverMethod MethodNamed(const std::string& name) {
   return SolverMethod::kPcg;
 }
 
+/// Steps per 1/60 s frame for a step of dt [s].
+int SubstepsOf(double dt) { return std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * dt)))); }
+
+constexpr const char* kSolverNames[] = {"pcg", "hierarchical", "multigrid", "multigrid_galerkin",
+                                        "multigrid_rediscretised", "direct"};
+
+/// Applies a --solver spec "NAME[,tol=T][,levels=L][,substeps=S]" to `run` (whose other
+/// settings are the command line's). Throws InputError naming the spec and the allowed values.
+void ApplySolverSpec(const std::string& spec, Run& run) {
+  run.label = spec;
+  std::stringstream parts(spec);
+  std::string part;
+  std::getline(parts, part, ',');
+  if (std::find(std::begin(kSolverNames), std::end(kSolverNames), part) == std::end(kSolverNames)) {
+    throw costume::sim::InputError("--solver '" + spec + "': unknown solver '" + part +
+                                   "' (allowed: pcg, hierarchical, multigrid, "
+                                   "multigrid_galerkin, multigrid_rediscretised, direct)");
+  }
+  run.solver = part;
+  while (std::getline(parts, part, ',')) {
+    const auto equals = part.find('=');
+    const std::string key = part.substr(0, equals);
+    const std::string text = equals == std::string::npos ? "" : part.substr(equals + 1);
+    char* end = nullptr;
+    const double value = std::strtod(text.c_str(), &end);
+    const bool is_number = !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
+    if (key == "tol" && is_number && value >= 1e-14 && value <= 0.999) {
+      run.tolerance = value;
+    } else if (key == "levels" && is_number && value == std::floor(value) && value >= 0 &&
+               value <= 16) {
+      run.levels = static_cast<int>(value);
+    } else if (key == "substeps" && is_number && value == std::floor(value) && value >= 1 &&
+               value <= 256) {
+      run.dt = 1.0 / (60.0 * value);
+    } else {
+      throw costume::sim::InputError(
+          "--solver '" + spec + "': bad setting '" + part +
+          "' (allowed: tol=1e-14..0.999, levels=0..16 (0 = all), substeps=1..256)");
+    }
+  }
+}
+
 SceneDescription MakeScene(const Run& run) {
   SceneDescription scene = costume::assets::LoadBuiltInScene(run.scene);
   auto& garment = scene.garments.at(0);
@@ -86,7 +132,7 @@ SceneDescription MakeScene(const Run& run) {
   scene.solver.tolerance = run.tolerance;
   scene.solver.max_iterations = run.max_iterations;
   scene.solver.strain_limit = run.strain_limit;
-  scene.solver.substeps = std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * run.dt))));
+  scene.solver.substeps = SubstepsOf(run.dt);
   scene.frame_rate = 60.0;
   scene.duration = run.frames / 60.0;
   return scene;
@@ -102,6 +148,15 @@ double MinSphereDistance(const Simulation& sim) {
   return best;
 }
 
+/// CPU time of this thread [ms]: unlike wall time, it does not count the time other
+/// processes held the core, so a busy shared machine inflates it much less (it still feels
+/// their use of the shared caches and memory).
+double ThreadCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
+
 double Median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
   return v[v.size() / 2];
@@ -112,7 +167,7 @@ struct Measurement {
   Run run;
   SceneDescription scene;
   std::unique_ptr<Simulation> sim;
-  std::vector<double> ms;
+  std::vector<double> ms, cpu_ms;
   std::vector<int> frame_iterations;
   long iterations = 0, coarse_iterations = 0, unconverged = 0, rolled_back = 0;
   long strain_corrections = 0;
@@ -121,7 +176,9 @@ struct Measurement {
   explicit Measurement(const Run& r) : run(r), scene(MakeScene(r)), sim(Simulation::Build(scene)) {}
 
   void AdvanceFrame() {
+    const double cpu_start = ThreadCpuMs();
     const auto report = sim->AdvanceFrame();
+    cpu_ms.push_back(ThreadCpuMs() - cpu_start);
     ms.push_back(report.wall_ms);
     frame_iterations.push_back(report.iterations);
     iterations += report.iterations;
@@ -140,7 +197,7 @@ struct Measurement {
     json out = {{"scene", run.scene},
                 {"material", run.material},
                 {"n", run.n},
-                {"solver", run.solver},
+                {"solver", run.label},
                 {"dt", sim->step()},
                 {"substeps", scene.solver.substeps},
                 {"levels", sim->pyramid() ? sim->pyramid()->num_levels() : 1},
@@ -149,6 +206,7 @@ struct Measurement {
                 {"frames", run.frames},
                 {"ms_per_frame_median", Median(ms)},
                 {"ms_per_frame_max", *std::max_element(ms.begin(), ms.end())},
+                {"cpu_ms_per_frame_median", Median(cpu_ms)},
                 {"iterations_per_frame", static_cast<double>(iterations) / frames},
                 {"coarse_iterations_per_frame", static_cast<double>(coarse_iterations) / frames},
                 {"frames_unconverged", unconverged},
@@ -188,10 +246,15 @@ void MeasureSideBySide(const std::vector<Run>& runs) {
   for (const auto& m : measurements) {
     json out = m->Report();
     if (m.get() != &first) {
-      std::vector<double> ratios;
-      for (std::size_t f = 0; f < m->ms.size(); ++f) ratios.push_back(first.ms[f] / m->ms[f]);
-      out["speedup_vs_" + first.run.solver + "_median_ratio"] = Median(ratios);
-      out["speedup_vs_" + first.run.solver + "_ratio_of_medians"] = Median(first.ms) / Median(m->ms);
+      std::vector<double> ratios, cpu_ratios;
+      for (std::size_t f = 0; f < m->ms.size(); ++f) {
+        ratios.push_back(first.ms[f] / m->ms[f]);
+        cpu_ratios.push_back(first.cpu_ms[f] / m->cpu_ms[f]);
+      }
+      const std::string versus = "speedup_vs_" + first.run.label;
+      out[versus + "_median_ratio"] = Median(ratios);
+      out[versus + "_ratio_of_medians"] = Median(first.ms) / Median(m->ms);
+      out[versus + "_cpu_median_ratio"] = Median(cpu_ratios);
     }
     std::cout << out.dump() << std::endl;
   }
@@ -212,9 +275,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"stiff_cotton", "blender_cotton"}))->capture_default_str();
   app.add_option("--n", sizes, "Lattice sizes N (N×N particles)")->check(CLI::Range(3, 1025))
       ->capture_default_str();
-  app.add_option("--solver", solvers, "Solvers")
-      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "multigrid_galerkin",
-                             "multigrid_rediscretised", "direct"}))
+  app.add_option("--solver", solvers,
+                 "Solvers, each NAME[,tol=T][,levels=L][,substeps=S] (NAME: pcg, hierarchical, "
+                 "multigrid, multigrid_galerkin, multigrid_rediscretised, direct); the settings "
+                 "override --tolerance, --levels and --dt for that solver, e.g. "
+                 "--solver pcg,tol=1e-4 hierarchical,tol=0.5")
       ->capture_default_str();
   app.add_option("--dt", base.dt, "Time step [s]; rounded to 1/60 s divided by an integer")
       ->check(CLI::Range(1e-5, 1.0 / 60.0))->capture_default_str();
@@ -241,7 +306,7 @@ int main(int argc, char** argv) {
             run.scene = scene;
             run.material = material;
             run.n = n;
-            run.solver = solver;
+            ApplySolverSpec(solver, run);
             runs.push_back(run);
           }
           MeasureSideBySide(runs);

@@ -14,12 +14,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <ostream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +57,10 @@ struct Options {
   std::vector<double> tolerances{1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8};
   std::vector<double> hierarchical_tolerances{1e-2};
   std::vector<std::string> solvers{"pcg", "hierarchical", "multigrid", "direct"};
+  /// Pyramid levels the hierarchical solver is swept over; empty = 1 .. the most allowed.
+  std::vector<int> hierarchical_levels;
+  /// Keep the CHOLMOD runs (reference and same-step) in <out>/converged_cache and reuse them.
+  bool use_cache = true;
   int max_iterations = 10000;
   double strain_limit = 0.1;
   std::string out = "out/speed_accuracy";
@@ -70,6 +76,8 @@ struct Config {
   /// (multigrid); -1 = not applicable (pcg, direct).
   int levels = -1;
   int substeps = 1;
+  /// The V-cycle's coarse operators (multigrid only).
+  costume::sim::CoarseOperator coarse = costume::sim::CoarseOperator::kRediscretised;
 };
 
 /// RMS and max over particles of |x − x_ref| [m]; kMissing when not measured.
@@ -152,9 +160,19 @@ std::string SettingText(const Config& config) {
   return text;
 }
 
+/// The solver as named on the command line: "multigrid_galerkin" for the V-cycle on Galerkin
+/// coarse operators, otherwise the method's name.
+std::string SolverLabel(const Config& config) {
+  if (config.method == SolverMethod::kMultigrid &&
+      config.coarse == costume::sim::CoarseOperator::kGalerkin) {
+    return "multigrid_galerkin";
+  }
+  return SolverMethodName(config.method);
+}
+
 /// "pcg tol=1e-3 substeps=2", for progress lines and tables.
 std::string Describe(const Config& config) {
-  std::string text = SolverMethodName(config.method);
+  std::string text = SolverLabel(config);
   const std::string setting = SettingText(config);
   if (!setting.empty()) text += " " + setting;
   return text + Format(" substeps=%d", config.substeps);
@@ -169,12 +187,27 @@ std::vector<int> CheckpointFrames(int frames) {
 /// A checkpoint's time as written in column names and tables [s], e.g. "0.5", "2".
 std::string CheckpointTime(int frame) { return Format("%.3g", frame / kFrameRate); }
 
-/// The solver named on the command line ("pcg", "hierarchical", "multigrid", "direct").
+/// The solver named on the command line ("pcg", "hierarchical", "multigrid",
+/// "multigrid_galerkin", "direct").
 SolverMethod ParseSolver(const std::string& name) {
   if (name == "hierarchical") return SolverMethod::kHierarchical;
-  if (name == "multigrid") return SolverMethod::kMultigrid;
+  if (name == "multigrid" || name == "multigrid_galerkin") return SolverMethod::kMultigrid;
   if (name == "direct") return SolverMethod::kDirect;
   return SolverMethod::kPcg;
+}
+
+/// The hierarchical solver's level counts for an n×n lattice: --hierarchical-levels capped at
+/// the most the lattice allows (each once), or all of 1 .. that most.
+std::vector<int> HierarchicalLevels(const Options& options, int n) {
+  std::vector<int> levels;
+  for (int l = 1; l <= MaxPyramidLevels(n); ++l) {
+    const bool wanted = options.hierarchical_levels.empty() ||
+                        std::find(options.hierarchical_levels.begin(),
+                                  options.hierarchical_levels.end(),
+                                  l) != options.hierarchical_levels.end();
+    if (wanted) levels.push_back(l);
+  }
+  return levels;
 }
 
 /// Every configuration to run for an n×n lattice, in the order of --solvers.
@@ -182,19 +215,21 @@ std::vector<Config> EnumerateConfigs(const Options& options, int n) {
   std::vector<Config> configs;
   for (const std::string& name : options.solvers) {
     const SolverMethod method = ParseSolver(name);
+    const auto coarse = name == "multigrid_galerkin" ? costume::sim::CoarseOperator::kGalerkin
+                                                     : costume::sim::CoarseOperator::kRediscretised;
     for (int substeps : options.substeps) {
       if (method == SolverMethod::kDirect) {
         configs.push_back({method, kMissing, -1, substeps});
       } else if (method == SolverMethod::kHierarchical) {
         for (double tolerance : options.hierarchical_tolerances) {
-          for (int levels = 1; levels <= MaxPyramidLevels(n); ++levels) {
+          for (int levels : HierarchicalLevels(options, n)) {
             configs.push_back({method, tolerance, levels, substeps});
           }
         }
       } else {
         const int levels = method == SolverMethod::kMultigrid ? 0 : -1;
         for (double tolerance : options.tolerances) {
-          configs.push_back({method, tolerance, levels, substeps});
+          configs.push_back({method, tolerance, levels, substeps, coarse});
         }
       }
     }
@@ -215,6 +250,7 @@ SceneDescription MakeScene(const Options& options, const std::string& scene_name
   scene.solver.tolerance = std::isfinite(config.tolerance) ? config.tolerance : 1e-12;
   scene.solver.max_iterations = options.max_iterations;
   scene.solver.levels = std::max(0, config.levels);
+  scene.solver.coarse_operator = config.coarse;
   scene.solver.substeps = config.substeps;
   scene.solver.strain_limit = options.strain_limit;
   scene.frame_rate = kFrameRate;
@@ -319,7 +355,7 @@ std::string CsvLine(const Options& options, const Row& row) {
   const Config& c = row.config;
   const RunResult& r = row.run;
   std::string line = CsvField(row.scene) + "," + CsvField(options.material) + "," +
-                     std::to_string(row.n) + "," + SolverMethodName(c.method) + "," +
+                     std::to_string(row.n) + "," + SolverLabel(c) + "," +
                      CsvNumber(c.tolerance) + "," +
                      (c.levels >= 0 ? std::to_string(c.levels) : "") + "," +
                      std::to_string(c.substeps) + "," +
@@ -662,6 +698,78 @@ void PrintThresholdTable(const std::vector<Row>& rows, const std::string& time) 
   }
 }
 
+/// Slack of "equal error": within 1 % of the baseline's error counts as equal, so that the
+/// baseline itself and settings whose solutions agree with it to round-off qualify.
+constexpr double kEqualErrorSlack = 1.01;
+
+/// The RMS errors of `errors`, space-separated: "3.67 mm 6.47 mm 17.9 mm".
+std::string JoinMm(const std::vector<PositionError>& errors) {
+  std::string text;
+  for (const PositionError& e : errors) {
+    if (!text.empty()) text.append(" ");
+    text.append(FormatMm(e.rms));
+  }
+  return text;
+}
+
+/// True when `row`'s RMS error against the reference is at most `baseline`'s (with the
+/// slack) at every checkpoint: no worse at t = 0.5, 1 and 2 s, not just at the end.
+bool IsAtMostAsWrong(const Row& row, const Row& baseline) {
+  if (!row.is_usable()) return false;
+  for (size_t c = 0; c < baseline.vs_reference.size(); ++c) {
+    const double limit = baseline.vs_reference[c].rms * kEqualErrorSlack;
+    if (c >= row.vs_reference.size() || !(row.vs_reference[c].rms <= limit)) return false;
+  }
+  return true;
+}
+
+/// The yardstick: at the error of flat PCG at tolerance 1e-4 (fewest substeps swept),
+/// the fastest configuration of each solver that is no less accurate at any checkpoint, and
+/// its speed-up. Timings are sequential here; tools/cloth_bench runs the chosen settings side
+/// by side for ratios that do not drift with the machine's load.
+void PrintEqualErrorTable(const std::vector<Row>& rows) {
+  const Row* baseline = nullptr;
+  for (const Row& row : rows) {
+    const bool is_candidate = row.config.method == SolverMethod::kPcg &&
+                              row.config.tolerance == 1e-4 && row.is_usable();
+    if (is_candidate && (baseline == nullptr || row.config.substeps < baseline->config.substeps)) {
+      baseline = &row;
+    }
+  }
+  if (baseline == nullptr) {
+    std::printf("  equal error: no pcg tol=1e-4 run in the sweep (add 1e-4 to --tolerances)\n");
+    return;
+  }
+  const std::string errors = " " + JoinMm(baseline->vs_reference);
+  std::printf("  at the error of %s (RMS vs reference at the checkpoints:%s, %.3g ms/frame),\n"
+              "  the fastest configuration of each solver no less accurate at every checkpoint"
+              " (1 %% slack)\n", Describe(baseline->config).c_str(), errors.c_str(),
+              baseline->run.ms_per_frame_median);
+  std::vector<std::string> labels;
+  for (const Row& row : rows) {
+    if (std::find(labels.begin(), labels.end(), SolverLabel(row.config)) == labels.end()) {
+      labels.push_back(SolverLabel(row.config));
+    }
+  }
+  for (const std::string& label : labels) {
+    const Row* best = nullptr;
+    for (const Row& row : rows) {
+      if (SolverLabel(row.config) != label || !IsAtMostAsWrong(row, *baseline)) continue;
+      if (best == nullptr || row.run.ms_per_frame_median < best->run.ms_per_frame_median) {
+        best = &row;
+      }
+    }
+    if (best == nullptr) {
+      std::printf("    %-20s none\n", label.c_str());
+      continue;
+    }
+    std::printf("    %-20s %-40s %9.3g ms/frame  %5.2fx  (%s)\n", label.c_str(),
+                Describe(best->config).c_str(), best->run.ms_per_frame_median,
+                baseline->run.ms_per_frame_median / best->run.ms_per_frame_median,
+                JoinMm(best->vs_reference).c_str());
+  }
+}
+
 /// Matrix of the solver's own share of the error: one line per solver setting, one column
 /// per substep count; the first line is the step's own error (CHOLMOD vs reference).
 void PrintSolverShareTable(const Options& options, const std::vector<Row>& rows,
@@ -679,8 +787,7 @@ void PrintSolverShareTable(const Options& options, const std::vector<Row>& rows,
   std::vector<std::string> settings;  // solver + setting, in sweep order, each once
   std::map<std::pair<std::string, int>, const Row*> cells;
   for (const Row& row : rows) {
-    const std::string name = std::string(SolverMethodName(row.config.method)) + " " +
-                             SettingText(row.config);
+    const std::string name = SolverLabel(row.config) + " " + SettingText(row.config);
     if (std::find(settings.begin(), settings.end(), name) == settings.end()) {
       settings.push_back(name);
     }
@@ -703,23 +810,107 @@ void PrintSolverShareTable(const Options& options, const std::vector<Row>& rows,
 
 // ---- The sweep ---------------------------------------------------------------------------
 
+// ---- Cached CHOLMOD runs ------------------------------------------------------------------
+// The reference costs minutes at N = 129 (16 CHOLMOD steps per frame); a sweep repeated with
+// other solvers reuses it from disk. The file name holds every option the run depends on; a
+// change to the engine itself is not seen, hence --no-cache.
+
+constexpr char kCacheMagic[] = "speed_accuracy converged run v1";
+
+/// <out>/converged_cache/<scene>_<material>_n<n>_f<frames>_s<substeps>_sl<strain limit>.bin
+std::filesystem::path CachePath(const Options& options, const std::string& scene, int n,
+                                int substeps) {
+  return std::filesystem::path(options.out) / "converged_cache" /
+         Format("%s_%s_n%d_f%d_s%d_sl%g.bin", scene.c_str(), options.material.c_str(), n,
+                options.frames, substeps, options.strain_limit);
+}
+
+template <typename T>
+void WriteValue(std::ostream& out, const T& value) {
+  out.write(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+template <typename T>
+bool ReadValue(std::istream& in, T& value) {
+  return static_cast<bool>(in.read(reinterpret_cast<char*>(&value), sizeof(T)));
+}
+
+/// Writes `run` (an "ok" run) to `path`; a failure only costs the reuse.
+void SaveRun(const std::filesystem::path& path, const RunResult& run) {
+  std::error_code error;
+  std::filesystem::create_directories(path.parent_path(), error);
+  const std::filesystem::path partial = path.string() + ".partial";
+  {
+    std::ofstream out(partial, std::ios::binary);
+    out << kCacheMagic << '\n';
+    WriteValue(out, run.ms_per_frame_median);
+    WriteValue(out, run.iterations_per_frame);
+    WriteValue(out, run.unconverged_frames);
+    WriteValue(out, run.rolled_back_steps);
+    WriteValue(out, run.nan);
+    WriteValue(out, run.strain.max);
+    WriteValue(out, run.strain.mean);
+    WriteValue(out, static_cast<std::int64_t>(run.snapshots.size()));
+    for (const Points& x : run.snapshots) {
+      WriteValue(out, static_cast<std::int64_t>(x.rows()));
+      out.write(reinterpret_cast<const char*>(x.data()),
+                static_cast<std::streamsize>(sizeof(double) * x.size()));
+    }
+    if (!out) return;
+  }
+  std::filesystem::rename(partial, path, error);  // whole files only
+}
+
+/// The run stored at `path` if it is there and whole, with `num_particles` per snapshot.
+std::optional<RunResult> LoadRun(const std::filesystem::path& path, int num_particles) {
+  std::ifstream in(path, std::ios::binary);
+  std::string magic;
+  if (!in || !std::getline(in, magic) || magic != kCacheMagic) return std::nullopt;
+  RunResult run;
+  std::int64_t num_snapshots = 0;
+  bool ok = ReadValue(in, run.ms_per_frame_median) && ReadValue(in, run.iterations_per_frame) &&
+            ReadValue(in, run.unconverged_frames) && ReadValue(in, run.rolled_back_steps) &&
+            ReadValue(in, run.nan) && ReadValue(in, run.strain.max) &&
+            ReadValue(in, run.strain.mean) && ReadValue(in, num_snapshots);
+  if (!ok || num_snapshots < 0 || num_snapshots > 64) return std::nullopt;
+  for (std::int64_t i = 0; i < num_snapshots; ++i) {
+    std::int64_t rows = 0;
+    if (!ReadValue(in, rows) || rows != num_particles) return std::nullopt;
+    Points x(rows, 3);
+    if (!in.read(reinterpret_cast<char*>(x.data()),
+                 static_cast<std::streamsize>(sizeof(double) * x.size()))) {
+      return std::nullopt;
+    }
+    run.snapshots.push_back(std::move(x));
+  }
+  return run;
+}
+
 /// Runs and caches the CHOLMOD runs of one scene and lattice size, keyed by substeps.
 class ConvergedRuns {
  public:
   ConvergedRuns(const Options& options, std::string scene, int n)
       : options_(options), scene_(std::move(scene)), n_(n) {}
 
-  /// The CHOLMOD run at `substeps` per frame, run on first use.
+  /// The CHOLMOD run at `substeps` per frame: from memory, from the disk cache, or run.
   const RunResult& Get(int substeps) {
     auto found = runs_.find(substeps);
     if (found != runs_.end()) return found->second;
     const Config config{SolverMethod::kDirect, kMissing, -1, substeps};
     std::fprintf(stderr, "[converged] %s n=%d %s ... ", scene_.c_str(), n_,
                  Describe(config).c_str());
+    const std::filesystem::path path = CachePath(options_, scene_, n_, substeps);
+    if (options_.use_cache) {
+      if (std::optional<RunResult> cached = LoadRun(path, n_ * n_)) {
+        std::fprintf(stderr, "reused %s\n", path.c_str());
+        return runs_.emplace(substeps, std::move(*cached)).first->second;
+      }
+    }
     RunResult run = RunConfig(options_, scene_, n_, config);
     const std::string outcome =
         run.is_ok() ? Format("%.3g ms/frame", run.ms_per_frame_median) : run.status;
     std::fprintf(stderr, "%s\n", outcome.c_str());
+    if (options_.use_cache && run.is_ok()) SaveRun(path, run);
     return runs_.emplace(substeps, std::move(run)).first->second;
   }
 
@@ -804,8 +995,14 @@ void AddOptions(CLI::App& app, Options& options) {
                  "Tolerances of the hierarchical solver, each swept over 1..max pyramid levels")
       ->check(CLI::Range(1e-14, 0.999))->capture_default_str();
   app.add_option("--solvers", options.solvers, "Solvers to sweep")
-      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "direct"}))
+      ->check(CLI::IsMember({"pcg", "hierarchical", "multigrid", "multigrid_galerkin", "direct"}))
       ->capture_default_str();
+  app.add_option("--hierarchical-levels", options.hierarchical_levels,
+                 "Pyramid levels the hierarchical solver is swept over (counting level 0); "
+                 "default: 1 .. the most the lattice allows")
+      ->check(CLI::Range(1, 16));
+  app.add_flag("!--no-cache", options.use_cache,
+               "Recompute the CHOLMOD runs instead of reusing <out>/converged_cache");
   app.add_option("--max-iterations", options.max_iterations, "Iteration cap per step")
       ->check(CLI::Range(1, 10000000))->capture_default_str();
   app.add_option("--strain-limit", options.strain_limit, "Strain limit after each step; 0 = off")
@@ -855,6 +1052,7 @@ int main(int argc, char** argv) {
       std::printf("%s, %s, n = %d%s\n", scene.c_str(), options.material.c_str(), n,
                   plotted ? (" (plot: " + svg_path + ")").c_str() : " (nothing to plot)");
       PrintThresholdTable(rows, time);
+      PrintEqualErrorTable(rows);
       PrintSolverShareTable(options, rows, result.step_error, time);
       std::printf("\n");
       std::fflush(stdout);

@@ -11,13 +11,32 @@ SystemMatrix::SystemMatrix(const ClothModel& model)
       coupling_(6 * model.springs().size(), 0.0) {
   spring_ends_.reserve(model.springs().size());
   for (const Spring& s : model.springs()) spring_ends_.emplace_back(s.a, s.b);
+  BuildRowIndex();
 }
 
 SystemMatrix::SystemMatrix(int num_particles, std::vector<std::pair<int, int>> pairs)
     : num_particles_(num_particles),
       diagonal_(9 * static_cast<std::size_t>(num_particles), 0.0),
       coupling_(6 * pairs.size(), 0.0),
-      spring_ends_(std::move(pairs)) {}
+      spring_ends_(std::move(pairs)) {
+  BuildRowIndex();
+}
+
+void SystemMatrix::BuildRowIndex() {
+  row_start_.assign(num_particles_ + 1, 0);
+  for (const auto& [a, b] : spring_ends_) {
+    ++row_start_[a + 1];
+    ++row_start_[b + 1];
+  }
+  for (int i = 0; i < num_particles_; ++i) row_start_[i + 1] += row_start_[i];
+  row_entries_.resize(2 * spring_ends_.size());
+  std::vector<int> next(row_start_.begin(), row_start_.end() - 1);
+  for (int s = 0; s < num_springs(); ++s) {
+    const auto [a, b] = spring_ends_[s];
+    row_entries_[next[a]++] = {b, s};
+    row_entries_[next[b]++] = {a, s};
+  }
+}
 
 void SystemMatrix::SetZero() {
   std::fill(diagonal_.begin(), diagonal_.end(), 0.0);
@@ -46,25 +65,24 @@ void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const 
   const double* xs = x.data();
   double* ys = y.data();
   const double* d = diagonal_.data();
+  const double* coupling = coupling_.data();
+  const std::pair<int, int>* entry = row_entries_.data();
   for (int i = 0; i < num_particles_; ++i, d += 9) {
     const double* xi = xs + 3 * i;
-    ys[3 * i] = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
-    ys[3 * i + 1] = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
-    ys[3 * i + 2] = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
-  }
-  const double* c = coupling_.data();
-  for (const auto& [a, b] : spring_ends_) {
-    const double* xa = xs + 3 * a;
-    const double* xb = xs + 3 * b;
-    double* ya = ys + 3 * a;
-    double* yb = ys + 3 * b;
-    ya[0] -= c[0] * xb[0] + c[1] * xb[1] + c[2] * xb[2];
-    ya[1] -= c[1] * xb[0] + c[3] * xb[1] + c[4] * xb[2];
-    ya[2] -= c[2] * xb[0] + c[4] * xb[1] + c[5] * xb[2];
-    yb[0] -= c[0] * xa[0] + c[1] * xa[1] + c[2] * xa[2];
-    yb[1] -= c[1] * xa[0] + c[3] * xa[1] + c[4] * xa[2];
-    yb[2] -= c[2] * xa[0] + c[4] * xa[1] + c[5] * xa[2];
-    c += 6;
+    double y0 = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
+    double y1 = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
+    double y2 = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
+    for (const std::pair<int, int>* end = row_entries_.data() + row_start_[i + 1]; entry != end;
+         ++entry) {
+      const double* xj = xs + 3 * entry->first;
+      const double* c = coupling + 6 * static_cast<std::size_t>(entry->second);
+      y0 -= c[0] * xj[0] + c[1] * xj[1] + c[2] * xj[2];
+      y1 -= c[1] * xj[0] + c[3] * xj[1] + c[4] * xj[2];
+      y2 -= c[2] * xj[0] + c[4] * xj[1] + c[5] * xj[2];
+    }
+    ys[3 * i] = y0;
+    ys[3 * i + 1] = y1;
+    ys[3 * i + 2] = y2;
   }
 }
 
