@@ -27,8 +27,11 @@ void AssembleImplicitSystem(const ClothModel& model, const ClothState& state, do
     const Eigen::Vector3d vb = state.velocities.row(s.b).transpose();
     const SpringTerms t = EvaluateSpring(s, state.positions.row(s.a).transpose(),
                                          state.positions.row(s.b).transpose(), va, vb, mode);
-    a.AddSpringCoupling(k, h * t.df_dv + (h * h) * t.df_dx);
-    const Eigen::Vector3d rhs = h * (t.force_on_a + h * (t.df_dx * (vb - va)));
+    // h ∂f/∂v + h² ∂f/∂x = h²k_t I + (h c + h²(k_a − k_t)) d̂d̂ᵀ.
+    a.AddSpringCoupling(k, h * h * t.transverse_stiffness,
+                        h * t.damping + h * h * (t.axial_stiffness - t.transverse_stiffness),
+                        t.direction);
+    const Eigen::Vector3d rhs = h * (t.force_on_a + h * t.DfDxTimes(vb - va));
     b.segment<3>(3 * s.a) += rhs;
     b.segment<3>(3 * s.b) -= rhs;
   }

@@ -13,19 +13,32 @@ SpringTerms EvaluateSpring(const Spring& spring, const Eigen::Vector3d& xa,
   const double length = d.norm();
   if (length <= 0.0) {
     t.force_on_a.setZero();
-    t.df_dx = spring.stiffness * Eigen::Matrix3d::Identity();
-    t.df_dv.setZero();
+    t.direction.setZero();
+    t.axial_stiffness = t.transverse_stiffness = spring.stiffness;  // k I
     return t;
   }
-  const Eigen::Vector3d u = d / length;
-  const Eigen::Matrix3d uu = u * u.transpose();
+  t.direction = d / length;
   const double stretch = length - spring.rest_length;
-  t.force_on_a = (spring.stiffness * stretch + spring.damping * u.dot(vb - va)) * u;
+  t.force_on_a =
+      (spring.stiffness * stretch + spring.damping * t.direction.dot(vb - va)) * t.direction;
   double transverse = 1.0 - spring.rest_length / length;
   if (mode == JacobianMode::kDefinite && transverse < 0.0) transverse = 0.0;
-  t.df_dx = spring.stiffness * (uu + transverse * (Eigen::Matrix3d::Identity() - uu));
-  t.df_dv = spring.damping * uu;
+  t.axial_stiffness = spring.stiffness;
+  t.transverse_stiffness = spring.stiffness * transverse;
+  t.damping = spring.damping;
   return t;
+}
+
+Eigen::Matrix3d SpringTerms::df_dx() const {
+  return transverse_stiffness * Eigen::Matrix3d::Identity() +
+         (axial_stiffness - transverse_stiffness) * direction * direction.transpose();
+}
+
+Eigen::Matrix3d SpringTerms::df_dv() const { return damping * direction * direction.transpose(); }
+
+Eigen::Vector3d SpringTerms::DfDxTimes(const Eigen::Vector3d& w) const {
+  return transverse_stiffness * w +
+         ((axial_stiffness - transverse_stiffness) * direction.dot(w)) * direction;
 }
 
 namespace {
@@ -91,8 +104,8 @@ void ComputeForceJacobians(const ClothModel& model, const ClothState& state,
     const SpringTerms t =
         EvaluateSpring(s, Row(state.positions, s.a), Row(state.positions, s.b),
                        Row(state.velocities, s.a), Row(state.velocities, s.b), mode);
-    AddBlockPattern(kx, s.a, s.b, t.df_dx);
-    AddBlockPattern(kv, s.a, s.b, t.df_dv);
+    AddBlockPattern(kx, s.a, s.b, t.df_dx());
+    AddBlockPattern(kv, s.a, s.b, t.df_dv());
   }
   df_dx->resize(3 * n, 3 * n);
   df_dx->setFromTriplets(kx.begin(), kx.end());

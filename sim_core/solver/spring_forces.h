@@ -20,14 +20,28 @@ namespace costume::sim {
 enum class JacobianMode { kDefinite, kExact };
 
 /// One spring's force and derivative blocks, seen from its end a (end b gets the negatives).
+/// The blocks are kept in their closed form, a multiple of I plus a multiple of d̂d̂ᵀ, so the
+/// system's assembly (which runs for every spring of every level every step) writes the six
+/// values of the symmetric block without forming 3×3 products.
 struct SpringTerms {
   /// Force on particle a [N] (spring plus axial damping).
   Eigen::Vector3d force_on_a;
+  /// Unit direction d̂ from a to b (zero for a spring of zero length).
+  Eigen::Vector3d direction;
+  /// ∂f_a/∂x_b = transverse_stiffness·I + (axial_stiffness − transverse_stiffness)·d̂d̂ᵀ
+  /// [N/m]: k along the spring, k(1 − L/ℓ) across it (see JacobianMode).
+  double axial_stiffness = 0.0;
+  double transverse_stiffness = 0.0;
+  /// ∂f_a/∂v_b = damping·d̂d̂ᵀ [N·s/m].
+  double damping = 0.0;
+
   /// ∂f_a/∂x_b [N/m] (= −∂f_a/∂x_a); excludes the damping force's position derivative,
   /// which B&W also drop (it is non-symmetric and small).
-  Eigen::Matrix3d df_dx;
+  Eigen::Matrix3d df_dx() const;
   /// ∂f_a/∂v_b [N·s/m] (= −∂f_a/∂v_a) = c d̂d̂ᵀ.
-  Eigen::Matrix3d df_dv;
+  Eigen::Matrix3d df_dv() const;
+  /// df_dx() · w without forming the matrix.
+  Eigen::Vector3d DfDxTimes(const Eigen::Vector3d& w) const;
 };
 
 /// Evaluates one spring. Never throws; never allocates. A spring of zero current length

@@ -61,6 +61,24 @@ void SystemMatrix::AddSpringCoupling(int spring, const Eigen::Matrix3d& block) {
   c[5] += block(2, 2);
 }
 
+void SystemMatrix::AddSpringCoupling(int spring, double identity, double along,
+                                     const Eigen::Vector3d& u) {
+  const double block[6] = {identity + along * u[0] * u[0], along * u[0] * u[1],
+                           along * u[0] * u[2],            identity + along * u[1] * u[1],
+                           along * u[1] * u[2],            identity + along * u[2] * u[2]};
+  const auto [a, b] = spring_ends_[spring];
+  double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
+  for (int e = 0; e < 6; ++e) c[e] += block[e];
+  // Upper triangle index of each of the nine row-major entries of a diagonal block.
+  static constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
+  double* da = &diagonal_[9 * static_cast<std::size_t>(a)];
+  double* db = &diagonal_[9 * static_cast<std::size_t>(b)];
+  for (int e = 0; e < 9; ++e) {
+    da[e] += block[kUpper[e]];
+    db[e] += block[kUpper[e]];
+  }
+}
+
 void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   const double* xs = x.data();
   double* ys = y.data();

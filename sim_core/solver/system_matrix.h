@@ -39,6 +39,9 @@ class SystemMatrix {
   /// `block` must be symmetric (its upper triangle is used). `spring` indexes
   /// model.springs(). Never allocates.
   void AddSpringCoupling(int spring, const Eigen::Matrix3d& block);
+  /// The same for the block identity·I + along·u uᵀ (a spring's closed form), without
+  /// forming it. Never allocates.
+  void AddSpringCoupling(int spring, double identity, double along, const Eigen::Vector3d& u);
   /// y = A x (3n vectors; y must not alias x). Never allocates.
   void Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   /// Diagonal block (i, i), springs included.

@@ -61,7 +61,8 @@ TEST(EvaluateSpring, StiffnessJacobianMatchesFiniteDifferencesWhenStretched) {
   const Eigen::Vector3d va = Eigen::Vector3d::Zero(), vb = Eigen::Vector3d::Zero();
   for (JacobianMode mode : {JacobianMode::kExact, JacobianMode::kDefinite}) {
     const auto t = EvaluateSpring(s, xa, xb, va, vb, mode);
-    EXPECT_LT((t.df_dx - FiniteDifferenceDfDxb(s, xa, xb, va, vb)).norm(), 1e-5 * t.df_dx.norm());
+    EXPECT_LT((t.df_dx() - FiniteDifferenceDfDxb(s, xa, xb, va, vb)).norm(),
+              1e-5 * t.df_dx().norm());
   }
 }
 
@@ -69,8 +70,8 @@ TEST(EvaluateSpring, ExactJacobianMatchesFiniteDifferencesWhenCompressed) {
   const Spring s = MakeSpring(250.0, 0.0, 1.5);
   const Eigen::Vector3d xa(0.1, -0.2, 0.3), xb(0.9, 0.4, -0.1);
   const auto t = EvaluateSpring(s, xa, xb, {0, 0, 0}, {0, 0, 0}, JacobianMode::kExact);
-  EXPECT_LT((t.df_dx - FiniteDifferenceDfDxb(s, xa, xb, {0, 0, 0}, {0, 0, 0})).norm(),
-            1e-5 * t.df_dx.norm());
+  EXPECT_LT((t.df_dx() - FiniteDifferenceDfDxb(s, xa, xb, {0, 0, 0}, {0, 0, 0})).norm(),
+            1e-5 * t.df_dx().norm());
 }
 
 TEST(EvaluateSpring, DefiniteModeDropsOnlyTheNegativeTransverseTermOfCompressedSprings) {
@@ -83,11 +84,24 @@ TEST(EvaluateSpring, DefiniteModeDropsOnlyTheNegativeTransverseTermOfCompressedS
   const Eigen::Vector3d u = d.normalized();
   const Eigen::Matrix3d dropped =
       250.0 * (1 - 1.5 / d.norm()) * (Eigen::Matrix3d::Identity() - u * u.transpose());
-  EXPECT_LT((exact.df_dx - definite.df_dx - dropped).norm(), 1e-9);
+  EXPECT_LT((exact.df_dx() - definite.df_dx() - dropped).norm(), 1e-9);
   // What remains is positive semi-definite: k ûûᵀ.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(definite.df_dx);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(definite.df_dx());
   EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-9);
   EXPECT_NEAR(eig.eigenvalues().maxCoeff(), 250.0, 1e-9);
+}
+
+TEST(EvaluateSpring, ProductWithoutTheMatrixEqualsTheMatrixProduct) {
+  const Spring s = MakeSpring(250.0, 2.0, 0.8);
+  const Eigen::Vector3d xa(0.1, -0.2, 0.3), xb(0.9, 0.4, -0.1), w(0.3, -1.1, 0.7);
+  for (JacobianMode mode : {JacobianMode::kExact, JacobianMode::kDefinite}) {
+    const auto t = EvaluateSpring(s, xa, xb, {0, 0, 0}, {0, 0, 0}, mode);
+    EXPECT_LT((t.DfDxTimes(w) - t.df_dx() * w).norm(), 1e-12 * (t.df_dx() * w).norm());
+  }
+  // Zero length: k I.
+  const auto zero = EvaluateSpring(s, xa, xa, {0, 0, 0}, {0, 0, 0}, JacobianMode::kExact);
+  EXPECT_LT((zero.df_dx() - 250.0 * Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_LT((zero.DfDxTimes(w) - 250.0 * w).norm(), 1e-12);
 }
 
 TEST(EvaluateSpring, DampingJacobianMatchesFiniteDifferences) {
@@ -105,7 +119,7 @@ TEST(EvaluateSpring, DampingJacobianMatchesFiniteDifferences) {
                 (2 * eps);
   }
   const auto t = EvaluateSpring(s, xa, xb, va, vb, JacobianMode::kExact);
-  EXPECT_LT((t.df_dv - fd).norm(), 1e-7);
+  EXPECT_LT((t.df_dv() - fd).norm(), 1e-7);
 }
 
 TEST(ComputeForceJacobians, AssembledMatrixMatchesFiniteDifferencesOfTotalForce) {

@@ -53,6 +53,18 @@ TEST(SystemMatrix, ProductEqualsDenseMatrixOfTheAdditions) {
   }
 }
 
+TEST(SystemMatrix, ClosedFormCouplingEqualsItsMatrix) {
+  // identity·I + along·u uᵀ added in closed form and as a matrix give the same matrix.
+  const Eigen::Vector3d u = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
+  SystemMatrix closed(2, {{1, 0}}), matrix(2, {{1, 0}});
+  closed.AddSpringCoupling(0, 0.7, -2.5, u);
+  matrix.AddSpringCoupling(0, 0.7 * Eigen::Matrix3d::Identity() - 2.5 * u * u.transpose());
+  EXPECT_LT((closed.SpringBlock(0) - matrix.SpringBlock(0)).norm(), 1e-15);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_LT((closed.DiagonalBlock(i) - matrix.DiagonalBlock(i)).norm(), 1e-15);
+  }
+}
+
 TEST(SystemMatrix, SetZeroClearsEveryValueButKeepsThePattern) {
   SystemMatrix a(3, {{0, 1}, {1, 2}});
   a.AddToDiagonal(1, Eigen::Matrix3d::Identity());
