@@ -107,6 +107,8 @@ struct RunResult {
 /// One line of the CSV: a configuration, its measurements and its errors per checkpoint.
 struct Row {
   std::string scene;
+  /// The cloth's material: --material, or the garment scene's own.
+  std::string material;
   int n = 0;
   Config config;
   RunResult run;  // snapshots dropped once the errors are computed
@@ -237,14 +239,28 @@ std::vector<Config> EnumerateConfigs(const Options& options, int n) {
   return configs;
 }
 
+/// The material the scene's cloth is made of: --material for the lattice scenes, the garment
+/// scene's own otherwise.
+std::string MaterialOf(const Options& options, const std::string& scene_name) {
+  const SceneDescription scene = costume::assets::LoadBuiltInScene(scene_name);
+  const auto& garment = scene.garments.at(0);
+  return garment.panel ? options.material : garment.material;
+}
+
 /// The built-in scene `scene_name` with an n×n lattice and `config`'s solver.
 /// Throws costume::sim::InputError for an unknown scene.
 SceneDescription MakeScene(const Options& options, const std::string& scene_name, int n,
                            const Config& config) {
   SceneDescription scene = costume::assets::LoadBuiltInScene(scene_name);
   auto& garment = scene.garments.at(0);
-  garment.panel->cols = garment.panel->rows = n;
-  garment.material = options.material;
+  if (garment.panel) {
+    garment.panel->cols = garment.panel->rows = n;
+    garment.material = options.material;
+  } else {
+    // The garment scene: a sewn skirt of its own material on the walking avatar; n is the
+    // pattern's resolution (particles around the hem).
+    garment.pattern_resolution = n;
+  }
   scene.solver.method = config.method;
   // The direct solver ignores the tolerance; give it the tightest value the scene accepts.
   scene.solver.tolerance = std::isfinite(config.tolerance) ? config.tolerance : 1e-12;
@@ -354,7 +370,7 @@ std::string CsvHeader(const std::vector<int>& checkpoints) {
 std::string CsvLine(const Options& options, const Row& row) {
   const Config& c = row.config;
   const RunResult& r = row.run;
-  std::string line = CsvField(row.scene) + "," + CsvField(options.material) + "," +
+  std::string line = CsvField(row.scene) + "," + CsvField(row.material) + "," +
                      std::to_string(row.n) + "," + SolverLabel(c) + "," +
                      CsvNumber(c.tolerance) + "," +
                      (c.levels >= 0 ? std::to_string(c.levels) : "") + "," +
@@ -634,7 +650,7 @@ bool WriteSvg(const std::string& path, const Options& options, const std::vector
       << "<rect width='100%' height='100%' fill='white'/>\n"
       << Format("<text x='%g' y='28' text-anchor='middle' font-size='16'>%s, %s, n = %d: "
                 "speed against accuracy at t = %s s</text>\n", (kLeft + kRight) / 2,
-                EscapeXml(rows.front().scene).c_str(), EscapeXml(options.material).c_str(),
+                EscapeXml(rows.front().scene).c_str(), EscapeXml(rows.front().material).c_str(),
                 rows.front().n, time.c_str());
   if (num_hidden > 0) {
     svg << Format("<text x='%g' y='46' text-anchor='middle' fill='#777' font-size='11'>%d "
@@ -821,7 +837,7 @@ constexpr char kCacheMagic[] = "speed_accuracy converged run v1";
 std::filesystem::path CachePath(const Options& options, const std::string& scene, int n,
                                 int substeps) {
   return std::filesystem::path(options.out) / "converged_cache" /
-         Format("%s_%s_n%d_f%d_s%d_sl%g.bin", scene.c_str(), options.material.c_str(), n,
+         Format("%s_%s_n%d_f%d_s%d_sl%g.bin", scene.c_str(), MaterialOf(options, scene).c_str(), n,
                 options.frames, substeps, options.strain_limit);
 }
 
@@ -861,8 +877,9 @@ void SaveRun(const std::filesystem::path& path, const RunResult& run) {
   std::filesystem::rename(partial, path, error);  // whole files only
 }
 
-/// The run stored at `path` if it is there and whole, with `num_particles` per snapshot.
-std::optional<RunResult> LoadRun(const std::filesystem::path& path, int num_particles) {
+/// The run stored at `path` if it is there and whole. (Comparisons check the particle
+/// counts against the runs they meet.)
+std::optional<RunResult> LoadRun(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::string magic;
   if (!in || !std::getline(in, magic) || magic != kCacheMagic) return std::nullopt;
@@ -875,7 +892,7 @@ std::optional<RunResult> LoadRun(const std::filesystem::path& path, int num_part
   if (!ok || num_snapshots < 0 || num_snapshots > 64) return std::nullopt;
   for (std::int64_t i = 0; i < num_snapshots; ++i) {
     std::int64_t rows = 0;
-    if (!ReadValue(in, rows) || rows != num_particles) return std::nullopt;
+    if (!ReadValue(in, rows) || rows <= 0 || rows > (1 << 26)) return std::nullopt;
     Points x(rows, 3);
     if (!in.read(reinterpret_cast<char*>(x.data()),
                  static_cast<std::streamsize>(sizeof(double) * x.size()))) {
@@ -901,7 +918,7 @@ class ConvergedRuns {
                  Describe(config).c_str());
     const std::filesystem::path path = CachePath(options_, scene_, n_, substeps);
     if (options_.use_cache) {
-      if (std::optional<RunResult> cached = LoadRun(path, n_ * n_)) {
+      if (std::optional<RunResult> cached = LoadRun(path)) {
         std::fprintf(stderr, "reused %s\n", path.c_str());
         return runs_.emplace(substeps, std::move(*cached)).first->second;
       }
@@ -949,7 +966,7 @@ SceneResult SweepScene(const Options& options, const std::string& scene, int n,
     const RunResult& same_step = converged.Get(config.substeps);  // before the progress line
     std::fprintf(stderr, "[%d/%d] %s n=%d %s ... ", ++progress.done, progress.total,
                  scene.c_str(), n, Describe(config).c_str());
-    Row row{scene, n, config, {}, {}, {}};
+    Row row{scene, MaterialOf(options, scene), n, config, {}, {}, {}};
     // A CHOLMOD configuration is its own converged solve: run it once.
     const auto start = std::chrono::steady_clock::now();
     row.run = config.method == SolverMethod::kDirect ? same_step
@@ -980,9 +997,12 @@ SceneResult SweepScene(const Options& options, const std::string& scene, int n,
 
 /// Declares the command-line options, with their defaults shown in --help.
 void AddOptions(CLI::App& app, Options& options) {
-  app.add_option("--scene", options.scenes, "Scenes to run")
-      ->check(CLI::IsMember({"hang", "drape"}))->capture_default_str();
-  app.add_option("--material", options.material, "Built-in material of the cloth")
+  app.add_option("--scene", options.scenes,
+                 "Scenes to run (garment: the built-in skirt on the walking avatar, mesh "
+                 "collision; its own material, n = the pattern's resolution)")
+      ->check(CLI::IsMember({"hang", "drape", "garment"}))->capture_default_str();
+  app.add_option("--material", options.material,
+                 "Built-in material of the cloth (hang and drape)")
       ->check(CLI::IsMember({"stiff_cotton", "blender_cotton"}))->capture_default_str();
   app.add_option("--n", options.sizes, "Lattice sizes N (N×N particles); several allowed")
       ->check(CLI::Range(3, 1025))->capture_default_str();
@@ -1049,7 +1069,7 @@ int main(int argc, char** argv) {
       const std::string svg_path = options.out + "/speed_accuracy_" + scene + "_" +
                                    std::to_string(n) + ".svg";
       const bool plotted = WriteSvg(svg_path, options, rows, time);
-      std::printf("%s, %s, n = %d%s\n", scene.c_str(), options.material.c_str(), n,
+      std::printf("%s, %s, n = %d%s\n", scene.c_str(), MaterialOf(options, scene).c_str(), n,
                   plotted ? (" (plot: " + svg_path + ")").c_str() : " (nothing to plot)");
       PrintThresholdTable(rows, time);
       PrintEqualErrorTable(rows);

@@ -50,6 +50,45 @@ SpringTerms EvaluateSpring(const Spring& spring, const Eigen::Vector3d& xa,
                            const Eigen::Vector3d& xb, const Eigen::Vector3d& va,
                            const Eigen::Vector3d& vb, JacobianMode mode);
 
+// Inline: the assembly calls these for every spring of every level every step.
+inline SpringTerms EvaluateSpring(const Spring& spring, const Eigen::Vector3d& xa,
+                                  const Eigen::Vector3d& xb, const Eigen::Vector3d& va,
+                                  const Eigen::Vector3d& vb, JacobianMode mode) {
+  SpringTerms t;
+  const Eigen::Vector3d d = xb - xa;
+  const double length = d.norm();
+  if (length <= 0.0) {
+    t.force_on_a.setZero();
+    t.direction.setZero();
+    t.axial_stiffness = t.transverse_stiffness = spring.stiffness;  // k I
+    return t;
+  }
+  t.direction = d / length;
+  const double stretch = length - spring.rest_length;
+  t.force_on_a =
+      (spring.stiffness * stretch + spring.damping * t.direction.dot(vb - va)) * t.direction;
+  double transverse = 1.0 - spring.rest_length / length;
+  if (mode == JacobianMode::kDefinite && transverse < 0.0) transverse = 0.0;
+  t.axial_stiffness = spring.stiffness;
+  t.transverse_stiffness = spring.stiffness * transverse;
+  t.damping = spring.damping;
+  return t;
+}
+
+inline Eigen::Matrix3d SpringTerms::df_dx() const {
+  return transverse_stiffness * Eigen::Matrix3d::Identity() +
+         (axial_stiffness - transverse_stiffness) * direction * direction.transpose();
+}
+
+inline Eigen::Matrix3d SpringTerms::df_dv() const {
+  return damping * direction * direction.transpose();
+}
+
+inline Eigen::Vector3d SpringTerms::DfDxTimes(const Eigen::Vector3d& w) const {
+  return transverse_stiffness * w +
+         ((axial_stiffness - transverse_stiffness) * direction.dot(w)) * direction;
+}
+
 /// External force settings shared by every particle.
 struct ExternalForces {
   /// Gravity [m/s²].
