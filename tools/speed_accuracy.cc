@@ -367,7 +367,7 @@ std::string CsvHeader(const std::vector<int>& checkpoints) {
 }
 
 /// One CSV line; measurements are empty for a refused configuration.
-std::string CsvLine(const Options& options, const Row& row) {
+std::string CsvLine(const Row& row) {
   const Config& c = row.config;
   const RunResult& r = row.run;
   std::string line = CsvField(row.scene) + "," + CsvField(row.material) + "," +
@@ -627,8 +627,7 @@ void WriteSvgPoints(std::ostream& svg, const std::vector<Row>& rows, const LogAx
 
 /// Writes the plot of one scene and lattice size: ms per frame against RMS error vs the
 /// reference at the last checkpoint, both log scale. Returns false when nothing is plottable.
-bool WriteSvg(const std::string& path, const Options& options, const std::vector<Row>& rows,
-              const std::string& time) {
+bool WriteSvg(const std::string& path, const std::vector<Row>& rows, const std::string& time) {
   double t_min = INFINITY, t_max = 0, e_min = INFINITY, e_max = 0;
   int num_hidden = 0;
   for (const Row& row : rows) {
@@ -985,7 +984,7 @@ SceneResult SweepScene(const Options& options, const std::string& scene, int n,
     } else {
       std::fprintf(stderr, "%s\n", row.run.status.c_str());
     }
-    csv << CsvLine(options, row) << std::endl;
+    csv << CsvLine(row) << std::endl;
     result.rows.push_back(std::move(row));
   }
   for (int substeps : options.substeps) {
@@ -1068,7 +1067,7 @@ int main(int argc, char** argv) {
       const std::vector<Row>& rows = result.rows;
       const std::string svg_path = options.out + "/speed_accuracy_" + scene + "_" +
                                    std::to_string(n) + ".svg";
-      const bool plotted = WriteSvg(svg_path, options, rows, time);
+      const bool plotted = WriteSvg(svg_path, rows, time);
       std::printf("%s, %s, n = %d%s\n", scene.c_str(), MaterialOf(options, scene).c_str(), n,
                   plotted ? (" (plot: " + svg_path + ")").c_str() : " (nothing to plot)");
       PrintThresholdTable(rows, time);
