@@ -3,6 +3,8 @@
 /// The 1 kHz loop: paced on an absolute clock (clock_nanosleep TIMER_ABSTIME on
 /// CLOCK_MONOTONIC), so a late wake-up never shifts later deadlines and lag never accumulates;
 /// a tick that wakes more than a period late skips the deadlines it missed and counts them.
+/// Pacing may be hybrid (Pacer): sleep until a margin before the deadline, then spin on the
+/// clock, so the sleep's wake-up latency is absorbed by the spin instead of the period.
 /// The loop itself never allocates, locks or throws once running; the period of every tick is
 /// written to a preallocated ring from which PeriodStatistics are computed outside the tick.
 /// Outgoing data leaves the tick through SpscQueue (lock_free.h), never by publishing inside it.
@@ -37,7 +39,16 @@ class MonotonicClock final : public LoopClock {
 class FakeClock final : public LoopClock {
  public:
   explicit FakeClock(std::int64_t start = 0) : now_(start) {}
-  std::int64_t Now() override { return now_; }
+  /// The time, after which the clock moves on by the read cost (SetReadCost).
+  std::int64_t Now() override {
+    const std::int64_t now = now_;
+    now_ += read_cost_;
+    return now;
+  }
+  /// Every Now() moves time on by `cost` [ns] >= 0 (0 by default: time moves only by sleeps
+  /// and Advance). A Pacer that spins needs cost > 0, as a real clock read takes time;
+  /// with 0 its spin would never reach the deadline.
+  void SetReadCost(std::int64_t cost) { read_cost_ = cost; }
   /// now = max(now, deadline) + the next latency of the script (0 once it is used up).
   void SleepUntil(std::int64_t deadline) override;
   /// Moves time forward by `duration` [ns] (e.g. a tick handler simulating work).
@@ -49,9 +60,59 @@ class FakeClock final : public LoopClock {
 
  private:
   std::int64_t now_;
+  std::int64_t read_cost_ = 0;
   std::unique_ptr<std::int64_t[]> script_ = std::make_unique<std::int64_t[]>(kMaxScript);
   int script_size_ = 0;
   int script_next_ = 0;
+};
+
+/// The largest spin margin a Pacer accepts, as a fraction of the period: beyond half the
+/// period the loop would spin for most of it, a core given to waiting (and a SCHED_FIFO thread
+/// that never sleeps is throttled by the kernel, sched_rt_runtime_us).
+inline constexpr double kMaxSpinMarginFraction = 0.5;
+
+/// The spin margin costume_haptic_server uses by default [ns] (--spin-us): measured on the
+/// development VM, docs/processes.md ("Benchmark"), where it costs about that fraction of a
+/// period of CPU (a few % of one core at 1 kHz).
+inline constexpr std::int64_t kDefaultSpinMargin = 100'000;
+
+/// What a Pacer has done since construction or Reset (readable from any thread).
+struct PacerCounters {
+  /// WaitUntil calls.
+  std::int64_t num_waits = 0;
+  /// Waits whose sleep woke at or after the deadline although it aimed `spin_margin` before
+  /// it: the wake-up latency exceeded the margin (always 0 with a margin of 0).
+  std::int64_t num_margin_exceeded = 0;
+  /// Time spent spinning [ns]: the CPU the margin costs (over wall time: fraction of a core).
+  std::int64_t spin_ns = 0;
+};
+
+/// Hybrid pacing, as vendor servo loops do it: clock_nanosleep until `spin_margin` before the
+/// deadline, then read the clock in a loop until the deadline. The sleep alone wakes tens to
+/// hundreds of µs late on a loaded or virtual machine, and that latency varies from tick to
+/// tick (period error); with the spin it only has to be shorter than the margin. A margin of 0
+/// is pure sleeping. The margin's price is CPU: up to the margin per period.
+/// One thread waits (the loop's); never allocates, locks or throws once constructed.
+class Pacer {
+ public:
+  /// `clock` must outlive the pacer. Throws costume::sim::InputError unless
+  /// 0 <= spin_margin <= kMaxSpinMarginFraction · period (both [ns], period > 0).
+  Pacer(LoopClock& clock, std::int64_t spin_margin, std::int64_t period);
+  /// Returns the first clock reading at or after `deadline` [ns]: never earlier. (Later when
+  /// the sleep woke late, or when the deadline was already past.)
+  std::int64_t WaitUntil(std::int64_t deadline);
+  std::int64_t spin_margin() const { return spin_margin_; }
+  PacerCounters counters() const;
+  /// Zeroes the counters (only while nobody waits).
+  void Reset();
+
+ private:
+  LoopClock& clock_;
+  std::int64_t spin_margin_;
+  // Written by the waiting thread only (load + store, no read-modify-write); read by others.
+  std::atomic<std::int64_t> num_waits_{0};
+  std::atomic<std::int64_t> num_margin_exceeded_{0};
+  std::atomic<std::int64_t> spin_ns_{0};
 };
 
 /// What the loop tells a tick.
@@ -138,13 +199,18 @@ struct HapticLoopOptions {
   std::int64_t ring_capacity = 1 << 16;
   /// Start(): try SCHED_FIFO at this priority (1..99); <= 0 to stay at normal priority.
   int realtime_priority = 80;
+  /// Pacer margin [ns]: sleep until this long before each deadline, then spin on the clock.
+  /// 0 (the default here) sleeps all the way; costume_haptic_server uses kDefaultSpinMargin.
+  /// 0 ..kMaxSpinMarginFraction · period.
+  std::int64_t spin_margin = 0;
 };
 
 /// The fixed-rate loop. Run() ticks on the calling thread; Start()/Stop() on its own thread.
 class HapticLoop {
  public:
   /// `clock` and `handler` must outlive the loop. Throws costume::sim::InputError for a
-  /// non-positive period or ring capacity. Allocates the ring here, never later.
+  /// non-positive period or ring capacity or a spin margin out of range. Allocates the ring
+  /// here, never later.
   HapticLoop(LoopClock& clock, TickHandler& handler, const HapticLoopOptions& options);
   ~HapticLoop();
   HapticLoop(const HapticLoop&) = delete;
@@ -164,6 +230,8 @@ class HapticLoop {
   RealtimeStatus realtime_status() const;
 
   LoopCounters counters() const;
+  /// The pacer's counters: how often the sleep overshot the margin, time spent spinning.
+  PacerCounters pacer_counters() const { return pacer_.counters(); }
   /// Statistics of the recorded periods (allocates; any thread, any time; a snapshot taken
   /// while ticking may mix one or two periods from consecutive ticks, harmless for statistics).
   PeriodStatistics Statistics() const;
@@ -173,7 +241,8 @@ class HapticLoop {
   PeriodStatistics StatisticsSince(std::int64_t first) const;
   /// Periods recorded since construction or ResetStatistics (any thread).
   std::int64_t num_recorded() const { return num_recorded_.load(std::memory_order_acquire); }
-  /// Forget recorded periods and counters (e.g. after a warm-up). Only while not running.
+  /// Forget recorded periods and counters, the pacer's too (e.g. after a warm-up). Only
+  /// while not running.
   void ResetStatistics();
 
  private:
@@ -182,6 +251,7 @@ class HapticLoop {
   LoopClock& clock_;
   TickHandler& handler_;
   HapticLoopOptions options_;
+  Pacer pacer_;
   std::unique_ptr<std::atomic<std::int64_t>[]> ring_;
   std::atomic<std::int64_t> num_recorded_{0};
   std::atomic<std::int64_t> num_ticks_{0};
