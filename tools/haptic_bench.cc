@@ -22,10 +22,7 @@
 #include <CLI/CLI.hpp>
 #include <pthread.h>
 #include <sched.h>
-#include <signal.h>
-#include <spawn.h>
 #include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -55,11 +52,10 @@
 #include "lcm_types/costume_lcm/grab_ack.hpp"
 #include "lcm_types/costume_lcm/haptic_patch.hpp"
 #include "lcm_types/costume_lcm/status.hpp"
+#include "process/child_process.h"
 #include "sim_core/app/sim_server.h"
 #include "sim_core/common/percentile.h"
 #include "tools/machine_floor.h"
-
-extern char** environ;
 
 namespace {
 
@@ -508,26 +504,18 @@ json LoopCase(double seconds, double round_seconds, int priority, std::int64_t s
 
 // ---- processes ---------------------------------------------------------------------------
 
-pid_t Spawn(std::vector<std::string> argv) {
-  std::vector<char*> args;
-  for (std::string& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  // Its output goes to our stderr: stdout is the JSON.
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_adddup2(&actions, STDERR_FILENO, STDOUT_FILENO);
-  pid_t pid = 0;
-  const int failed = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  return failed != 0 ? -1 : pid;
+/// A program's child process whose output goes to our stderr (stdout is the JSON); −1 with a
+/// message on stderr when it cannot start.
+pid_t Spawn(const std::vector<std::string>& argv) {
+  std::string error;
+  costume::process::SpawnOptions options;
+  options.stdout_to_stderr = true;
+  const pid_t pid = costume::process::Spawn(argv, options, &error);
+  if (pid < 0) std::cerr << "haptic_bench: " << error << "\n";
+  return pid;
 }
 
-void Terminate(pid_t pid) {
-  if (pid <= 0) return;
-  kill(pid, SIGTERM);
-  int status = 0;
-  waitpid(pid, &status, 0);
-}
+using costume::process::Terminate;
 
 /// A child process spinning on the other core until killed.
 pid_t StartBusyChild() {
