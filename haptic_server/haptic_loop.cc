@@ -72,7 +72,7 @@ void FakeClock::ScriptLatencies(const std::int64_t* latencies, int count) {
 }
 
 Pacer::Pacer(LoopClock& clock, std::int64_t spin_margin, std::int64_t period)
-    : clock_(clock), spin_margin_(spin_margin) {
+    : clock_(clock), configured_margin_(spin_margin), spin_margin_(spin_margin) {
   const auto max_margin =
       static_cast<std::int64_t>(kMaxSpinMarginFraction * static_cast<double>(period));
   if (period <= 0 || spin_margin < 0 || spin_margin > max_margin) {
@@ -86,12 +86,13 @@ Pacer::Pacer(LoopClock& clock, std::int64_t spin_margin, std::int64_t period)
 
 std::int64_t Pacer::WaitUntil(std::int64_t deadline) {
   AddRelaxed(num_waits_, 1);
-  if (spin_margin_ == 0) {
+  const std::int64_t margin = spin_margin_.load(std::memory_order_relaxed);
+  if (margin == 0) {
     clock_.SleepUntil(deadline);
     return clock_.Now();
   }
   // An absolute sleep to a time already past returns at once, so no check of "now" first.
-  clock_.SleepUntil(deadline - spin_margin_);
+  clock_.SleepUntil(deadline - margin);
   const std::int64_t woke = clock_.Now();
   if (woke >= deadline) {
     AddRelaxed(num_margin_exceeded_, 1);
@@ -220,7 +221,12 @@ void HapticLoop::Start() {
     if (options_.realtime_priority > 0) {
       status_ = TryRealtimePriority(options_.realtime_priority);
     } else {
-      status_.reason = "real-time priority not requested";
+      status_.reason = "real-time priority not requested.";
+    }
+    // Spinning pays only at real-time priority (HapticLoopOptions::spin_margin).
+    pacer_.EnableSpinning(status_.realtime);
+    if (!status_.realtime && options_.spin_margin > 0) {
+      status_.reason += " The pacer sleeps only: no spinning at normal priority.";
     }
     status_ready_.store(true, std::memory_order_release);
     Run(-1);

@@ -101,14 +101,19 @@ class Pacer {
   /// Returns the first clock reading at or after `deadline` [ns]: never earlier. (Later when
   /// the sleep woke late, or when the deadline was already past.)
   std::int64_t WaitUntil(std::int64_t deadline);
-  std::int64_t spin_margin() const { return spin_margin_; }
+  std::int64_t spin_margin() const { return spin_margin_.load(std::memory_order_relaxed); }
+  /// Sets the margin to 0 (sleep only) or back to the constructor's. Only while nobody waits.
+  void EnableSpinning(bool enable) {
+    spin_margin_.store(enable ? configured_margin_ : 0, std::memory_order_relaxed);
+  }
   PacerCounters counters() const;
   /// Zeroes the counters (only while nobody waits).
   void Reset();
 
  private:
   LoopClock& clock_;
-  std::int64_t spin_margin_;
+  std::int64_t configured_margin_;
+  std::atomic<std::int64_t> spin_margin_;
   // Written by the waiting thread only (load + store, no read-modify-write); read by others.
   std::atomic<std::int64_t> num_waits_{0};
   std::atomic<std::int64_t> num_margin_exceeded_{0};
@@ -201,7 +206,9 @@ struct HapticLoopOptions {
   int realtime_priority = 80;
   /// Pacer margin [ns]: sleep until this long before each deadline, then spin on the clock.
   /// 0 (the default here) sleeps all the way; costume_haptic_server uses kDefaultSpinMargin.
-  /// 0 ..kMaxSpinMarginFraction · period.
+  /// 0 ..kMaxSpinMarginFraction · period. Start() spins only when SCHED_FIFO was granted:
+  /// at normal priority the spin competes with every other thread, and measured under load it
+  /// made missed ticks more frequent, not less (docs/processes.md, "Benchmark").
   std::int64_t spin_margin = 0;
 };
 
@@ -222,7 +229,8 @@ class HapticLoop {
   /// Asks Run to return after the current tick. Thread-safe.
   void RequestStop() { stop_.store(true, std::memory_order_relaxed); }
 
-  /// Starts a thread that calls TryRealtimePriority (if asked) and then Run(-1).
+  /// Starts a thread that calls TryRealtimePriority (if asked) and then Run(-1), with the
+  /// pacer's spinning off unless SCHED_FIFO was granted (the status's reason then says so).
   void Start();
   /// RequestStop and join. No-op when not started.
   void Stop();
@@ -232,6 +240,8 @@ class HapticLoop {
   LoopCounters counters() const;
   /// The pacer's counters: how often the sleep overshot the margin, time spent spinning.
   PacerCounters pacer_counters() const { return pacer_.counters(); }
+  /// The spin margin in use [ns]: options.spin_margin, or 0 after Start at normal priority.
+  std::int64_t spin_margin() const { return pacer_.spin_margin(); }
   /// Statistics of the recorded periods (allocates; any thread, any time; a snapshot taken
   /// while ticking may mix one or two periods from consecutive ticks, harmless for statistics).
   PeriodStatistics Statistics() const;

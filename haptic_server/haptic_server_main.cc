@@ -126,6 +126,20 @@ void PrintRealtime(const HapticLoop& loop) {
   std::fflush(stdout);
 }
 
+/// How the loop waits (after PrintRealtime: spinning is off at normal priority).
+void PrintPacing(const HapticLoop& loop, int spin_us) {
+  if (loop.spin_margin() > 0) {
+    std::printf("pacing: sleep until %lld us before each deadline, then spin on CLOCK_MONOTONIC\n",
+                static_cast<long long>(loop.spin_margin() / 1000));
+  } else if (spin_us > 0) {
+    std::printf("pacing: sleep until each deadline (--spin-us %d unused: no real-time priority)\n",
+                spin_us);
+  } else {
+    std::printf("pacing: sleep until each deadline (--spin-us 0)\n");
+  }
+  std::fflush(stdout);
+}
+
 int Run(const Arguments& args) {
   WorkspaceTransform workspace;
   workspace.scale = args.scale;
@@ -171,17 +185,12 @@ int Run(const Arguments& args) {
   io.SetStatusSources(&loop, &tick, &timed);
   if (auto* mouse = dynamic_cast<MouseDevice*>(inner.get())) io.SetPointerDevice(mouse);
 
-  if (args.spin_us > 0) {
-    std::printf("pacing: sleep until %d us before each deadline, then spin on CLOCK_MONOTONIC\n",
-                args.spin_us);
-  } else {
-    std::printf("pacing: sleep until each deadline (--spin-us 0)\n");
-  }
   InstallSignalHandlers();
   const auto start = std::chrono::steady_clock::now();
   loop.Start();
   io.Start();
   PrintRealtime(loop);
+  PrintPacing(loop, args.spin_us);
 
   while (!g_stop.load()) {
     const double elapsed =
@@ -212,7 +221,7 @@ int Run(const Arguments& args) {
               static_cast<long long>(c.num_overruns), p.p99 * 1e-3, p.max * 1e-3,
               tick.last_device_force().norm(), static_cast<long long>(n.num_patches_handed),
               static_cast<long long>(n.num_grabs_published));
-  if (args.spin_us > 0) {
+  if (loop.spin_margin() > 0) {
     std::printf("pacing: spinning took %.1f %% of a core; %lld of %lld sleeps woke past the "
                 "deadline (latency over %d us)\n",
                 100.0 * static_cast<double>(pacing.spin_ns) * 1e-9 / std::max(run_seconds, 1e-9),

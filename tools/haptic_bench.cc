@@ -273,6 +273,7 @@ class LoopVariant {
     json result = {
         {"seconds", wall},
         {"spin_us", Us(spin_margin_)},
+        {"spin_us_in_use", Us(loop_->spin_margin())},
         {"realtime", rt.realtime},
         {"memory_locked", rt.memory_locked},
         {"realtime_reason", rt.reason},

@@ -8,6 +8,8 @@
 #include <new>
 #include <numeric>
 #include <random>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include "haptic_server/haptic_tick.h"
@@ -309,6 +311,22 @@ TEST_P(MissedTicks, EqualTheGridPointsSkippedByInjectedStalls) {
 
 INSTANTIATE_TEST_SUITE_P(SleepAndHybrid, MissedTicks, ::testing::Values(0, kMargin),
                          [](const auto& param) { return param.param == 0 ? "Sleep" : "Hybrid"; });
+
+TEST(HybridLoop, StartedAtNormalPriorityItSleepsWithoutSpinning) {
+  MonotonicClock clock;
+  CountingHandler handler;
+  HapticLoop loop(clock, handler, {kPeriod, 4096, /*realtime_priority=*/0, kMargin});
+  EXPECT_EQ(loop.spin_margin(), kMargin);  // Run on the caller's thread would spin
+  loop.Start();
+  while (loop.counters().num_ticks < 20) std::this_thread::yield();
+  loop.Stop();
+  EXPECT_EQ(loop.spin_margin(), 0);
+  EXPECT_EQ(loop.pacer_counters().spin_ns, 0);
+  EXPECT_EQ(loop.pacer_counters().num_margin_exceeded, 0);
+  EXPECT_NE(loop.realtime_status().reason.find("no spinning at normal priority"),
+            std::string::npos)
+      << loop.realtime_status().reason;
+}
 
 TEST(HybridLoop, AllocatesNothingWhileWaiting) {
   FakeClock clock;
