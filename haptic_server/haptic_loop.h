@@ -71,9 +71,11 @@ class FakeClock final : public LoopClock {
 /// that never sleeps is throttled by the kernel, sched_rt_runtime_us).
 inline constexpr double kMaxSpinMarginFraction = 0.5;
 
-/// The spin margin costume_haptic_server uses by default [ns] (--spin-us): measured on the
-/// development VM, docs/processes.md ("Benchmark"), where it costs about that fraction of a
-/// period of CPU (a few % of one core at 1 kHz).
+/// The spin margin costume_haptic_server uses by default [ns] (--spin-us). Chosen from a sweep
+/// on the development VM (docs/processes.md, "Benchmark"): below it the sleep overshoots the
+/// margin often (2.3 % of the sleeps at 50 µs), at 100 µs 0.3 %, and larger margins only
+/// halve that at two to three times the CPU. It costs the margin less the sleep's usual
+/// wake-up latency per period: 7–8 % of one core at 1 kHz there.
 inline constexpr std::int64_t kDefaultSpinMargin = 100'000;
 
 /// What a Pacer has done since construction or Reset (readable from any thread).
