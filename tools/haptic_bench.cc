@@ -227,6 +227,13 @@ class RealTick {
   std::thread io_;
 };
 
+/// The real tick's counters, summed over every variant that ran it.
+json RealTickCounters(RealTick& real) {
+  return {{"patches_used", real.tick().counters().num_patches},
+          {"outgoing_dropped", real.tick().counters().num_dropped_outgoing},
+          {"stale_steps", real.tick().safety().counters().num_stale_steps}};
+}
+
 /// One way of running the 1 kHz loop: the real tick or no work, pure sleep or hybrid pacing.
 /// Runs in segments (Segment) so that the variants of a case can take turns.
 class LoopVariant {
@@ -292,11 +299,6 @@ class LoopVariant {
         {"spin_fraction_of_a_core", static_cast<double>(pacing.spin_ns) * 1e-9 / std::max(wall, 1e-9)},
         {"process_cpu_fraction_of_a_core", cpu_seconds_ / std::max(wall, 1e-9)},
         {"steal", StealJson(steal_, wall)}};
-    if (real_ != nullptr) {
-      result["patches_used"] = real_->tick().counters().num_patches;
-      result["outgoing_dropped"] = real_->tick().counters().num_dropped_outgoing;
-      result["stale_steps"] = real_->tick().safety().counters().num_stale_steps;
-    }
     return result;
   }
 
@@ -381,26 +383,44 @@ std::string GapConclusion(const json& variants, const ClockSpinVariant& spin, js
   const std::int64_t spin_gaps = spin.gaps().num_over_threshold(2'000'000);
   const double longest = spin.gaps().longest().empty() ? 0.0 : Us(spin.gaps().longest()[0]);
   const double steal_s = StealJson(spin.steal(), 1.0).value("seconds", 0.0);
+  const double lost_s = static_cast<double>(spin.gaps().lost_ns()) * 1e-9;
   std::int64_t bare_gaps = 0;
-  double bare_max = 0.0;
+  double bare_max = 0.0, bare_seconds = 0.0;
   for (const char* name : {"bare_sleep", "bare_hybrid"}) {
     bare_gaps += variants[name]["gaps_over_2ms"].get<std::int64_t>();
     bare_max = std::max(bare_max, variants[name]["period_us"]["max"].get<double>());
+    bare_seconds += variants[name]["seconds"].get<double>();
   }
+  // Had the spinner lost the CPU as often as the bare threads saw long gaps (Poisson, the bare
+  // threads' rate), the chance it would still have seen none: a short run proves little.
+  const double none_by_chance =
+      std::exp(-static_cast<double>(bare_gaps) / std::max(bare_seconds, 1e-9) * spin.spin_seconds());
   floor["clock_spin_gaps_over_2ms"] = spin_gaps;
   floor["clock_spin_longest_gap_us"] = longest;
   floor["clock_spin_seconds"] = spin.spin_seconds();
   floor["steal_seconds_while_spinning"] = steal_s;
   floor["bare_threads_gaps_over_2ms"] = bare_gaps;
+  floor["bare_threads_seconds"] = bare_seconds;
+  floor["clock_spin_no_gap_by_chance_probability"] = none_by_chance;
   floor["no_gap_over_2ms_possible_here"] = spin_gaps == 0;
   floor["no_gap_over_2ms_possible_for_a_thread_that_sleeps"] = spin_gaps == 0 && bare_gaps == 0;
   if (spin_gaps > 0) {
     return Format(
         "A thread with nothing to do but read CLOCK_MONOTONIC lost the CPU for more than 2 ms "
-        "%lld times in %.1f s of spinning (longest %.0f us; steal time of the CPUs meanwhile "
-        "%.2f s). No thread on that CPU runs during such a gap, so no pacing or loop code can "
-        "meet 'no gap over 2 ms in 60 s' on this machine in this case.",
-        static_cast<long long>(spin_gaps), spin.spin_seconds(), longest, steal_s);
+        "%lld times in %.1f s of spinning (longest %.0f us; %.3f s lost in its gaps over 100 us, "
+        "while the CPUs' steal time grew by %.2f s). No thread on that CPU runs during such a "
+        "gap, so no pacing or loop code can meet 'no gap over 2 ms in 60 s' on this machine in "
+        "this case.",
+        static_cast<long long>(spin_gaps), spin.spin_seconds(), longest, lost_s, steal_s);
+  }
+  if (bare_gaps > 0 && none_by_chance >= 0.05) {
+    return Format(
+        "A thread spinning on CLOCK_MONOTONIC saw no gap over 2 ms in %.1f s (longest %.0f us), "
+        "the bare sleeping threads %lld in %.1f s (longest %.0f us); at their rate the spinner "
+        "would have seen none with probability %.2f anyway: too short a run to tell whether the "
+        "long gaps come with sleeping or with the machine (try --seconds 60).",
+        spin.spin_seconds(), longest, static_cast<long long>(bare_gaps), bare_seconds, bare_max,
+        none_by_chance);
   }
   if (bare_gaps > 0) {
     return Format(
@@ -408,8 +428,9 @@ std::string GapConclusion(const json& variants, const ClockSpinVariant& spin, js
         "(longest %.0f us), but the bare threads, which sleep between ticks and do no work, had "
         "%lld periods over 2 ms (longest %.0f us): here the long gaps come with waking from "
         "sleep, not with running: they are no fault of the tick's work, and by the spinner's figure "
-        "only a loop that never slept (a whole core) would avoid them on this machine.",
-        spin.spin_seconds(), longest, static_cast<long long>(bare_gaps), bare_max);
+        "only a loop that never slept (a whole core) would avoid them on this machine (chance "
+        "of the spinner seeing none at the bare threads' rate: %.3f).",
+        spin.spin_seconds(), longest, static_cast<long long>(bare_gaps), bare_max, none_by_chance);
   }
   return Format(
       "Neither the thread spinning on CLOCK_MONOTONIC (%.1f s, longest gap %.0f us) nor the bare "
@@ -499,6 +520,7 @@ json LoopCase(double seconds, double round_seconds, int priority, std::int64_t s
         {"steal_seconds", result["clock_spin"]["steal"].value("seconds", 0.0)}};
   }
   result["side_by_side"] = side_by_side;
+  result["real_tick_both_pacers"] = RealTickCounters(real);
   if (spin) result["machine_floor"] = FloorConclusion(result, *spin);
   return result;
 }
