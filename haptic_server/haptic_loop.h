@@ -73,8 +73,8 @@ inline constexpr double kMaxSpinMarginFraction = 0.5;
 
 /// The spin margin costume_haptic_server uses by default [ns] (--spin-us). Chosen from a sweep
 /// on the development VM (docs/processes.md, "Benchmark"): below it the sleep overshoots the
-/// margin often (2.3 % of the sleeps at 50 µs), at 100 µs 0.3 %, and larger margins only
-/// halve that at two to three times the CPU. It costs the margin less the sleep's usual
+/// margin often (2.3 % of the sleeps at 50 µs), at 100 µs 0.3 %, and 200–300 µs only bring
+/// that to 0.1 % at 2.4–3.7 times the spinning. It costs the margin less the sleep's usual
 /// wake-up latency per period: 7–8 % of one core at 1 kHz there.
 inline constexpr std::int64_t kDefaultSpinMargin = 100'000;
 
