@@ -18,6 +18,31 @@ namespace costume::haptics {
 
 namespace {
 constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
+
+/// Tells the core it is in a spin-wait (x86 PAUSE, ARM YIELD): the hyperthread sibling or the
+/// hypervisor may use the slot, and leaving the loop does not flush the pipeline.
+inline void CpuRelax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__) || defined(__arm__)
+  asm volatile("yield");
+#endif
+}
+
+/// Relaxed increment by the only writer (no read-modify-write needed, nor wanted in the tick).
+inline void AddRelaxed(std::atomic<std::int64_t>& counter, std::int64_t value) {
+  counter.store(counter.load(std::memory_order_relaxed) + value, std::memory_order_relaxed);
+}
+
+/// The options after checking the period and the ring (before the pacer checks its margin).
+const HapticLoopOptions& CheckedLoopOptions(const HapticLoopOptions& options) {
+  if (options.period <= 0 || options.ring_capacity <= 0) {
+    throw sim::InputError("haptic loop: period = " + std::to_string(options.period) +
+                          " ns and ring_capacity = " + std::to_string(options.ring_capacity) +
+                          " must both be > 0");
+  }
+  return options;
+}
 }  // namespace
 
 std::int64_t MonotonicClock::Now() {
@@ -44,6 +69,54 @@ void FakeClock::ScriptLatencies(const std::int64_t* latencies, int count) {
   script_size_ = std::min(count, kMaxScript);
   std::copy(latencies, latencies + script_size_, script_.get());
   script_next_ = 0;
+}
+
+Pacer::Pacer(LoopClock& clock, std::int64_t spin_margin, std::int64_t period)
+    : clock_(clock), configured_margin_(spin_margin), spin_margin_(spin_margin) {
+  const auto max_margin =
+      static_cast<std::int64_t>(kMaxSpinMarginFraction * static_cast<double>(period));
+  if (period <= 0 || spin_margin < 0 || spin_margin > max_margin) {
+    throw sim::InputError("haptic loop: spin margin = " + std::to_string(spin_margin) +
+                          " ns must be in [0, " + std::to_string(max_margin) +
+                          "] ns (0: sleep only; at most " +
+                          std::to_string(static_cast<int>(kMaxSpinMarginFraction * 100)) +
+                          " % of the period " + std::to_string(period) + " ns)");
+  }
+}
+
+std::int64_t Pacer::WaitUntil(std::int64_t deadline) {
+  AddRelaxed(num_waits_, 1);
+  const std::int64_t margin = spin_margin_.load(std::memory_order_relaxed);
+  if (margin == 0) {
+    clock_.SleepUntil(deadline);
+    return clock_.Now();
+  }
+  // An absolute sleep to a time already past returns at once, so no check of "now" first.
+  clock_.SleepUntil(deadline - margin);
+  const std::int64_t woke = clock_.Now();
+  if (woke >= deadline) {
+    AddRelaxed(num_margin_exceeded_, 1);
+    return woke;
+  }
+  std::int64_t now = woke;
+  while (now < deadline) {
+    CpuRelax();
+    now = clock_.Now();
+  }
+  AddRelaxed(spin_ns_, now - woke);
+  return now;
+}
+
+PacerCounters Pacer::counters() const {
+  return {num_waits_.load(std::memory_order_relaxed),
+          num_margin_exceeded_.load(std::memory_order_relaxed),
+          spin_ns_.load(std::memory_order_relaxed)};
+}
+
+void Pacer::Reset() {
+  num_waits_.store(0);
+  num_margin_exceeded_.store(0);
+  spin_ns_.store(0);
 }
 
 std::string TryThreadFifoPriority(int priority) {
@@ -103,12 +176,10 @@ PeriodStatistics ComputePeriodStatistics(const std::int64_t* periods, std::int64
 }
 
 HapticLoop::HapticLoop(LoopClock& clock, TickHandler& handler, const HapticLoopOptions& options)
-    : clock_(clock), handler_(handler), options_(options) {
-  if (options_.period <= 0 || options_.ring_capacity <= 0) {
-    throw sim::InputError("haptic loop: period = " + std::to_string(options_.period) +
-                          " ns and ring_capacity = " + std::to_string(options_.ring_capacity) +
-                          " must both be > 0");
-  }
+    : clock_(clock),
+      handler_(handler),
+      options_(CheckedLoopOptions(options)),
+      pacer_(clock, options_.spin_margin, options_.period) {
   ring_ = std::make_unique<std::atomic<std::int64_t>[]>(options_.ring_capacity);
 }
 
@@ -127,8 +198,7 @@ void HapticLoop::Run(std::int64_t num_ticks) {
   std::int64_t previous_wake = -1;
   for (std::int64_t k = 0; num_ticks < 0 || k < num_ticks; ++k) {
     if (stop_.load(std::memory_order_relaxed)) break;
-    clock_.SleepUntil(deadline);
-    const std::int64_t now = clock_.Now();
+    const std::int64_t now = pacer_.WaitUntil(deadline);
     if (previous_wake >= 0) RecordPeriod(now - previous_wake);
     previous_wake = now;
     // More than a period late: skip the deadlines already gone instead of racing to catch up.
@@ -151,7 +221,12 @@ void HapticLoop::Start() {
     if (options_.realtime_priority > 0) {
       status_ = TryRealtimePriority(options_.realtime_priority);
     } else {
-      status_.reason = "real-time priority not requested";
+      status_.reason = "real-time priority not requested.";
+    }
+    // Spinning pays only at real-time priority (HapticLoopOptions::spin_margin).
+    pacer_.EnableSpinning(status_.realtime);
+    if (!status_.realtime && options_.spin_margin > 0) {
+      status_.reason += " The pacer sleeps only: no spinning at normal priority.";
     }
     status_ready_.store(true, std::memory_order_release);
     Run(-1);
@@ -192,6 +267,7 @@ void HapticLoop::ResetStatistics() {
   num_ticks_.store(0);
   num_missed_.store(0);
   num_overruns_.store(0);
+  pacer_.Reset();
 }
 
 }  // namespace costume::haptics

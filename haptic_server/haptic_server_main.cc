@@ -4,7 +4,9 @@
 // released so the force fades to zero before the device is closed.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -58,7 +60,12 @@ struct Arguments {
   int publish_every = 4;
   int priority = 80;
   int io_priority = 70;
+  int spin_us = static_cast<int>(kDefaultSpinMargin / 1000);
 };
+
+/// The loop's period here (1 kHz) and so the largest --spin-us.
+constexpr std::int64_t kPeriodNs = 1'000'000;
+constexpr int kMaxSpinUs = static_cast<int>(kMaxSpinMarginFraction * kPeriodNs / 1000);
 
 /// The device named on the command line. Throws InputError with what to do instead.
 std::unique_ptr<HapticDevice> MakeDevice(const Arguments& args) {
@@ -119,6 +126,20 @@ void PrintRealtime(const HapticLoop& loop) {
   std::fflush(stdout);
 }
 
+/// How the loop waits (after PrintRealtime: spinning is off at normal priority).
+void PrintPacing(const HapticLoop& loop, int spin_us) {
+  if (loop.spin_margin() > 0) {
+    std::printf("pacing: sleep until %lld us before each deadline, then spin on CLOCK_MONOTONIC\n",
+                static_cast<long long>(loop.spin_margin() / 1000));
+  } else if (spin_us > 0) {
+    std::printf("pacing: sleep until each deadline (--spin-us %d unused: no real-time priority)\n",
+                spin_us);
+  } else {
+    std::printf("pacing: sleep until each deadline (--spin-us 0)\n");
+  }
+  std::fflush(stdout);
+}
+
 int Run(const Arguments& args) {
   WorkspaceTransform workspace;
   workspace.scale = args.scale;
@@ -157,17 +178,20 @@ int Run(const Arguments& args) {
   HapticTick tick(device, patches, outgoing, workspace, ForceSafetyOptions{});
   TimedTickHandler timed(tick, clock);
   HapticLoopOptions loop_options;
+  loop_options.period = kPeriodNs;
   loop_options.realtime_priority = args.priority;
+  loop_options.spin_margin = static_cast<std::int64_t>(args.spin_us) * 1000;
   HapticLoop loop(clock, timed, loop_options);
   io.SetStatusSources(&loop, &tick, &timed);
   if (auto* mouse = dynamic_cast<MouseDevice*>(inner.get())) io.SetPointerDevice(mouse);
 
   InstallSignalHandlers();
+  const auto start = std::chrono::steady_clock::now();
   loop.Start();
   io.Start();
   PrintRealtime(loop);
+  PrintPacing(loop, args.spin_us);
 
-  const auto start = std::chrono::steady_clock::now();
   while (!g_stop.load()) {
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -185,7 +209,10 @@ int Run(const Arguments& args) {
   const DeviceStatus closed = device.Close();
   if (!closed.ok) std::fprintf(stderr, "close: %s\n", closed.message.c_str());
 
+  const double run_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const LoopCounters c = loop.counters();
+  const PacerCounters pacing = loop.pacer_counters();
   const PeriodStatistics p = loop.Statistics();
   const HapticServerIoCounts& n = io.counts();
   std::printf("stopped: %lld ticks, %lld missed, %lld overruns; period p99 %.1f us, max %.1f us; "
@@ -194,6 +221,13 @@ int Run(const Arguments& args) {
               static_cast<long long>(c.num_overruns), p.p99 * 1e-3, p.max * 1e-3,
               tick.last_device_force().norm(), static_cast<long long>(n.num_patches_handed),
               static_cast<long long>(n.num_grabs_published));
+  if (loop.spin_margin() > 0) {
+    std::printf("pacing: spinning took %.1f %% of a core; %lld of %lld sleeps woke past the "
+                "deadline (latency over %d us)\n",
+                100.0 * static_cast<double>(pacing.spin_ns) * 1e-9 / std::max(run_seconds, 1e-9),
+                static_cast<long long>(pacing.num_margin_exceeded),
+                static_cast<long long>(pacing.num_waits), args.spin_us);
+  }
   return 0;
 }
 
@@ -234,6 +268,24 @@ int main(int argc, char** argv) {
   app.add_option("--io-priority", args.io_priority,
                  "SCHED_FIFO priority of the LCM I/O thread, below the tick's (<= 0: normal)")
       ->check(CLI::Range(-99, 99))
+      ->capture_default_str();
+  app.add_option("--spin-us", args.spin_us,
+                 "pacing: sleep until this many us before each 1 ms deadline, then spin reading "
+                 "the clock until it (absorbs the sleep's wake-up latency at the cost of up to "
+                 "this much CPU per period); 0 sleeps all the way")
+      ->check(CLI::Validator(
+          [](std::string& value) -> std::string {
+            int us = 0;
+            const auto [end, error] = std::from_chars(value.data(), value.data() + value.size(), us);
+            if (error == std::errc() && end == value.data() + value.size() && us >= 0 &&
+                us <= kMaxSpinUs) {
+              return "";
+            }
+            return "'" + value + "' refused: whole microseconds from 0 (sleep only) to " +
+                   std::to_string(kMaxSpinUs) +
+                   " (half the 1 ms period; beyond it the tick would spin most of each period)";
+          },
+          "0.." + std::to_string(kMaxSpinUs)))
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {

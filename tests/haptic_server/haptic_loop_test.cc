@@ -8,10 +8,13 @@
 #include <new>
 #include <numeric>
 #include <random>
+#include <string>
+#include <thread>
 #include <vector>
 
 #include "haptic_server/haptic_tick.h"
 #include "haptic_server/simulated_device.h"
+#include "sim_core/common/input_error.h"
 
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"  // malloc/free pair below on purpose
 
@@ -125,6 +128,218 @@ TEST(HapticLoop, ALongTickCountsAnOverrunAndSkipsTheMissedDeadline) {
   EXPECT_EQ(s.min, 500'000);
   EXPECT_EQ(s.num_gaps, 1);  // the 2.5 ms period
   EXPECT_EQ(handler.last.deadline, 21 * kPeriod);  // no lag accumulated: deadlines on the grid
+}
+
+// ---- hybrid pacing (Pacer) ---------------------------------------------------------------
+
+constexpr std::int64_t kMargin = 100'000;  // 100 µs
+constexpr std::int64_t kReadCost = 50;     // ns per clock read: divides kMargin, so a spin
+                                           // from deadline − margin lands on the deadline
+
+TEST(Pacer, AcceptsMarginsFromZeroToHalfThePeriodOnly) {
+  FakeClock clock;
+  EXPECT_NO_THROW(Pacer(clock, 0, kPeriod));
+  EXPECT_NO_THROW(Pacer(clock, kPeriod / 2, kPeriod));
+  EXPECT_THROW(Pacer(clock, -1, kPeriod), sim::InputError);
+  EXPECT_THROW(Pacer(clock, kPeriod / 2 + 1, kPeriod), sim::InputError);
+  try {
+    Pacer(clock, kPeriod, kPeriod);
+    ADD_FAILURE() << "a margin of a whole period was accepted";
+  } catch (const sim::InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("[0, 500000] ns"), std::string::npos) << error.what();
+  }
+  EXPECT_THROW(HapticLoop(clock, *std::make_unique<CountingHandler>(), {kPeriod, 16, 0, -5}),
+               sim::InputError);
+}
+
+// Against an independent model of the fake clock: the sleep wakes at (deadline − margin) +
+// latency; the pacer then reads the clock, each read kReadCost later, and returns the first
+// reading at or after the deadline.
+TEST(Pacer, NeverReturnsBeforeTheDeadlineAndReturnsTheFirstReadingAtOrAfterIt) {
+  std::mt19937 random(11);
+  std::uniform_int_distribution<std::int64_t> latency_ns(0, 3 * kMargin);
+  const int n = 5000;
+  std::vector<std::int64_t> latency(n);
+  for (std::int64_t& l : latency) l = latency_ns(random);
+  latency[7] = kMargin;      // exactly the margin: woke at the deadline, no spin
+  latency[8] = kMargin - 1;  // one ns short: one spin read
+  FakeClock clock(12'345);
+  clock.SetReadCost(kReadCost);
+  clock.ScriptLatencies(latency.data(), n);
+  Pacer pacer(clock, kMargin, kPeriod);
+  std::int64_t expected_exceeded = 0, expected_spin = 0;
+  for (int k = 0; k < n; ++k) {
+    const std::int64_t deadline = (k + 1) * kPeriod;
+    const std::int64_t woke = deadline - kMargin + latency[k];
+    std::int64_t expected = woke;
+    if (woke >= deadline) {
+      ++expected_exceeded;
+    } else {
+      expected = woke + (deadline - woke + kReadCost - 1) / kReadCost * kReadCost;
+      expected_spin += expected - woke;
+    }
+    const std::int64_t returned = pacer.WaitUntil(deadline);
+    ASSERT_GE(returned, deadline) << "wait " << k;
+    ASSERT_EQ(returned, expected) << "wait " << k << ", latency " << latency[k];
+  }
+  EXPECT_EQ(pacer.counters().num_waits, n);
+  EXPECT_EQ(pacer.counters().num_margin_exceeded, expected_exceeded);
+  EXPECT_EQ(pacer.counters().spin_ns, expected_spin);
+  EXPECT_GT(expected_exceeded, 0);        // both branches were taken
+  EXPECT_LT(expected_exceeded, n);
+}
+
+TEST(Pacer, WithoutAMarginItOnlySleeps) {
+  const std::int64_t latency[3] = {0, 70'000, 2'500'000};
+  FakeClock clock;
+  clock.ScriptLatencies(latency, 3);
+  Pacer pacer(clock, 0, kPeriod);
+  EXPECT_EQ(pacer.WaitUntil(kPeriod), kPeriod);
+  EXPECT_EQ(pacer.WaitUntil(2 * kPeriod), 2 * kPeriod + 70'000);
+  EXPECT_EQ(pacer.WaitUntil(3 * kPeriod), 3 * kPeriod + 2'500'000);
+  EXPECT_EQ(pacer.counters().num_margin_exceeded, 0);
+  EXPECT_EQ(pacer.counters().spin_ns, 0);
+}
+
+// The real clock: whatever the machine's wake-up latency, the returned time and a later
+// reading are never before the deadline (a property, not a timing threshold).
+TEST(Pacer, NeverReturnsEarlyOnTheMonotonicClock) {
+  MonotonicClock clock;
+  Pacer pacer(clock, 200'000, kPeriod);
+  std::int64_t deadline = clock.Now();
+  for (int k = 0; k < 200; ++k) {
+    deadline += kPeriod;
+    const std::int64_t returned = pacer.WaitUntil(deadline);
+    ASSERT_GE(returned, deadline);
+    ASSERT_GE(clock.Now(), deadline);
+  }
+  const PacerCounters c = pacer.counters();
+  EXPECT_EQ(c.num_waits, 200);
+  EXPECT_GE(c.spin_ns, 0);
+}
+
+/// Records every tick's deadline and wake time in preallocated storage; optionally works
+/// (advances the fake clock) in one tick.
+class RecordingHandler final : public TickHandler {
+ public:
+  RecordingHandler(FakeClock& clock, int capacity) : clock_(clock) {
+    deadlines.reserve(capacity);
+    wakes.reserve(capacity);
+  }
+  void Tick(const TickInfo& info) override {
+    deadlines.push_back(info.deadline);
+    wakes.push_back(info.now);
+    if (info.index == work_at) clock_.Advance(work);
+  }
+  std::vector<std::int64_t> deadlines, wakes;
+  std::int64_t work_at = -1;
+  std::int64_t work = 0;
+
+ private:
+  FakeClock& clock_;
+};
+
+TEST(HybridLoop, AnOverrunSkipsGridPointsAndLeavesNoLag) {
+  const std::int64_t start = 3'000'123;  // off the millisecond grid on purpose
+  FakeClock clock(start);
+  clock.SetReadCost(kReadCost);
+  RecordingHandler handler(clock, 64);
+  handler.work_at = 10;
+  handler.work = 3'500'000;  // 3.5 ms of work in tick 10
+  HapticLoop loop(clock, handler, {kPeriod, 4096, 0, kMargin});
+  loop.Run(30);
+  ASSERT_EQ(handler.deadlines.size(), 30u);
+  // The first deadline is one period after Run's first reading (`start`). Tick 10 ends 3.5 ms
+  // after deadline 10 (plus a few reads): deadlines 11 and 12 are gone, 13 is the next tick's.
+  const std::int64_t first = start + kPeriod;
+  for (int k = 0; k < 30; ++k) {
+    const std::int64_t grid_index = k <= 10 ? k : k + 2;
+    EXPECT_EQ(handler.deadlines[k], first + grid_index * kPeriod) << "tick " << k;
+    // Woken exactly on the deadline (the spin from deadline − margin lands on it), except the
+    // tick after the overrun, which woke as soon as the work ended.
+    if (k != 11) {
+      EXPECT_EQ(handler.wakes[k], handler.deadlines[k]) << "tick " << k;
+    }
+  }
+  EXPECT_EQ(loop.counters().num_missed, 2);
+  EXPECT_EQ(loop.counters().num_overruns, 1);
+  EXPECT_EQ(loop.pacer_counters().num_margin_exceeded, 1);
+  // Every other wait spun the whole margin.
+  EXPECT_EQ(loop.pacer_counters().spin_ns, 29 * kMargin);
+}
+
+// Stalls injected as sleep wake-up latencies: a wake s ns after the deadline skips floor(s / P)
+// grid points, and those are exactly the ones missing from the ticks' deadlines.
+class MissedTicks : public ::testing::TestWithParam<std::int64_t> {};
+
+TEST_P(MissedTicks, EqualTheGridPointsSkippedByInjectedStalls) {
+  const std::int64_t margin = GetParam();
+  const int n = 2000;
+  std::mt19937 random(5);
+  std::uniform_int_distribution<int> whole_periods(0, 6);
+  // Fractions up to 0.8 P: the next sleep target (0.9 P past the stall's grid point) is still
+  // ahead, so every other wait spins the whole margin.
+  std::uniform_int_distribution<std::int64_t> fraction(0, kPeriod * 8 / 10);
+  std::vector<std::int64_t> latency(n, 0);
+  std::vector<std::int64_t> skipped_after(n, 0);  // grid points skipped after tick k − 1
+  std::int64_t expected_missed = 0, num_stalls = 0;
+  for (int k = 5; k < n; k += 37) {  // stalls far apart
+    const std::int64_t late = whole_periods(random) * kPeriod + fraction(random);
+    latency[k] = margin + late;  // the sleep aimed `margin` before the deadline
+    skipped_after[k] = late / kPeriod;
+    expected_missed += late / kPeriod;
+    ++num_stalls;
+  }
+  FakeClock clock;
+  clock.SetReadCost(margin > 0 ? kReadCost : 0);
+  clock.ScriptLatencies(latency.data(), n);
+  RecordingHandler handler(clock, n);
+  HapticLoop loop(clock, handler, {kPeriod, 4096, 0, margin});
+  loop.Run(n);
+  ASSERT_EQ(handler.deadlines.size(), static_cast<std::size_t>(n));
+  EXPECT_EQ(loop.counters().num_missed, expected_missed);
+  EXPECT_GT(expected_missed, 10);
+  for (int k = 1; k < n; ++k) {
+    ASSERT_EQ(handler.deadlines[k] - handler.deadlines[k - 1], (1 + skipped_after[k]) * kPeriod)
+        << "tick " << k;
+  }
+  EXPECT_EQ(handler.deadlines.back() - handler.deadlines.front(),
+            (n - 1 + expected_missed) * kPeriod);
+  EXPECT_EQ(loop.pacer_counters().num_margin_exceeded, margin > 0 ? num_stalls : 0);
+  EXPECT_EQ(loop.pacer_counters().spin_ns, margin > 0 ? (n - num_stalls) * margin : 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(SleepAndHybrid, MissedTicks, ::testing::Values(0, kMargin),
+                         [](const auto& param) { return param.param == 0 ? "Sleep" : "Hybrid"; });
+
+TEST(HybridLoop, StartedAtNormalPriorityItSleepsWithoutSpinning) {
+  MonotonicClock clock;
+  CountingHandler handler;
+  HapticLoop loop(clock, handler, {kPeriod, 4096, /*realtime_priority=*/0, kMargin});
+  EXPECT_EQ(loop.spin_margin(), kMargin);  // Run on the caller's thread would spin
+  loop.Start();
+  while (loop.counters().num_ticks < 20) std::this_thread::yield();
+  loop.Stop();
+  EXPECT_EQ(loop.spin_margin(), 0);
+  EXPECT_EQ(loop.pacer_counters().spin_ns, 0);
+  EXPECT_EQ(loop.pacer_counters().num_margin_exceeded, 0);
+  EXPECT_NE(loop.realtime_status().reason.find("no spinning at normal priority"),
+            std::string::npos)
+      << loop.realtime_status().reason;
+}
+
+TEST(HybridLoop, AllocatesNothingWhileWaiting) {
+  FakeClock clock;
+  clock.SetReadCost(kReadCost);
+  CountingHandler handler;
+  HapticLoop loop(clock, handler, {kPeriod, 4096, 0, kMargin});
+  g_allocations = 0;
+  g_counting = true;
+  loop.Run(1000);
+  g_counting = false;
+  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(handler.ticks, 1000);
+  EXPECT_EQ(loop.pacer_counters().spin_ns, 1000 * kMargin);
 }
 
 // A full haptic tick: simulated device, a patch, feedback, safety, the outgoing queue.

@@ -8,6 +8,7 @@
 // and lets go; the cloth follows the pull (through the simulation's implicit coupling,
 // grab.coupling_stiffness) and then returns to rest.
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <signal.h>
 #include <sys/wait.h>
 

@@ -9,6 +9,7 @@
 // status dropped_* counters rose by exactly what was sent, and that a valid grab (pointer
 // samples, as the GUI sends them) still pulls the cloth.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>

@@ -1,47 +1,31 @@
 #pragma once
 /// @file
-/// Child processes for the multi-process tests (label integration): start a program, ask
-/// whether it still runs, stop it, collect its exit status.
+/// Child processes for the multi-process tests (label integration): process/child_process.h,
+/// with a failed start reported as a test failure naming the program.
 
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <string>
 #include <vector>
 
+#include "process/child_process.h"
+
 namespace costume::testing {
 
 /// Starts `argv` (argv[0] a path) as a child process with this process's environment;
-/// returns its pid. A failed start is a test failure naming the program.
-inline pid_t Spawn(std::vector<std::string> argv) {
-  std::vector<char*> args;
-  for (std::string& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  pid_t pid = 0;
-  EXPECT_EQ(posix_spawn(&pid, args[0], nullptr, nullptr, args.data(), environ), 0) << argv[0];
+/// returns its pid (−1 after a test failure naming the program when it could not start).
+inline pid_t Spawn(const std::vector<std::string>& argv) {
+  std::string error;
+  const pid_t pid = process::Spawn(argv, {}, &error);
+  EXPECT_GT(pid, 0) << error;
   return pid;
 }
 
 /// Waits for `pid`; returns its exit status, or −1 when it did not exit normally.
-inline int Wait(pid_t pid) {
-  int status = 0;
-  waitpid(pid, &status, 0);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
+using process::Wait;
 /// True while `pid` has not exited (reaps it when it has).
-inline bool Running(pid_t pid) {
-  int status = 0;
-  return waitpid(pid, &status, WNOHANG) == 0;
-}
-
-/// SIGTERM, then its exit status as Wait.
-inline int Terminate(pid_t pid) {
-  kill(pid, SIGTERM);
-  return Wait(pid);
-}
+using process::Running;
+/// SIGTERM, then its exit status as Wait (−1 for a pid that never started).
+using process::Terminate;
 
 }  // namespace costume::testing

@@ -1,0 +1,103 @@
+#pragma once
+/// @file
+/// What the machine itself allows a real-time thread, measured beside the benchmarks that use
+/// it (haptic_bench): the hypervisor's steal time from /proc/stat, and the gaps a thread sees
+/// when it does nothing but read CLOCK_MONOTONIC in a loop. A thread that never waits can only
+/// see a gap between two reads when it lost the CPU (to the kernel, to a higher-priority thread,
+/// or to the host stopping the virtual CPU); no program on that CPU runs during such a gap, so
+/// the gaps are a floor under what any loop can achieve there.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace costume::tools {
+
+/// The `steal` column of /proc/stat's cpu lines [USER_HZ ticks, sysconf(_SC_CLK_TCK) per s]:
+/// time the hypervisor ran something else while this virtual CPU wanted to run.
+struct StealTicks {
+  /// False when the text had no cpu line with a steal column (not Linux, or a kernel < 2.6.11).
+  bool available = false;
+  /// The aggregate "cpu" line.
+  std::int64_t total = 0;
+  /// "cpu0", "cpu1", ... in order.
+  std::vector<std::int64_t> per_cpu;
+};
+
+/// Parses /proc/stat text: cpu lines are "cpuN user nice system idle iowait irq softirq steal
+/// ..."; steal is the 8th number. Other lines are ignored. Never throws.
+StealTicks ParseStealTicks(std::string_view proc_stat);
+
+/// ParseStealTicks of the file at `path` (unavailable when it cannot be read).
+StealTicks ReadStealTicks(const std::string& path = "/proc/stat");
+
+/// `after` − `before`, per CPU (the shorter list's CPUs); unavailable unless both are.
+StealTicks StealDelta(const StealTicks& before, const StealTicks& after);
+
+/// `a` + `b` per CPU (to add up the deltas of several intervals); an unavailable side adds 0.
+StealTicks StealSum(const StealTicks& a, const StealTicks& b);
+
+/// Gaps between consecutive clock reads of a spinning thread.
+class ClockGaps {
+ public:
+  /// Thresholds of the counts [ns]: 10, 50, 100, 500 µs, 1, 2, 5, 10 ms.
+  static constexpr std::array<std::int64_t, 8> kThresholds = {
+      10'000, 50'000, 100'000, 500'000, 1'000'000, 2'000'000, 5'000'000, 10'000'000};
+  /// How many of the longest gaps are kept.
+  static constexpr int kNumLongest = 10;
+
+  /// One gap [ns] between two consecutive reads. Never allocates.
+  void Add(std::int64_t gap);
+  /// Adds another run's gaps (reads, spinning time, counts, longest).
+  void Merge(const ClockGaps& other);
+  /// Time [ns] covered by the reads (the sum of all gaps).
+  void AddSpinTime(std::int64_t ns) { spin_ns_ += ns; }
+
+  std::int64_t num_gaps() const { return num_gaps_; }
+  std::int64_t spin_ns() const { return spin_ns_; }
+  /// Gaps longer than kThresholds[i].
+  std::int64_t num_over(int i) const { return num_over_[i]; }
+  /// Gaps longer than `threshold` [ns], which must be one of kThresholds (else −1).
+  std::int64_t num_over_threshold(std::int64_t threshold) const;
+  /// Summed length [ns] of the gaps longer than 100 µs: time this thread did not run.
+  std::int64_t lost_ns() const { return lost_ns_; }
+  /// The longest gaps [ns], longest first (fewer while fewer were added).
+  std::vector<std::int64_t> longest() const;
+
+ private:
+  void InsertLongest(std::int64_t gap);
+
+  std::int64_t num_gaps_ = 0;
+  std::int64_t spin_ns_ = 0;
+  std::array<std::int64_t, kThresholds.size()> num_over_{};
+  std::int64_t lost_ns_ = 0;
+  std::array<std::int64_t, kNumLongest> longest_{};  // descending; 0 = empty
+};
+
+/// Options of SpinOnTheClock.
+struct ClockSpinOptions {
+  /// Spinning time to aim for [s] > 0 (sleeps between bursts not counted).
+  double seconds = 1.0;
+  /// SCHED_FIFO priority of the spinning thread (1..99; <= 0: normal priority).
+  int priority = 80;
+  /// Spin in bursts of this long [s], with `rest` [s] of sleep after each: a SCHED_FIFO thread
+  /// that never sleeps hits the kernel's real-time throttling (sched_rt_runtime_us, 0.95 s of
+  /// every 1 s by default), which would show as a 50 ms gap of our own making every second.
+  double burst = 0.4;
+  double rest = 0.1;
+};
+
+/// Result of SpinOnTheClock.
+struct ClockSpinResult {
+  ClockGaps gaps;
+  /// "" when the priority was granted (or not asked), otherwise the refusal's text.
+  std::string priority_refusal;
+};
+
+/// Runs a thread that reads CLOCK_MONOTONIC in a loop and records the gaps between consecutive
+/// reads (the deliberate rests between bursts excluded); returns when it has spun `seconds`.
+ClockSpinResult SpinOnTheClock(const ClockSpinOptions& options);
+
+}  // namespace costume::tools
