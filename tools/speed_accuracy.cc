@@ -1062,6 +1062,27 @@ int TotalConfigs(const Options& options) {
 
 }  // namespace
 
+/// Opens the CSV for this sweep's rows: a new file gets `header`; an earlier sweep's file with
+/// the same columns is appended to (a second sweep into the same folder loses nothing); one
+/// with other columns (another --frames) is refused with a message. False on refusal.
+bool OpenCsv(const std::string& path, const std::string& header, std::ofstream& csv) {
+  std::string existing;
+  if (std::ifstream in(path); in && std::getline(in, existing) && existing != header) {
+    std::fprintf(stderr,
+                 "error: %s holds an earlier sweep with other columns (another --frames); "
+                 "pick another --out or move the file\n", path.c_str());
+    return false;
+  }
+  const bool is_new = existing.empty();
+  csv.open(path, std::ios::app);
+  if (!csv) {
+    std::fprintf(stderr, "error: cannot write %s\n", path.c_str());
+    return false;
+  }
+  if (is_new) csv << header << std::endl;
+  return true;
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"speed_accuracy: time per frame against position error for every solver "
                "configuration on the hang and drape scenes (docs/benchmarks.md)"};
@@ -1070,12 +1091,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   std::filesystem::create_directories(options.out);
   const std::string csv_path = options.out + "/speed_accuracy.csv";
-  std::ofstream csv(csv_path);
-  if (!csv) {
-    std::fprintf(stderr, "error: cannot write %s\n", csv_path.c_str());
-    return 2;
-  }
-  csv << CsvHeader(CheckpointFrames(options.frames)) << std::endl;
+  std::ofstream csv;
+  if (!OpenCsv(csv_path, CsvHeader(CheckpointFrames(options.frames)), csv)) return 2;
   const auto start = std::chrono::steady_clock::now();
   Progress progress{0, TotalConfigs(options)};
   const std::string time = CheckpointTime(options.frames);
