@@ -16,6 +16,9 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// Added to the triangles' spread around their cells [m], so that rounding in the cell
+/// bounds can only make them more conservative.
+constexpr double kRoundingSlack = 1e-12;
 
 /// Triangles of each region.
 using RegionList = std::vector<std::vector<int>>;
@@ -169,6 +172,9 @@ struct MeshColliderRegion {
   int cells_u = 1;
   int cells_v = 1;
   btDbvtNode* leaf = nullptr;
+  /// The connected piece of the body its triangles belong to (regions grow and merge over
+  /// shared edges, so all of them lie in one piece).
+  int piece = 0;
   /// Mean plane frame: unit normal axis and two tangents [-].
   Eigen::Vector3d axis = Eigen::Vector3d::UnitY();
   Eigen::Vector3d tangent_u = Eigen::Vector3d::UnitZ();
@@ -184,11 +190,27 @@ struct MeshColliderRegion {
   Eigen::Vector3d box_min = Eigen::Vector3d::Zero(), box_max = Eigen::Vector3d::Zero();
 };
 
+/// A triangle's corners and box [m], copied in grid order at every refit so the search
+/// reads one contiguous record per triangle instead of three scattered vertex rows.
+struct PackedTriangle {
+  Eigen::Vector3d a, b, c;
+  Eigen::Vector3d box_min, box_max;
+};
+
+/// A body region met by the current query, and the squared distance [m²] from the query
+/// point to its box: a lower bound on the distance to any of its triangles.
+struct RegionCandidate {
+  int region = 0;
+  double squared_distance = 0.0;
+};
+
 struct MeshColliderRegions {
   std::vector<MeshColliderRegion> data;
   std::vector<int> triangles;
   std::vector<int> cell_start;
   std::vector<int> cell_triangles;
+  /// The triangles of `cell_triangles`, slot for slot.
+  std::vector<PackedTriangle> packed;
   /// Per slot of `triangles`: the centroid's plane coordinates and its cell (scratch).
   std::vector<double> centroid_u, centroid_v;
   std::vector<int> triangle_cell;
@@ -199,10 +221,16 @@ struct MeshColliderRegions {
   /// order; below them each deeper cloth node's share, one list per depth (sized by
   /// SetCloth: cloth depth + 1 lists of up to all leaves).
   std::vector<const btDbvtNode*> candidates;
-  /// Nearest triangle per piece of the current query, and the pieces touched.
+  /// The regions of the current query, nearest box first (as long as `data`).
+  std::vector<RegionCandidate> near;
+  /// Per piece of the current query: the squared search radius [m²] (the reach until a
+  /// triangle is found, then the distance to the nearest one: the radius shrinks), that
+  /// triangle (−1: none yet) and its closest point; `active` marks the pieces `touched`
+  /// lists.
   std::vector<double> best_squared;
   std::vector<int> best_triangle;
   std::vector<TrianglePoint> best_point;
+  std::vector<char> active;
   std::vector<int> touched;
 };
 
@@ -252,9 +280,11 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   for (std::size_t i = 0; i < list.size(); ++i) {
     r.data[i].first = static_cast<int>(r.triangles.size());
     r.data[i].count = static_cast<int>(list[i].size());
+    r.data[i].piece = normals_.piece_of(list[i].front());
     r.triangles.insert(r.triangles.end(), list[i].begin(), list[i].end());
   }
   r.cell_triangles.assign(num_triangles, 0);
+  r.packed.resize(num_triangles);
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
   r.triangle_cell.assign(num_triangles, 0);
@@ -274,9 +304,11 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.tree.optimizeTopDown();
   r.stack.reserve(r.data.size() + 2);
   r.candidates.resize(r.data.size());
+  r.near.resize(r.data.size());
   r.best_squared.assign(normals_.num_pieces(), kInf);
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
+  r.active.assign(normals_.num_pieces(), 0);
   r.touched.reserve(normals_.num_pieces());
   Refit();
 }
@@ -365,6 +397,30 @@ void BinRegion(MeshColliderRegions& regions, MeshColliderRegion& region) {
   }
 }
 
+/// Copies a region's triangles, in grid order, into the packed records.
+void PackRegion(const SurfacePseudonormals& mesh, const Points& vertices,
+                MeshColliderRegions& regions, const MeshColliderRegion& region) {
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const Eigen::Vector3i& tri = mesh.triangles()[regions.cell_triangles[j]];
+    PackedTriangle& packed = regions.packed[j];
+    packed.a = vertices.row(tri[0]).transpose();
+    packed.b = vertices.row(tri[1]).transpose();
+    packed.c = vertices.row(tri[2]).transpose();
+    packed.box_min = packed.a.cwiseMin(packed.b).cwiseMin(packed.c);
+    packed.box_max = packed.a.cwiseMax(packed.b).cwiseMax(packed.c);
+  }
+}
+
+/// Squared distance [m²] from `p` to the box [lo, hi] (0 inside).
+double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                          const Eigen::Vector3d& p) {
+  const Eigen::Vector3d gap = (lo - p).cwiseMax(p - hi).cwiseMax(0.0);
+  return gap.squaredNorm();
+}
+
+/// Distance [m] from `x` to the interval [lo, hi] (0 inside).
+double IntervalGap(double x, double lo, double hi) { return std::max({lo - x, x - hi, 0.0}); }
+
 }  // namespace
 
 void MeshCollider::Refit() {
@@ -374,6 +430,7 @@ void MeshCollider::Refit() {
   for (MeshColliderRegion& region : r.data) {
     ProjectRegion(normals_, vertices_, r, region);
     BinRegion(r, region);
+    PackRegion(normals_, vertices_, r, region);
     // Boxes fattened by the thickness; the query box adds the margin and the motion.
     btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(region.box_min) - fatten,
                                             ToBullet(region.box_max) + fatten);
@@ -408,8 +465,8 @@ btDbvtVolume QueryBox(const Eigen::Vector3d& point, double reach, double thickne
 }
 
 /// The body region a leaf of the region tree stands for.
-const MeshColliderRegion& RegionOf(const MeshColliderRegions& r, const btDbvtNode* leaf) {
-  return r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(leaf->data))];
+int RegionOf(const btDbvtNode* leaf) {
+  return static_cast<int>(reinterpret_cast<std::intptr_t>(leaf->data));
 }
 
 /// Visits, depth first, every leaf of the region tree whose box overlaps `query`, counting
@@ -439,12 +496,12 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
 
 MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
   MeshColliderRegions& r = *regions_;
-  r.touched.clear();
+  int count = 0;
   VisitOverlappingLeaves(r, QueryBox(point, reach, settings_.thickness), num_tests_,
                          [&](const btDbvtNode* leaf) {
-                           SearchRegion(RegionOf(r, leaf), point, reach);
+                           AddCandidate(RegionOf(leaf), point, reach, count);
                          });
-  return Resolve(point);
+  return SearchNearestFirst(point, reach, count);
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
@@ -462,66 +519,116 @@ MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vect
                                                                int count) {
   MeshColliderRegions& r = *regions_;
   const btDbvtVolume query = QueryBox(point, reach, settings_.thickness);
-  r.touched.clear();
+  int num_near = 0;
   for (int c = first; c < first + count; ++c) {
     const btDbvtNode* node = r.candidates[c];
     ++num_tests_;
-    if (!Intersect(node->volume, query)) continue;
-    SearchRegion(RegionOf(r, node), point, reach);
+    if (Intersect(node->volume, query)) AddCandidate(RegionOf(node), point, reach, num_near);
+  }
+  return SearchNearestFirst(point, reach, num_near);
+}
+
+void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double reach,
+                                int& count) {
+  MeshColliderRegions& r = *regions_;
+  const MeshColliderRegion& region = r.data[index];
+  const double squared = SquaredBoxDistance(region.box_min, region.box_max, point);
+  // The query box is a cube around the ball of radius `reach`; its corners reach further.
+  if (squared > reach * reach) return;
+  r.near[count++] = RegionCandidate{index, squared};
+}
+
+MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& point,
+                                                       double reach, int count) {
+  MeshColliderRegions& r = *regions_;
+  // Nearest box first (an insertion sort, stable: equal boxes keep the tree's order): the
+  // nearest triangle is usually in the first region, and the radius it sets rules out
+  // the others by their boxes alone.
+  RegionCandidate* near = r.near.data();
+  for (int i = 1; i < count; ++i) {
+    const RegionCandidate moving = near[i];
+    int j = i;
+    for (; j > 0 && near[j - 1].squared_distance > moving.squared_distance; --j) {
+      near[j] = near[j - 1];
+    }
+    near[j] = moving;
+  }
+  const double reach_squared = reach * reach;
+  for (int i = 0; i < count; ++i) {
+    const MeshColliderRegion& region = r.data[near[i].region];
+    const int piece = region.piece;
+    if (!r.active[piece]) {
+      r.active[piece] = 1;
+      r.best_squared[piece] = reach_squared;
+      r.touched.push_back(piece);
+    }
+    ++num_tests_;  // the region's box against the piece's current radius
+    if (near[i].squared_distance > r.best_squared[piece]) continue;
+    SearchRegion(region, point);
   }
   return Resolve(point);
 }
 
-void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
-                                double reach) {
+void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
+  const double& best = r.best_squared[region.piece];
   ++num_tests_;  // the slab along the region's mean normal
-  const double w = point.dot(region.axis);
-  if (w < region.w_min - reach || w > region.w_max + reach) return;
-  // A triangle within `reach` of the point has its centroid's plane coordinates within
-  // reach + spread of the point's: those cells are all that can hold it.
+  const double gap_w = IntervalGap(point.dot(region.axis), region.w_min, region.w_max);
+  const double gap_w_squared = gap_w * gap_w;
+  if (gap_w_squared > best) return;
+  // The cell under the point first: on a surface it usually holds the nearest triangle,
+  // whose distance then rules out most other cells.
   const double u = point.dot(region.tangent_u);
   const double v = point.dot(region.tangent_v);
-  const double range_u = reach + region.spread_u;
-  const double range_v = reach + region.spread_v;
-  if (u + range_u < region.u_min || u - range_u > region.u_max || v + range_v < region.v_min ||
-      v - range_v > region.v_max) {
-    return;
-  }
-  const int u_lo = CellIndex(u - range_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int u_hi = CellIndex(u + range_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int v_lo = CellIndex(v - range_v, region.v_min, region.cell_size_v, region.cells_v);
-  const int v_hi = CellIndex(v + range_v, region.v_min, region.cell_size_v, region.cells_v);
-  const int* start = &r.cell_start[region.cell_first];
+  const int home_u = CellIndex(u, region.u_min, region.cell_size_u, region.cells_u);
+  const int home_v = CellIndex(v, region.v_min, region.cell_size_v, region.cells_v);
+  ++num_tests_;
+  SearchCell(region, home_v * region.cells_u + home_u, point);
+  // A triangle binned in a cell (by centroid) lies within its spread of the cell's
+  // rectangle in the plane and within the slab across it: the distance to that box is a
+  // lower bound of the distance to any of the cell's triangles.
+  const double radius = std::sqrt(best);
+  const double spread_u = region.spread_u + kRoundingSlack;
+  const double spread_v = region.spread_v + kRoundingSlack;
+  const int u_lo = CellIndex(u - radius - spread_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int u_hi = CellIndex(u + radius + spread_u, region.u_min, region.cell_size_u, region.cells_u);
+  const int v_lo = CellIndex(v - radius - spread_v, region.v_min, region.cell_size_v, region.cells_v);
+  const int v_hi = CellIndex(v + radius + spread_v, region.v_min, region.cell_size_v, region.cells_v);
   for (int cv = v_lo; cv <= v_hi; ++cv) {
+    const double gap_v = IntervalGap(v, region.v_min + cv * region.cell_size_v - spread_v,
+                                     region.v_min + (cv + 1) * region.cell_size_v + spread_v);
+    const double row_squared = gap_w_squared + gap_v * gap_v;
+    if (row_squared > best) continue;
     for (int cu = u_lo; cu <= u_hi; ++cu) {
+      if (cu == home_u && cv == home_v) continue;
       ++num_tests_;  // a grid cell
-      const int cell = cv * region.cells_u + cu;
-      for (int j = start[cell]; j < start[cell + 1]; ++j) {
-        TestTriangle(r.cell_triangles[region.first + j], point, reach);
-      }
+      const double gap_u = IntervalGap(u, region.u_min + cu * region.cell_size_u - spread_u,
+                                       region.u_min + (cu + 1) * region.cell_size_u + spread_u);
+      if (row_squared + gap_u * gap_u > best) continue;
+      SearchCell(region, cv * region.cells_u + cu, point);
     }
   }
 }
 
-void MeshCollider::TestTriangle(int triangle, const Eigen::Vector3d& point, double reach) {
+void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
+                              const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
-  ++num_tests_;
-  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
-  const TrianglePoint closest =
-      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
-                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
-  const double squared = (point - closest.point).squaredNorm();
-  if (squared > reach * reach) return;
-  const int piece = normals_.piece_of(triangle);
-  if (r.best_triangle[piece] < 0) {
-    r.touched.push_back(piece);
-  } else if (squared >= r.best_squared[piece]) {
-    return;
+  const int piece = region.piece;
+  double& best = r.best_squared[piece];
+  const int* start = &r.cell_start[region.cell_first];
+  const int end = region.first + start[cell + 1];
+  for (int j = region.first + start[cell]; j < end; ++j) {
+    ++num_tests_;  // a triangle: its box first, its closest point only if that is near enough
+    const PackedTriangle& t = r.packed[j];
+    if (SquaredBoxDistance(t.box_min, t.box_max, point) > best) continue;
+    const TrianglePoint closest = ClosestPointOnTriangle(point, t.a, t.b, t.c);
+    const double squared = (point - closest.point).squaredNorm();
+    // Ties keep the first found, except that the first triangle may sit exactly at reach.
+    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) continue;
+    best = squared;
+    r.best_triangle[piece] = r.cell_triangles[j];
+    r.best_point[piece] = closest;
   }
-  r.best_squared[piece] = squared;
-  r.best_triangle[piece] = triangle;
-  r.best_point[piece] = closest;
 }
 
 MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
@@ -529,9 +636,11 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
   Nearest nearest;
   nearest.signed_distance = kInf;
   for (int piece : r.touched) {
+    r.active[piece] = 0;  // ready for the next query
     const int t = r.best_triangle[piece];
+    if (t < 0) continue;
+    r.best_triangle[piece] = -1;
     const TrianglePoint& closest = r.best_point[piece];
-    r.best_triangle[piece] = -1;  // ready for the next query
     // Each piece's own closest feature decides its sign; the union takes the smallest.
     const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
     const Eigen::Vector3d offset = point - closest.point;
@@ -550,6 +659,7 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
           closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
     }
   }
+  r.touched.clear();
   return nearest;
 }
 

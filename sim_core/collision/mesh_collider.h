@@ -153,11 +153,16 @@ class MeshCollider : public BodyCollider {
   /// narrowing the list for each child on the way down to the base regions.
   void TestClothNode(int k, int first, int count, const Points& positions,
                      const Points& velocities, double h, double margin);
-  /// Keeps, per piece, the closest of the region's triangles within `reach` of `point`.
-  void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
-                    double reach);
-  void TestTriangle(int triangle, const Eigen::Vector3d& point, double reach);
-  /// The smallest signed distance over the pieces SearchRegion touched; resets them.
+  /// Adds body region `region` to the current query's list (`count` long) when its box
+  /// lies within `reach` [m] of `point`.
+  void AddCandidate(int region, const Eigen::Vector3d& point, double reach, int& count);
+  /// Searches the `count` listed regions nearest box first, each piece's search radius
+  /// shrinking from `reach` [m] to the distance of its nearest triangle found so far.
+  Nearest SearchNearestFirst(const Eigen::Vector3d& point, double reach, int count);
+  /// Keeps, for the region's piece, its nearest triangle within the piece's radius.
+  void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point);
+  void SearchCell(const MeshColliderRegion& region, int cell, const Eigen::Vector3d& point);
+  /// The smallest signed distance over the pieces the search touched; resets them.
   Nearest Resolve(const Eigen::Vector3d& point);
   void Refit();
 

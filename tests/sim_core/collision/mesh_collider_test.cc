@@ -278,6 +278,103 @@ TEST(MeshCollider, CurvedBodyGivesTheSameContactsAdaptiveOrFixed) {
   }
 }
 
+// Two overlapping boxes as two pieces: the body is their union. Their closed form gives
+// each particle's expected contact: per box the exact signed distance and its gradient
+// (the direction from the closest surface point, or inside the nearest face's normal);
+// the box with the smaller signed distance wins.
+struct BoxContact {
+  double distance;
+  Eigen::Vector3d normal;
+};
+
+BoxContact ClosedFormBoxContact(const Eigen::Vector3d& p, const Eigen::Vector3d& center,
+                                const Eigen::Vector3d& half) {
+  const double d = test::BoxSignedDistance(p, center, half);
+  const Eigen::Vector3d local = p - center;
+  if (d > 0.0) {
+    const Eigen::Vector3d closest = center + local.cwiseMax(-half).cwiseMin(half);
+    return {d, (p - closest) / d};
+  }
+  Eigen::Index axis = 0;
+  (local.cwiseAbs() - half).maxCoeff(&axis);
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  normal[axis] = local[axis] < 0.0 ? -1.0 : 1.0;
+  return {d, normal};
+}
+
+TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBoxes) {
+  const Eigen::Vector3d center_a(0.0, 1.0, 0.0), half_a(0.15, 0.1, 0.12);
+  const Eigen::Vector3d center_b(0.12, 1.05, 0.04), half_b(0.08, 0.12, 0.1);
+  const TestMesh a = test::TessellatedBox(center_a, half_a, Eigen::Vector3i(9, 6, 7));
+  const TestMesh b = test::TessellatedBox(center_b, half_b, Eigen::Vector3i(5, 7, 6));
+  TestMesh both;
+  both.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
+  both.vertices << a.vertices, b.vertices;
+  both.triangles = a.triangles;
+  for (const Eigen::Vector3i& t : b.triangles) {
+    both.triangles.push_back(t + Eigen::Vector3i::Constant(static_cast<int>(a.vertices.rows())));
+  }
+  // Particles from 4 cm inside either box (within max_penetration, so the search reaches
+  // both boxes' surfaces) to 5 cm outside the union, near faces, edges and corners alike,
+  // moving at up to 1 m/s.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> across(-0.25, 0.28), speed(-1.0, 1.0);
+  const int n = 3000;
+  Points x(n, 3), v(n, 3);
+  std::vector<BoxContact> truth;
+  for (int i = 0; i < n;) {
+    const Eigen::Vector3d p = Eigen::Vector3d(0.0, 1.02, 0.02) +
+                              Eigen::Vector3d(across(rng), across(rng), across(rng));
+    const BoxContact in_a = ClosedFormBoxContact(p, center_a, half_a);
+    const BoxContact in_b = ClosedFormBoxContact(p, center_b, half_b);
+    if (in_a.distance < -0.04 || in_b.distance < -0.04) continue;
+    const BoxContact& nearest = in_a.distance < in_b.distance ? in_a : in_b;
+    if (nearest.distance > 0.05) continue;
+    x.row(i) = p.transpose();
+    v.row(i) = Eigen::Vector3d(speed(rng), speed(rng), speed(rng)).transpose();
+    truth.push_back(nearest);
+    ++i;
+  }
+  BodyCollisionSettings settings;
+  const double margin = 0.003;
+  for (bool adaptive : {true, false}) {
+    MeshCollisionOptions options;
+    options.adaptive = adaptive;
+    MeshCollider collider(RigidAvatar(both), settings, options);
+    collider.Update(kJoints, both.vertices, kH);  // at rest
+    std::vector<Contact> contacts;
+    collider.FindContacts(x, v, kH, margin, contacts);
+    std::size_t k = 0;
+    int num_inside = 0;
+    for (int i = 0; i < n; ++i) {
+      const double d = truth[i].distance;
+      const Eigen::Vector3d& normal = truth[i].normal;
+      num_inside += d < 0.0 ? 1 : 0;
+      const bool expected =
+          d < settings.thickness ||
+          d + kH * v.row(i).dot(normal) <= settings.thickness + margin;
+      const bool got = k < contacts.size() && contacts[k].particle == i;
+      ASSERT_EQ(got, expected) << "particle " << i << " at distance " << d;
+      if (!got) continue;
+      EXPECT_LT((contacts[k].normal - normal).norm(), 1e-9) << i;
+      EXPECT_NEAR(contacts[k].target_normal_velocity, (settings.thickness - d) / kH, 1e-7) << i;
+      ++k;
+    }
+    EXPECT_EQ(k, contacts.size());
+    EXPECT_GT(num_inside, 300);
+    // The correction moves each particle inside the shell by thickness − d along its normal.
+    Points moved = x, moved_v = Points::Zero(n, 3);
+    double deepest = 0.0;
+    for (int i = 0; i < n; ++i) deepest = std::max(deepest, settings.thickness - truth[i].distance);
+    EXPECT_NEAR(collider.ProjectOut(moved, moved_v), deepest, 1e-12);
+    for (int i = 0; i < n; ++i) {
+      const double lift = std::max(settings.thickness - truth[i].distance, 0.0);
+      const Eigen::Vector3d want = x.row(i).transpose() + lift * truth[i].normal;
+      EXPECT_LT((moved.row(i).transpose() - want).norm(), 1e-9) << i;
+    }
+  }
+}
+
 TEST(MeshCollider, UpdateFindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 8);
   MeshCollider collider(RigidAvatar(sphere), BodyCollisionSettings{});
