@@ -195,6 +195,23 @@ struct MeshColliderRegion {
 struct PackedTriangle {
   Eigen::Vector3d a, b, c;
   Eigen::Vector3d box_min, box_max;
+  /// Unit normal [-] (zero for a degenerate triangle): |normal·(p − a)| is the distance to
+  /// its plane, a lower bound of the distance to it.
+  Eigen::Vector3d normal;
+};
+
+/// A box in a region's plane frame: along tangent_u, tangent_v and the axis [m].
+struct FrameBox {
+  double u_lo = kInf, u_hi = -kInf, v_lo = kInf, v_hi = -kInf, w_lo = kInf, w_hi = -kInf;
+
+  void Add(const FrameBox& other) {
+    u_lo = std::min(u_lo, other.u_lo);
+    u_hi = std::max(u_hi, other.u_hi);
+    v_lo = std::min(v_lo, other.v_lo);
+    v_hi = std::max(v_hi, other.v_hi);
+    w_lo = std::min(w_lo, other.w_lo);
+    w_hi = std::max(w_hi, other.w_hi);
+  }
 };
 
 /// A body region met by the current query, and the squared distance [m²] from the query
@@ -208,11 +225,16 @@ struct MeshColliderRegions {
   std::vector<MeshColliderRegion> data;
   std::vector<int> triangles;
   std::vector<int> cell_start;
+  /// Per cell (indexed as cell_start), the frame box of its triangles; empty when it has
+  /// none. Its distance from a point bounds the distance to any of them from below.
+  std::vector<FrameBox> cell_box;
   std::vector<int> cell_triangles;
   /// The triangles of `cell_triangles`, slot for slot.
   std::vector<PackedTriangle> packed;
-  /// Per slot of `triangles`: the centroid's plane coordinates and its cell (scratch).
+  /// Per slot of `triangles`: the centroid's plane coordinates, its frame box and its cell
+  /// (scratch).
   std::vector<double> centroid_u, centroid_v;
+  std::vector<FrameBox> triangle_box;
   std::vector<int> triangle_cell;
   std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
   btDbvt tree;
@@ -287,6 +309,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.packed.resize(num_triangles);
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
+  r.triangle_box.assign(num_triangles, FrameBox{});
   r.triangle_cell.assign(num_triangles, 0);
   // Grids sized on the rest pose, kept as the skin moves.
   int max_cells = 1;
@@ -295,6 +318,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
     SizeGrid(region);
     region.cell_first = static_cast<int>(r.cell_start.size());
     r.cell_start.resize(r.cell_start.size() + region.cells_u * region.cells_v + 1, 0);
+    r.cell_box.resize(r.cell_start.size());
     max_cells = std::max(max_cells, region.cells_u * region.cells_v);
     region.leaf = r.tree.insert(
         btDbvtVolume::FromMM(ToBullet(region.box_min), ToBullet(region.box_max)),
@@ -323,6 +347,7 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
   regions_->candidates.resize((cloth_->max_depth() + 1) * regions_->data.size());
   particle_contacts_.assign(n, Contact{});
   has_contact_.assign(n, 0);
+  hints_.assign(n, -1);
 }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
@@ -349,11 +374,14 @@ void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
   for (int j = region.first; j < region.first + region.count; ++j) {
     const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
     double u[3], v[3];
+    FrameBox& box = regions.triangle_box[j];
+    box = FrameBox{};
     for (int k = 0; k < 3; ++k) {
       const Eigen::Vector3d x = vertices.row(tri[k]).transpose();
       u[k] = x.dot(region.tangent_u);
       v[k] = x.dot(region.tangent_v);
       const double w = x.dot(region.axis);
+      box.Add(FrameBox{u[k], u[k], v[k], v[k], w, w});
       region.w_min = std::min(region.w_min, w);
       region.w_max = std::max(region.w_max, w);
       region.box_min = region.box_min.cwiseMin(x);
@@ -389,6 +417,11 @@ void BinRegion(MeshColliderRegions& regions, MeshColliderRegion& region) {
     regions.triangle_cell[j] = cell;
     ++start[cell + 1];
   }
+  FrameBox* box = &regions.cell_box[region.cell_first];
+  std::fill(box, box + num_cells, FrameBox{});
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    box[regions.triangle_cell[j]].Add(regions.triangle_box[j]);
+  }
   for (int c = 0; c < num_cells; ++c) start[c + 1] += start[c];
   std::copy(start, start + num_cells, regions.cursor.begin());
   for (int j = region.first; j < region.first + region.count; ++j) {
@@ -408,18 +441,25 @@ void PackRegion(const SurfacePseudonormals& mesh, const Points& vertices,
     packed.c = vertices.row(tri[2]).transpose();
     packed.box_min = packed.a.cwiseMin(packed.b).cwiseMin(packed.c);
     packed.box_max = packed.a.cwiseMax(packed.b).cwiseMax(packed.c);
+    packed.normal = mesh.double_area(regions.cell_triangles[j]) > 0.0
+                        ? mesh.face_normal(regions.cell_triangles[j])
+                        : Eigen::Vector3d::Zero();
   }
 }
 
-/// Squared distance [m²] from `p` to the box [lo, hi] (0 inside).
-double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
-                          const Eigen::Vector3d& p) {
-  const Eigen::Vector3d gap = (lo - p).cwiseMax(p - hi).cwiseMax(0.0);
-  return gap.squaredNorm();
+/// Distance [m] from `x` to the interval [lo, hi] (0 inside).
+inline double IntervalGap(double x, double lo, double hi) {
+  return std::max(std::max(lo - x, x - hi), 0.0);
 }
 
-/// Distance [m] from `x` to the interval [lo, hi] (0 inside).
-double IntervalGap(double x, double lo, double hi) { return std::max({lo - x, x - hi, 0.0}); }
+/// Squared distance [m²] from `p` to the box [lo, hi] (0 inside).
+inline double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                                 const Eigen::Vector3d& p) {
+  const double x = IntervalGap(p.x(), lo.x(), hi.x());
+  const double y = IntervalGap(p.y(), lo.y(), hi.y());
+  const double z = IntervalGap(p.z(), lo.z(), hi.z());
+  return x * x + y * y + z * z;
+}
 
 }  // namespace
 
@@ -494,14 +534,15 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
 
 }  // namespace
 
-MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
+MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach,
+                                                int hint) {
   MeshColliderRegions& r = *regions_;
   int count = 0;
   VisitOverlappingLeaves(r, QueryBox(point, reach, settings_.thickness), num_tests_,
                          [&](const btDbvtNode* leaf) {
                            AddCandidate(RegionOf(leaf), point, reach, count);
                          });
-  return SearchNearestFirst(point, reach, count);
+  return SearchNearestFirst(point, reach, hint, count);
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
@@ -515,8 +556,8 @@ int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
 }
 
 MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vector3d& point,
-                                                               double reach, int first,
-                                                               int count) {
+                                                               double reach, int hint,
+                                                               int first, int count) {
   MeshColliderRegions& r = *regions_;
   const btDbvtVolume query = QueryBox(point, reach, settings_.thickness);
   int num_near = 0;
@@ -525,7 +566,7 @@ MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vect
     ++num_tests_;
     if (Intersect(node->volume, query)) AddCandidate(RegionOf(node), point, reach, num_near);
   }
-  return SearchNearestFirst(point, reach, num_near);
+  return SearchNearestFirst(point, reach, hint, num_near);
 }
 
 void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double reach,
@@ -538,8 +579,32 @@ void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double 
   r.near[count++] = RegionCandidate{index, squared};
 }
 
+void MeshCollider::ActivatePiece(int piece, double reach_squared) {
+  MeshColliderRegions& r = *regions_;
+  if (r.active[piece]) return;
+  r.active[piece] = 1;
+  r.best_squared[piece] = reach_squared;
+  r.touched.push_back(piece);
+}
+
+void MeshCollider::TryHint(int triangle, const Eigen::Vector3d& point, double reach_squared) {
+  MeshColliderRegions& r = *regions_;
+  const int piece = normals_.piece_of(triangle);
+  ActivatePiece(piece, reach_squared);
+  ++num_tests_;
+  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+  const TrianglePoint closest =
+      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
+                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
+  const double squared = (point - closest.point).squaredNorm();
+  if (squared > reach_squared) return;
+  r.best_squared[piece] = squared;
+  r.best_triangle[piece] = triangle;
+  r.best_point[piece] = closest;
+}
+
 MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& point,
-                                                       double reach, int count) {
+                                                       double reach, int hint, int count) {
   MeshColliderRegions& r = *regions_;
   // Nearest box first (an insertion sort, stable: equal boxes keep the tree's order): the
   // nearest triangle is usually in the first region, and the radius it sets rules out
@@ -554,14 +619,13 @@ MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& po
     near[j] = moving;
   }
   const double reach_squared = reach * reach;
+  // Last query's triangle first: the particle has moved little, so it is usually still the
+  // nearest or close to it, and its distance starts its piece's radius small.
+  if (hint >= 0 && hint < normals_.num_triangles()) TryHint(hint, point, reach_squared);
   for (int i = 0; i < count; ++i) {
     const MeshColliderRegion& region = r.data[near[i].region];
     const int piece = region.piece;
-    if (!r.active[piece]) {
-      r.active[piece] = 1;
-      r.best_squared[piece] = reach_squared;
-      r.touched.push_back(piece);
-    }
+    ActivatePiece(piece, reach_squared);
     ++num_tests_;  // the region's box against the piece's current radius
     if (near[i].squared_distance > r.best_squared[piece]) continue;
     SearchRegion(region, point);
@@ -572,40 +636,51 @@ MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& po
 void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   const double& best = r.best_squared[region.piece];
-  ++num_tests_;  // the slab along the region's mean normal
-  const double gap_w = IntervalGap(point.dot(region.axis), region.w_min, region.w_max);
-  const double gap_w_squared = gap_w * gap_w;
-  if (gap_w_squared > best) return;
-  // The cell under the point first: on a surface it usually holds the nearest triangle,
-  // whose distance then rules out most other cells.
+  ++num_tests_;  // the region's box in its own frame: the slab along its mean normal
   const double u = point.dot(region.tangent_u);
   const double v = point.dot(region.tangent_v);
+  const double w = point.dot(region.axis);
+  const double gap_w = IntervalGap(w, region.w_min, region.w_max);
+  const double gap_u = IntervalGap(u, region.u_min, region.u_max);
+  const double gap_v = IntervalGap(v, region.v_min, region.v_max);
+  if (gap_u * gap_u + gap_v * gap_v + gap_w * gap_w > best) return;
+  const FrameBox* box = &r.cell_box[region.cell_first];
+  // The box of a cell's triangles bounds their distance from below. The cell under the
+  // point first: on a surface it usually holds the nearest triangle, whose distance then
+  // rules out most other cells.
+  auto search_if_near = [&](int cell) {
+    ++num_tests_;  // a grid cell
+    const FrameBox& b = box[cell];
+    const double du = IntervalGap(u, b.u_lo, b.u_hi);
+    const double dv = IntervalGap(v, b.v_lo, b.v_hi);
+    const double dw = IntervalGap(w, b.w_lo, b.w_hi);
+    if (du * du + dv * dv + dw * dw <= best) SearchCell(region, cell, point);
+  };
   const int home_u = CellIndex(u, region.u_min, region.cell_size_u, region.cells_u);
   const int home_v = CellIndex(v, region.v_min, region.cell_size_v, region.cells_v);
-  ++num_tests_;
-  SearchCell(region, home_v * region.cells_u + home_u, point);
-  // A triangle binned in a cell (by centroid) lies within its spread of the cell's
-  // rectangle in the plane and within the slab across it: the distance to that box is a
-  // lower bound of the distance to any of the cell's triangles.
-  const double radius = std::sqrt(best);
+  search_if_near(home_v * region.cells_u + home_u);
+  // The other cells that can hold a triangle within the radius: a triangle binned in a
+  // cell (by centroid) lies within its spread of the cell's rectangle. Row by row, a disc
+  // of cells, not a square.
   const double spread_u = region.spread_u + kRoundingSlack;
   const double spread_v = region.spread_v + kRoundingSlack;
-  const int u_lo = CellIndex(u - radius - spread_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int u_hi = CellIndex(u + radius + spread_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int v_lo = CellIndex(v - radius - spread_v, region.v_min, region.cell_size_v, region.cells_v);
-  const int v_hi = CellIndex(v + radius + spread_v, region.v_min, region.cell_size_v, region.cells_v);
+  const double gap_w_squared = gap_w * gap_w;
+  const double radius = std::sqrt(best);
+  const int v_lo = CellIndex(v - radius - spread_v, region.v_min, region.cell_size_v,
+                             region.cells_v);
+  const int v_hi = CellIndex(v + radius + spread_v, region.v_min, region.cell_size_v,
+                             region.cells_v);
   for (int cv = v_lo; cv <= v_hi; ++cv) {
-    const double gap_v = IntervalGap(v, region.v_min + cv * region.cell_size_v - spread_v,
-                                     region.v_min + (cv + 1) * region.cell_size_v + spread_v);
-    const double row_squared = gap_w_squared + gap_v * gap_v;
+    ++num_tests_;  // a row of cells
+    const double row_gap = IntervalGap(v, region.v_min + cv * region.cell_size_v - spread_v,
+                                       region.v_min + (cv + 1) * region.cell_size_v + spread_v);
+    const double row_squared = gap_w_squared + row_gap * row_gap;
     if (row_squared > best) continue;
+    const double half_width = std::sqrt(best - row_squared) + spread_u;
+    const int u_lo = CellIndex(u - half_width, region.u_min, region.cell_size_u, region.cells_u);
+    const int u_hi = CellIndex(u + half_width, region.u_min, region.cell_size_u, region.cells_u);
     for (int cu = u_lo; cu <= u_hi; ++cu) {
-      if (cu == home_u && cv == home_v) continue;
-      ++num_tests_;  // a grid cell
-      const double gap_u = IntervalGap(u, region.u_min + cu * region.cell_size_u - spread_u,
-                                       region.u_min + (cu + 1) * region.cell_size_u + spread_u);
-      if (row_squared + gap_u * gap_u > best) continue;
-      SearchCell(region, cv * region.cells_u + cu, point);
+      if (cu != home_u || cv != home_v) search_if_near(cv * region.cells_u + cu);
     }
   }
 }
@@ -618,9 +693,13 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
   const int* start = &r.cell_start[region.cell_first];
   const int end = region.first + start[cell + 1];
   for (int j = region.first + start[cell]; j < end; ++j) {
-    ++num_tests_;  // a triangle: its box first, its closest point only if that is near enough
+    // A triangle: its box and its plane first (lower bounds), its closest point only if
+    // both are near enough.
+    ++num_tests_;
     const PackedTriangle& t = r.packed[j];
     if (SquaredBoxDistance(t.box_min, t.box_max, point) > best) continue;
+    const double plane = t.normal.dot(point - t.a);
+    if (plane * plane > best) continue;
     const TrianglePoint closest = ClosestPointOnTriangle(point, t.a, t.b, t.c);
     const double squared = (point - closest.point).squaredNorm();
     // Ties keep the first found, except that the first triangle may sit exactly at reach.
@@ -649,6 +728,7 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
     const double signed_distance = inside ? -distance : distance;
     if (signed_distance >= nearest.signed_distance) continue;
     nearest.found = true;
+    nearest.triangle = t;
     nearest.signed_distance = signed_distance;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : pseudonormal;
@@ -696,6 +776,9 @@ void MeshCollider::FindContacts(const Points& positions, const Points& velocitie
   num_queries_ = 0;
   if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
   margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
+  if (hints_.size() != static_cast<std::size_t>(positions.rows())) {
+    hints_.assign(positions.rows(), -1);
+  }
   if (options_.cloth_regions && cloth_ != nullptr &&
       positions.rows() == cloth_->num_particles()) {
     FindContactsPerRegion(positions, velocities, h, margin, contacts);
@@ -714,7 +797,8 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     const double reach = ReachOf(v, h, margin);
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
-    const Nearest nearest = FindNearest(x, reach);
+    const Nearest nearest = FindNearest(x, reach, hints_[i]);
+    hints_[i] = nearest.triangle;
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -783,8 +867,9 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
   for (int s = node.first; s < node.first + node.count; ++s) {
     const int p = particles[s];
     if (half_extents_[p] < 0.0) continue;
-    const Nearest nearest =
-        FindNearestAmongCandidates(positions.row(p).transpose(), reaches_[p], first, count);
+    const Nearest nearest = FindNearestAmongCandidates(positions.row(p).transpose(),
+                                                       reaches_[p], hints_[p], first, count);
+    hints_[p] = nearest.triangle;
     if (!nearest.found) continue;
     has_contact_[p] =
         MakeContact(p, velocities.row(p).transpose(), nearest, h, margin, particle_contacts_[p]);
@@ -796,10 +881,12 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
   double deepest = 0.0;
+  const bool hinted = hints_.size() == static_cast<std::size_t>(positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     if (!x.allFinite()) continue;
-    const Nearest nearest = FindNearest(x, reach);
+    const Nearest nearest = FindNearest(x, reach, hinted ? hints_[i] : -1);
+    if (hinted) hints_[i] = nearest.triangle;
     if (!nearest.found || nearest.signed_distance >= shell) continue;
     deepest = std::max(deepest, shell - nearest.signed_distance);
     positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
