@@ -237,7 +237,9 @@ struct MeshColliderRegions {
   std::vector<FrameBox> triangle_box;
   std::vector<int> triangle_cell;
   std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
-  btDbvt tree;
+  /// One tree of region boxes per piece of the body, so that each piece is walked with
+  /// its own search radius.
+  std::vector<std::unique_ptr<btDbvt>> trees;
   std::vector<const btDbvtNode*> stack;
   /// Body regions (tree leaves) overlapping the current cloth node's box, in depth-first
   /// order; below them each deeper cloth node's share, one list per depth (sized by
@@ -310,6 +312,8 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
   r.triangle_box.assign(num_triangles, FrameBox{});
+  r.trees.resize(normals_.num_pieces());
+  for (auto& tree : r.trees) tree = std::make_unique<btDbvt>();
   r.triangle_cell.assign(num_triangles, 0);
   // Grids sized on the rest pose, kept as the skin moves.
   int max_cells = 1;
@@ -320,12 +324,12 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
     r.cell_start.resize(r.cell_start.size() + region.cells_u * region.cells_v + 1, 0);
     r.cell_box.resize(r.cell_start.size());
     max_cells = std::max(max_cells, region.cells_u * region.cells_v);
-    region.leaf = r.tree.insert(
+    region.leaf = r.trees[region.piece]->insert(
         btDbvtVolume::FromMM(ToBullet(region.box_min), ToBullet(region.box_max)),
         reinterpret_cast<void*>(static_cast<std::intptr_t>(&region - r.data.data())));
   }
   r.cursor.assign(max_cells, 0);
-  r.tree.optimizeTopDown();
+  for (auto& tree : r.trees) tree->optimizeTopDown();
   r.stack.reserve(r.data.size() + 2);
   r.candidates.resize(r.data.size());
   r.near.resize(r.data.size());
@@ -347,7 +351,7 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
   regions_->candidates.resize((cloth_->max_depth() + 1) * regions_->data.size());
   particle_contacts_.assign(n, Contact{});
   has_contact_.assign(n, 0);
-  hints_.assign(n, -1);
+  hints_.assign(kHintsPerParticle * n, -1);
 }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
@@ -474,7 +478,7 @@ void MeshCollider::Refit() {
     // Boxes fattened by the thickness; the query box adds the margin and the motion.
     btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(region.box_min) - fatten,
                                             ToBullet(region.box_max) + fatten);
-    r.tree.update(region.leaf, box);
+    r.trees[region.piece]->update(region.leaf, box);
   }
 }
 
@@ -495,10 +499,10 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
 
 namespace {
 
-/// A particle's query box: `point` ± (reach − thickness), the region boxes being fattened by
-/// the thickness already.
-btDbvtVolume QueryBox(const Eigen::Vector3d& point, double reach, double thickness) {
-  const double half = std::max(reach - thickness, 0.0);
+/// A particle's query box for search radius `radius` [m]: `point` ± (radius − thickness),
+/// the region boxes being fattened by the thickness already.
+btDbvtVolume QueryBox(const Eigen::Vector3d& point, double radius, double thickness) {
+  const double half = std::max(radius - thickness, 0.0);
   const btVector3 center = ToBullet(point);
   const btVector3 extent(half, half, half);
   return btDbvtVolume::FromMM(center - extent, center + extent);
@@ -509,15 +513,15 @@ int RegionOf(const btDbvtNode* leaf) {
   return static_cast<int>(reinterpret_cast<std::intptr_t>(leaf->data));
 }
 
-/// Visits, depth first, every leaf of the region tree whose box overlaps `query`, counting
-/// each node examined in `num_tests`. The per-particle and the per-region searches both walk
-/// the tree this way, so a particle meets its regions (and ties between equally close
-/// triangles break) in the same order in both.
+/// Visits, depth first, every leaf of `tree` whose box overlaps `query`, counting each node
+/// examined in `num_tests`. The per-particle and the per-region searches both walk the
+/// trees this way, piece by piece, so a particle meets its regions (and ties between
+/// equally close triangles break) in the same order in both.
 template <class Visit>
-void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
-                            long long& num_tests, Visit&& visit) {
+void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvt& tree,
+                            const btDbvtVolume& query, long long& num_tests, Visit&& visit) {
   r.stack.clear();
-  if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
+  if (tree.m_root != nullptr) r.stack.push_back(tree.m_root);
   while (!r.stack.empty()) {
     const btDbvtNode* node = r.stack.back();
     r.stack.pop_back();
@@ -535,38 +539,48 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
 }  // namespace
 
 MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach,
-                                                int hint) {
+                                                int* hints) {
   MeshColliderRegions& r = *regions_;
+  StartQuery(point, reach, hints);
   int count = 0;
-  VisitOverlappingLeaves(r, QueryBox(point, reach, settings_.thickness), num_tests_,
-                         [&](const btDbvtNode* leaf) {
-                           AddCandidate(RegionOf(leaf), point, reach, count);
-                         });
-  return SearchNearestFirst(point, reach, hint, count);
+  for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
+    const double radius = std::sqrt(RadiusSquared(piece, reach));
+    VisitOverlappingLeaves(r, *r.trees[piece], QueryBox(point, radius, settings_.thickness),
+                           num_tests_, [&](const btDbvtNode* leaf) {
+                             AddCandidate(RegionOf(leaf), point, reach, count);
+                           });
+  }
+  return SearchNearestFirst(point, reach, hints, count);
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
                                    const Eigen::Vector3d& box_max) {
   MeshColliderRegions& r = *regions_;
   int count = 0;
-  VisitOverlappingLeaves(r, btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max)),
-                         num_tests_,
-                         [&](const btDbvtNode* leaf) { r.candidates[count++] = leaf; });
+  const btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max));
+  for (const auto& tree : r.trees) {
+    VisitOverlappingLeaves(r, *tree, box, num_tests_,
+                           [&](const btDbvtNode* leaf) { r.candidates[count++] = leaf; });
+  }
   return count;
 }
 
 MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vector3d& point,
-                                                               double reach, int hint,
+                                                               double reach, int* hints,
                                                                int first, int count) {
   MeshColliderRegions& r = *regions_;
-  const btDbvtVolume query = QueryBox(point, reach, settings_.thickness);
+  StartQuery(point, reach, hints);
   int num_near = 0;
   for (int c = first; c < first + count; ++c) {
     const btDbvtNode* node = r.candidates[c];
+    const int region = RegionOf(node);
+    const double radius = std::sqrt(RadiusSquared(r.data[region].piece, reach));
     ++num_tests_;
-    if (Intersect(node->volume, query)) AddCandidate(RegionOf(node), point, reach, num_near);
+    if (Intersect(node->volume, QueryBox(point, radius, settings_.thickness))) {
+      AddCandidate(region, point, reach, num_near);
+    }
   }
-  return SearchNearestFirst(point, reach, hint, num_near);
+  return SearchNearestFirst(point, reach, hints, num_near);
 }
 
 void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double reach,
@@ -574,9 +588,14 @@ void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double 
   MeshColliderRegions& r = *regions_;
   const MeshColliderRegion& region = r.data[index];
   const double squared = SquaredBoxDistance(region.box_min, region.box_max, point);
-  // The query box is a cube around the ball of radius `reach`; its corners reach further.
-  if (squared > reach * reach) return;
+  // The query box is a cube around the ball of the radius; its corners reach further.
+  if (squared > RadiusSquared(region.piece, reach)) return;
   r.near[count++] = RegionCandidate{index, squared};
+}
+
+double MeshCollider::RadiusSquared(int piece, double reach) const {
+  const MeshColliderRegions& r = *regions_;
+  return r.active[piece] ? r.best_squared[piece] : reach * reach;
 }
 
 void MeshCollider::ActivatePiece(int piece, double reach_squared) {
@@ -587,26 +606,36 @@ void MeshCollider::ActivatePiece(int piece, double reach_squared) {
   r.touched.push_back(piece);
 }
 
-void MeshCollider::TryHint(int triangle, const Eigen::Vector3d& point, double reach_squared) {
+void MeshCollider::StartQuery(const Eigen::Vector3d& point, double reach, const int* hints) {
+  if (hints == nullptr) return;
   MeshColliderRegions& r = *regions_;
-  const int piece = normals_.piece_of(triangle);
-  ActivatePiece(piece, reach_squared);
-  ++num_tests_;
-  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
-  const TrianglePoint closest =
-      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
-                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
-  const double squared = (point - closest.point).squaredNorm();
-  if (squared > reach_squared) return;
-  r.best_squared[piece] = squared;
-  r.best_triangle[piece] = triangle;
-  r.best_point[piece] = closest;
+  const double reach_squared = reach * reach;
+  // Last query's closest triangles first, one per piece: the particle has moved little, so
+  // each is usually still its piece's nearest or close to it, and its distance starts
+  // that piece's radius small, so the walk and the search below stay near the surface.
+  for (int k = 0; k < kHintsPerParticle; ++k) {
+    const int triangle = hints[k];
+    if (triangle < 0 || triangle >= normals_.num_triangles()) break;
+    const int piece = normals_.piece_of(triangle);
+    if (r.active[piece]) continue;
+    ActivatePiece(piece, reach_squared);
+    ++num_tests_;
+    const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+    const TrianglePoint closest = ClosestPointOnTriangle(
+        point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
+        vertices_.row(tri[2]).transpose());
+    const double squared = (point - closest.point).squaredNorm();
+    if (squared > reach_squared) continue;
+    r.best_squared[piece] = squared;
+    r.best_triangle[piece] = triangle;
+    r.best_point[piece] = closest;
+  }
 }
 
 MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& point,
-                                                       double reach, int hint, int count) {
+                                                       double reach, int* hints, int count) {
   MeshColliderRegions& r = *regions_;
-  // Nearest box first (an insertion sort, stable: equal boxes keep the tree's order): the
+  // Nearest box first (an insertion sort, stable: equal boxes keep the walk's order): the
   // nearest triangle is usually in the first region, and the radius it sets rules out
   // the others by their boxes alone.
   RegionCandidate* near = r.near.data();
@@ -619,9 +648,6 @@ MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& po
     near[j] = moving;
   }
   const double reach_squared = reach * reach;
-  // Last query's triangle first: the particle has moved little, so it is usually still the
-  // nearest or close to it, and its distance starts its piece's radius small.
-  if (hint >= 0 && hint < normals_.num_triangles()) TryHint(hint, point, reach_squared);
   for (int i = 0; i < count; ++i) {
     const MeshColliderRegion& region = r.data[near[i].region];
     const int piece = region.piece;
@@ -630,7 +656,7 @@ MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& po
     if (near[i].squared_distance > r.best_squared[piece]) continue;
     SearchRegion(region, point);
   }
-  return Resolve(point);
+  return Resolve(point, hints);
 }
 
 void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
@@ -710,15 +736,17 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
   }
 }
 
-MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
+MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point, int* hints) {
   MeshColliderRegions& r = *regions_;
   Nearest nearest;
   nearest.signed_distance = kInf;
+  int num_hints = 0;
   for (int piece : r.touched) {
     r.active[piece] = 0;  // ready for the next query
     const int t = r.best_triangle[piece];
     if (t < 0) continue;
     r.best_triangle[piece] = -1;
+    if (hints != nullptr && num_hints < kHintsPerParticle) hints[num_hints++] = t;
     const TrianglePoint& closest = r.best_point[piece];
     // Each piece's own closest feature decides its sign; the union takes the smallest.
     const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
@@ -728,7 +756,6 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
     const double signed_distance = inside ? -distance : distance;
     if (signed_distance >= nearest.signed_distance) continue;
     nearest.found = true;
-    nearest.triangle = t;
     nearest.signed_distance = signed_distance;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : pseudonormal;
@@ -740,6 +767,7 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
     }
   }
   r.touched.clear();
+  if (hints != nullptr && num_hints < kHintsPerParticle) hints[num_hints] = -1;
   return nearest;
 }
 
@@ -776,8 +804,8 @@ void MeshCollider::FindContacts(const Points& positions, const Points& velocitie
   num_queries_ = 0;
   if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
   margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
-  if (hints_.size() != static_cast<std::size_t>(positions.rows())) {
-    hints_.assign(positions.rows(), -1);
+  if (hints_.size() != kHintsPerParticle * static_cast<std::size_t>(positions.rows())) {
+    hints_.assign(kHintsPerParticle * positions.rows(), -1);
   }
   if (options_.cloth_regions && cloth_ != nullptr &&
       positions.rows() == cloth_->num_particles()) {
@@ -797,8 +825,7 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     const double reach = ReachOf(v, h, margin);
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
-    const Nearest nearest = FindNearest(x, reach, hints_[i]);
-    hints_[i] = nearest.triangle;
+    const Nearest nearest = FindNearest(x, reach, &hints_[kHintsPerParticle * i]);
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -867,9 +894,9 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
   for (int s = node.first; s < node.first + node.count; ++s) {
     const int p = particles[s];
     if (half_extents_[p] < 0.0) continue;
-    const Nearest nearest = FindNearestAmongCandidates(positions.row(p).transpose(),
-                                                       reaches_[p], hints_[p], first, count);
-    hints_[p] = nearest.triangle;
+    const Nearest nearest =
+        FindNearestAmongCandidates(positions.row(p).transpose(), reaches_[p],
+                                   &hints_[kHintsPerParticle * p], first, count);
     if (!nearest.found) continue;
     has_contact_[p] =
         MakeContact(p, velocities.row(p).transpose(), nearest, h, margin, particle_contacts_[p]);
@@ -881,12 +908,12 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
   double deepest = 0.0;
-  const bool hinted = hints_.size() == static_cast<std::size_t>(positions.rows());
+  const bool hinted =
+      hints_.size() == kHintsPerParticle * static_cast<std::size_t>(positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     if (!x.allFinite()) continue;
-    const Nearest nearest = FindNearest(x, reach, hinted ? hints_[i] : -1);
-    if (hinted) hints_[i] = nearest.triangle;
+    const Nearest nearest = FindNearest(x, reach, hinted ? &hints_[kHintsPerParticle * i] : nullptr);
     if (!nearest.found || nearest.signed_distance >= shell) continue;
     deepest = std::max(deepest, shell - nearest.signed_distance);
     positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();

@@ -128,17 +128,17 @@ class MeshCollider : public BodyCollider {
   /// The closest surface point to `point` over the pieces within `reach` [m] of it.
   struct Nearest {
     bool found = false;
-    int triangle = -1;  // the closest triangle of the winning piece
     double signed_distance = 0.0;
     Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
   };
-  /// `hint`: a triangle to try first (the particle's last closest, −1 for none); any
-  /// triangle gives the same answer, up to which of equally close triangles is kept.
-  Nearest FindNearest(const Eigen::Vector3d& point, double reach, int hint);
+  /// `hints`: kHintsPerParticle triangles to try first (the particle's last closest ones,
+  /// one per piece, ended by −1), overwritten with this query's; null for none. Any hints
+  /// give the same answer, up to which of equally close triangles is kept.
+  Nearest FindNearest(const Eigen::Vector3d& point, double reach, int* hints);
   /// As FindNearest, searching only the body regions in candidate slots
   /// [first, first + count).
-  Nearest FindNearestAmongCandidates(const Eigen::Vector3d& point, double reach, int hint,
+  Nearest FindNearestAmongCandidates(const Eigen::Vector3d& point, double reach, int* hints,
                                      int first, int count);
   /// Gathers the body regions whose boxes overlap [box_min, box_max] into candidate slots
   /// [0, count), in the order FindNearest visits them; returns the count.
@@ -161,16 +161,20 @@ class MeshCollider : public BodyCollider {
   void AddCandidate(int region, const Eigen::Vector3d& point, double reach, int& count);
   /// Searches the `count` listed regions nearest box first, each piece's search radius
   /// shrinking from `reach` [m] to the distance of its nearest triangle found so far.
-  Nearest SearchNearestFirst(const Eigen::Vector3d& point, double reach, int hint, int count);
+  Nearest SearchNearestFirst(const Eigen::Vector3d& point, double reach, int* hints,
+                             int count);
+  /// Starts a query: each hinted triangle within reach starts its piece's radius.
+  void StartQuery(const Eigen::Vector3d& point, double reach, const int* hints);
   /// Starts `piece`'s search radius at `reach_squared` [m²] unless already started.
   void ActivatePiece(int piece, double reach_squared);
-  /// Takes `triangle` as its piece's nearest so far when within reach.
-  void TryHint(int triangle, const Eigen::Vector3d& point, double reach_squared);
+  /// The current squared search radius of `piece` [m²]: reach² until it is started.
+  double RadiusSquared(int piece, double reach) const;
   /// Keeps, for the region's piece, its nearest triangle within the piece's radius.
   void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point);
   void SearchCell(const MeshColliderRegion& region, int cell, const Eigen::Vector3d& point);
-  /// The smallest signed distance over the pieces the search touched; resets them.
-  Nearest Resolve(const Eigen::Vector3d& point);
+  /// The smallest signed distance over the pieces the search touched; resets them and
+  /// writes their closest triangles to `hints` (if not null).
+  Nearest Resolve(const Eigen::Vector3d& point, int* hints);
   void Refit();
 
   std::shared_ptr<const Avatar> avatar_;
@@ -193,8 +197,10 @@ class MeshCollider : public BodyCollider {
   std::vector<double> reaches_;
   std::vector<Contact> particle_contacts_;
   std::vector<char> has_contact_;
-  /// Per particle, its closest triangle in the last query (−1: none), tried first in the
-  /// next: FindContacts' answer starts ProjectOut's search, and each step's the next one's.
+  /// Per particle, kHintsPerParticle slots: its closest triangle per piece in the last query
+  /// (ended by −1), tried first in the next: FindContacts' answers start ProjectOut's
+  /// searches, and each step's the next one's.
+  static constexpr int kHintsPerParticle = 4;
   std::vector<int> hints_;
 };
 
