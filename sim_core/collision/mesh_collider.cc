@@ -19,6 +19,22 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Added to the triangles' spread around their cells [m], so that rounding in the cell
 /// bounds can only make them more conservative.
 constexpr double kRoundingSlack = 1e-12;
+/// How far beyond its reach a query walks the region trees [m], only to bound the distance
+/// to the pieces it finds nothing of: a particle moving less than this keeps them out of
+/// reach without walking them again.
+constexpr double kBoundExtension = 0.02;
+
+/// Sorts [first, first + count) by `less`, keeping equal elements in order, without
+/// allocating (the lists are short).
+template <class T, class Less>
+void InsertionSort(T* first, int count, Less less) {
+  for (int i = 1; i < count; ++i) {
+    const T moving = first[i];
+    int j = i;
+    for (; j > 0 && less(moving, first[j - 1]); --j) first[j] = first[j - 1];
+    first[j] = moving;
+  }
+}
 
 /// Triangles of each region.
 using RegionList = std::vector<std::vector<int>>;
@@ -221,6 +237,20 @@ struct RegionCandidate {
   double squared_distance = 0.0;
 };
 
+/// A remembered piece of the current query: its slot and its bound now [m].
+struct SlotBound {
+  int index = 0;
+  double bound = 0.0;
+};
+
+/// A piece the current query will remember: a triangle, a lower bound on the piece's signed
+/// distance [m] and on its unsigned distance [m].
+struct NewSlot {
+  int triangle = -1;
+  double bound = 0.0;
+  double distance = 0.0;
+};
+
 struct MeshColliderRegions {
   std::vector<MeshColliderRegion> data;
   std::vector<int> triangles;
@@ -256,6 +286,22 @@ struct MeshColliderRegions {
   std::vector<TrianglePoint> best_point;
   std::vector<char> active;
   std::vector<int> touched;
+  /// Per piece of the current query: the lowest squared distance [m²] of what its search
+  /// ruled out (a bound on it when it ends with no triangle), its signed distance [m] once
+  /// resolved, and whether it is one of the particle's remembered pieces.
+  std::vector<double> floor_squared;
+  std::vector<double> piece_distance;
+  std::vector<char> in_slot;
+  /// touched[0, num_resolved) have their signed distance; `lowest` is the smallest.
+  int num_resolved = 0;
+  double lowest = 0.0;
+  /// The lowest squared box distance [m²] of the regions walked but not listed.
+  double others_floor = 0.0;
+  /// The remembered pieces in search order and whether each was skipped; the pieces to
+  /// remember next.
+  std::vector<SlotBound> slot_order;
+  std::vector<char> skipped;
+  std::vector<NewSlot> new_slots;
 };
 
 namespace {
@@ -337,6 +383,22 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
   r.active.assign(normals_.num_pieces(), 0);
+  r.floor_squared.assign(normals_.num_pieces(), kInf);
+  r.piece_distance.assign(normals_.num_pieces(), kInf);
+  r.in_slot.assign(normals_.num_pieces(), 0);
+  r.slot_order.resize(kSlots);
+  r.skipped.resize(kSlots);
+  r.new_slots.resize(normals_.num_pieces() + kSlots);
+  piece_travel_.assign(normals_.num_pieces(), 0.0);
+  piece_step_.assign(normals_.num_pieces(), 0.0);
+  piece_speed_.assign(normals_.num_pieces(), 0.0);
+  vertex_step_.assign(avatar_->num_vertices(), 0.0);
+  piece_closed_.assign(normals_.num_pieces(), 1);
+  for (int t = 0; t < num_triangles; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      if (normals_.neighbour(t, k) < 0) piece_closed_[normals_.piece_of(t)] = 0;
+    }
+  }
   r.touched.reserve(normals_.num_pieces());
   Refit();
 }
@@ -351,7 +413,15 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
   regions_->candidates.resize((cloth_->max_depth() + 1) * regions_->data.size());
   particle_contacts_.assign(n, Contact{});
   has_contact_.assign(n, 0);
-  hints_.assign(kHintsPerParticle * n, -1);
+  SizeMemory(cloth.num_particles());
+}
+
+void MeshCollider::SizeMemory(Eigen::Index n) {
+  if (slots_.size() == static_cast<std::size_t>(kSlots * n)) return;
+  slots_.assign(kSlots * n, Slot{});
+  // Nothing known: every piece is searched at the first query.
+  others_bound_.assign(n, -kInf);
+  anchors_.setZero(n, 3);
 }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
@@ -482,9 +552,32 @@ void MeshCollider::Refit() {
   }
 }
 
+void MeshCollider::AddTravel(const Points& skinned_vertices) {
+  for (Eigen::Index v = 0; v < vertices_.rows(); ++v) {
+    vertex_step_[v] = (skinned_vertices.row(v) - vertices_.row(v)).squaredNorm();
+  }
+  std::fill(piece_step_.begin(), piece_step_.end(), 0.0);
+  for (int t = 0; t < normals_.num_triangles(); ++t) {
+    double& step = piece_step_[normals_.piece_of(t)];
+    for (int k = 0; k < 3; ++k) {
+      const double squared = vertex_step_[normals_.triangles()[t][k]];
+      // NaN-proof: a non-finite step makes the travel infinite, so no bound is trusted.
+      step = std::isfinite(squared) ? std::max(step, squared) : kInf;
+    }
+  }
+  double largest = 0.0;
+  for (std::size_t p = 0; p < piece_step_.size(); ++p) {
+    const double step = std::sqrt(piece_step_[p]);
+    piece_travel_[p] += step;
+    largest = std::max(largest, step);
+  }
+  travel_ += largest;
+}
+
 void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
                           const Points& skinned_vertices, double dt) {
   if (skinned_vertices.rows() != vertices_.rows()) return;
+  AddTravel(skinned_vertices);
   if (has_pose_ && dt > 0.0) {
     vertex_velocities_.noalias() = (skinned_vertices - vertices_) / dt;
   } else {
@@ -492,6 +585,20 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
   }
   max_vertex_speed_ = vertex_velocities_.rowwise().norm().maxCoeff();
   if (!std::isfinite(max_vertex_speed_)) max_vertex_speed_ = 0.0;
+  // Per piece, the fastest of its vertices [m/s] (+inf if not finite, so nothing is skipped
+  // for its sake).
+  for (Eigen::Index v = 0; v < vertices_.rows(); ++v) {
+    vertex_step_[v] = vertex_velocities_.row(v).squaredNorm();
+  }
+  std::fill(piece_speed_.begin(), piece_speed_.end(), 0.0);
+  for (int t = 0; t < normals_.num_triangles(); ++t) {
+    double& speed = piece_speed_[normals_.piece_of(t)];
+    for (int k = 0; k < 3; ++k) {
+      const double squared = vertex_step_[normals_.triangles()[t][k]];
+      speed = std::isfinite(squared) ? std::max(speed, squared) : kInf;
+    }
+  }
+  for (double& speed : piece_speed_) speed = std::sqrt(speed);
   vertices_ = skinned_vertices;
   has_pose_ = true;
   Refit();
@@ -538,19 +645,122 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvt& tree,
 
 }  // namespace
 
-MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach,
-                                                int* hints) {
+MeshCollider::Nearest MeshCollider::Query(const Eigen::Vector3d& point, double reach,
+                                          double threshold, double h, int particle,
+                                          const Source& source) {
   MeshColliderRegions& r = *regions_;
-  StartQuery(point, reach, hints);
-  int count = 0;
-  for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
-    const double radius = std::sqrt(RadiusSquared(piece, reach));
-    VisitOverlappingLeaves(r, *r.trees[piece], QueryBox(point, radius, settings_.thickness),
-                           num_tests_, [&](const btDbvtNode* leaf) {
-                             AddCandidate(RegionOf(leaf), point, reach, count);
-                           });
+  const double reach_squared = reach * reach;
+  // What the particle's last query learnt, moved to now: the particle has moved `slack`
+  // and each piece has travelled, and a signed (or, for the other pieces, unsigned)
+  // distance changes by at most that much (it is 1-Lipschitz, and a surface point moves
+  // no farther than its vertices).
+  const bool remembered = particle >= 0;
+  const double slack =
+      remembered ? (point - anchors_.row(particle).transpose()).norm() : 0.0;
+  double others_bound = remembered && options_.reuse_bounds
+                            ? others_bound_[particle] - travel_ - slack
+                            : -kInf;
+  int num_slots = 0;
+  if (remembered) {
+    const Slot* slots = &slots_[kSlots * particle];
+    for (; num_slots < kSlots && slots[num_slots].triangle >= 0; ++num_slots) {
+      const int piece = normals_.piece_of(slots[num_slots].triangle);
+      const double bound = options_.reuse_bounds
+                               ? slots[num_slots].bound - piece_travel_[piece] - slack
+                               : -kInf;
+      r.slot_order[num_slots] = {num_slots, bound};
+      r.in_slot[piece] = 1;
+    }
   }
-  return SearchNearestFirst(point, reach, hints, count);
+  // Each remembered piece in turn, lowest bound first.
+  InsertionSort(r.slot_order.data(), num_slots,
+                [](const SlotBound& a, const SlotBound& b) { return a.bound < b.bound; });
+  r.lowest = kInf;
+  r.others_floor = kInf;
+  // The other pieces first: nothing bounds their sign, so they are searched whenever one
+  // may lie within reach.
+  const bool search_others = !(others_bound > reach);
+  // How far the walks below reached: every region they did not list lies farther.
+  double walked = kInf;
+  if (search_others) {
+    walked = reach + kBoundExtension;
+    const int count = Collect(point, -1, reach, reach + kBoundExtension, source);
+    SearchCandidates(point, reach_squared, count);
+    ResolvePieces(point);
+  }
+  // A remembered piece is skipped when its bound exceeds the lowest signed distance found
+  // so far (it cannot be the nearest) or its own threshold (as the nearest it would not
+  // matter).
+  auto search_slot = [&](int k) {
+    r.skipped[k] = 0;
+    const int triangle = slots_[kSlots * particle + r.slot_order[k].index].triangle;
+    const int piece = normals_.piece_of(triangle);
+    ActivatePiece(piece, reach_squared);
+    TryTriangle(triangle, point);  // its last closest triangle starts its radius
+    // Found within reach: searched within its distance. Not: within reach, and a little
+    // beyond for the bound on it, as the other pieces.
+    const double radius = std::sqrt(r.best_squared[piece]);
+    const bool found = r.best_triangle[piece] >= 0;
+    if (!found) walked = reach + kBoundExtension;
+    const int count =
+        Collect(point, piece, radius, found ? radius : reach + kBoundExtension, source);
+    SearchCandidates(point, reach_squared, count);
+    ResolvePieces(point);
+  };
+  for (int k = 0; k < num_slots; ++k) {
+    const SlotBound& slot = r.slot_order[k];
+    const int piece = normals_.piece_of(slots_[kSlots * particle + slot.index].triangle);
+    if (slot.bound > r.lowest || slot.bound > threshold + h * piece_speed_[piece]) {
+      r.skipped[k] = 1;
+    } else {
+      search_slot(k);
+    }
+  }
+  // The nearest so far matters (it is below its threshold): a piece skipped by its own
+  // threshold alone may still be nearer, and is searched.
+  const int winner = Winner();
+  if (winner >= 0 && r.lowest <= threshold + h * piece_speed_[winner]) {
+    for (int k = 0; k < num_slots; ++k) {
+      if (r.skipped[k] && !(r.slot_order[k].bound > r.lowest)) search_slot(k);
+    }
+  }
+  if (particle >= 0) {
+    Remember(particle, point, std::min(search_others ? kInf : others_bound, walked),
+             num_slots);
+  }
+  return Finish(point);
+}
+
+int MeshCollider::Collect(const Eigen::Vector3d& point, int piece, double radius,
+                          double extended, const Source& source) {
+  MeshColliderRegions& r = *regions_;
+  const double radius_squared = radius * radius;
+  const double extended_squared = std::max(extended, radius) * std::max(extended, radius);
+  const btDbvtVolume box =
+      QueryBox(point, std::max(extended, radius), settings_.thickness);
+  auto wanted = [&](int p) { return piece >= 0 ? p == piece : !r.in_slot[p]; };
+  int count = 0;
+  if (source.from_list) {
+    for (int c = source.first; c < source.first + source.count; ++c) {
+      const btDbvtNode* node = r.candidates[c];
+      const int region = RegionOf(node);
+      if (!wanted(r.data[region].piece)) continue;
+      ++num_tests_;
+      if (Intersect(node->volume, box)) {
+        AddCandidate(region, point, radius_squared, extended_squared, count);
+      }
+    }
+    return count;
+  }
+  const int first = piece >= 0 ? piece : 0;
+  const int last = piece >= 0 ? piece + 1 : normals_.num_pieces();
+  for (int p = first; p < last; ++p) {
+    if (!wanted(p)) continue;
+    VisitOverlappingLeaves(r, *r.trees[p], box, num_tests_, [&](const btDbvtNode* leaf) {
+      AddCandidate(RegionOf(leaf), point, radius_squared, extended_squared, count);
+    });
+  }
+  return count;
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
@@ -565,37 +775,17 @@ int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
   return count;
 }
 
-MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vector3d& point,
-                                                               double reach, int* hints,
-                                                               int first, int count) {
-  MeshColliderRegions& r = *regions_;
-  StartQuery(point, reach, hints);
-  int num_near = 0;
-  for (int c = first; c < first + count; ++c) {
-    const btDbvtNode* node = r.candidates[c];
-    const int region = RegionOf(node);
-    const double radius = std::sqrt(RadiusSquared(r.data[region].piece, reach));
-    ++num_tests_;
-    if (Intersect(node->volume, QueryBox(point, radius, settings_.thickness))) {
-      AddCandidate(region, point, reach, num_near);
-    }
-  }
-  return SearchNearestFirst(point, reach, hints, num_near);
-}
-
-void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double reach,
-                                int& count) {
+void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double radius_squared,
+                                double extended_squared, int& count) {
   MeshColliderRegions& r = *regions_;
   const MeshColliderRegion& region = r.data[index];
   const double squared = SquaredBoxDistance(region.box_min, region.box_max, point);
-  // The query box is a cube around the ball of the radius; its corners reach further.
-  if (squared > RadiusSquared(region.piece, reach)) return;
-  r.near[count++] = RegionCandidate{index, squared};
-}
-
-double MeshCollider::RadiusSquared(int piece, double reach) const {
-  const MeshColliderRegions& r = *regions_;
-  return r.active[piece] ? r.best_squared[piece] : reach * reach;
+  // The query box is a cube around the ball; its corners reach further.
+  if (squared <= radius_squared) {
+    r.near[count++] = RegionCandidate{index, squared};
+  } else if (squared <= extended_squared) {
+    r.others_floor = std::min(r.others_floor, squared);
+  }
 }
 
 void MeshCollider::ActivatePiece(int piece, double reach_squared) {
@@ -603,65 +793,55 @@ void MeshCollider::ActivatePiece(int piece, double reach_squared) {
   if (r.active[piece]) return;
   r.active[piece] = 1;
   r.best_squared[piece] = reach_squared;
+  r.floor_squared[piece] = kInf;
   r.touched.push_back(piece);
 }
 
-void MeshCollider::StartQuery(const Eigen::Vector3d& point, double reach, const int* hints) {
-  if (hints == nullptr) return;
+void MeshCollider::TryTriangle(int triangle, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
-  const double reach_squared = reach * reach;
-  // Last query's closest triangles first, one per piece: the particle has moved little, so
-  // each is usually still its piece's nearest or close to it, and its distance starts
-  // that piece's radius small, so the walk and the search below stay near the surface.
-  for (int k = 0; k < kHintsPerParticle; ++k) {
-    const int triangle = hints[k];
-    if (triangle < 0 || triangle >= normals_.num_triangles()) break;
-    const int piece = normals_.piece_of(triangle);
-    if (r.active[piece]) continue;
-    ActivatePiece(piece, reach_squared);
-    ++num_tests_;
-    const Eigen::Vector3i& tri = normals_.triangles()[triangle];
-    const TrianglePoint closest = ClosestPointOnTriangle(
-        point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
-        vertices_.row(tri[2]).transpose());
-    const double squared = (point - closest.point).squaredNorm();
-    if (squared > reach_squared) continue;
-    r.best_squared[piece] = squared;
-    r.best_triangle[piece] = triangle;
-    r.best_point[piece] = closest;
+  const int piece = normals_.piece_of(triangle);
+  ++num_tests_;
+  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+  const TrianglePoint closest =
+      ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
+                             vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
+  const double squared = (point - closest.point).squaredNorm();
+  if (squared > r.best_squared[piece]) {
+    r.floor_squared[piece] = std::min(r.floor_squared[piece], squared);
+    return;
   }
+  r.best_squared[piece] = squared;
+  r.best_triangle[piece] = triangle;
+  r.best_point[piece] = closest;
 }
 
-MeshCollider::Nearest MeshCollider::SearchNearestFirst(const Eigen::Vector3d& point,
-                                                       double reach, int* hints, int count) {
+void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, double reach_squared,
+                                    int count) {
   MeshColliderRegions& r = *regions_;
   // Nearest box first (an insertion sort, stable: equal boxes keep the walk's order): the
   // nearest triangle is usually in the first region, and the radius it sets rules out
   // the others by their boxes alone.
   RegionCandidate* near = r.near.data();
-  for (int i = 1; i < count; ++i) {
-    const RegionCandidate moving = near[i];
-    int j = i;
-    for (; j > 0 && near[j - 1].squared_distance > moving.squared_distance; --j) {
-      near[j] = near[j - 1];
-    }
-    near[j] = moving;
-  }
-  const double reach_squared = reach * reach;
+  InsertionSort(near, count, [](const RegionCandidate& a, const RegionCandidate& b) {
+    return a.squared_distance < b.squared_distance;
+  });
   for (int i = 0; i < count; ++i) {
     const MeshColliderRegion& region = r.data[near[i].region];
     const int piece = region.piece;
     ActivatePiece(piece, reach_squared);
     ++num_tests_;  // the region's box against the piece's current radius
-    if (near[i].squared_distance > r.best_squared[piece]) continue;
+    if (near[i].squared_distance > r.best_squared[piece]) {
+      r.floor_squared[piece] = std::min(r.floor_squared[piece], near[i].squared_distance);
+      continue;
+    }
     SearchRegion(region, point);
   }
-  return Resolve(point, hints);
 }
 
 void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   const double& best = r.best_squared[region.piece];
+  double& floor = r.floor_squared[region.piece];
   ++num_tests_;  // the region's box in its own frame: the slab along its mean normal
   const double u = point.dot(region.tangent_u);
   const double v = point.dot(region.tangent_v);
@@ -669,7 +849,11 @@ void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::V
   const double gap_w = IntervalGap(w, region.w_min, region.w_max);
   const double gap_u = IntervalGap(u, region.u_min, region.u_max);
   const double gap_v = IntervalGap(v, region.v_min, region.v_max);
-  if (gap_u * gap_u + gap_v * gap_v + gap_w * gap_w > best) return;
+  const double frame_squared = gap_u * gap_u + gap_v * gap_v + gap_w * gap_w;
+  if (frame_squared > best) {
+    floor = std::min(floor, frame_squared);
+    return;
+  }
   const FrameBox* box = &r.cell_box[region.cell_first];
   // The box of a cell's triangles bounds their distance from below. The cell under the
   // point first: on a surface it usually holds the nearest triangle, whose distance then
@@ -680,14 +864,21 @@ void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::V
     const double du = IntervalGap(u, b.u_lo, b.u_hi);
     const double dv = IntervalGap(v, b.v_lo, b.v_hi);
     const double dw = IntervalGap(w, b.w_lo, b.w_hi);
-    if (du * du + dv * dv + dw * dw <= best) SearchCell(region, cell, point);
+    const double squared = du * du + dv * dv + dw * dw;
+    if (squared <= best) {
+      SearchCell(region, cell, point);
+    } else {
+      floor = std::min(floor, squared);
+    }
   };
   const int home_u = CellIndex(u, region.u_min, region.cell_size_u, region.cells_u);
   const int home_v = CellIndex(v, region.v_min, region.cell_size_v, region.cells_v);
   search_if_near(home_v * region.cells_u + home_u);
   // The other cells that can hold a triangle within the radius: a triangle binned in a
   // cell (by centroid) lies within its spread of the cell's rectangle. Row by row, a disc
-  // of cells, not a square.
+  // of cells, not a square. (Cells left out lie farther than the radius, so farther than
+  // the bound `floor` keeps only when the piece ends with no triangle: the radius is then
+  // the reach, a bound itself.)
   const double spread_u = region.spread_u + kRoundingSlack;
   const double spread_v = region.spread_v + kRoundingSlack;
   const double gap_w_squared = gap_w * gap_w;
@@ -715,7 +906,8 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
                               const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   const int piece = region.piece;
-  double& best = r.best_squared[piece];
+  double best = r.best_squared[piece];
+  double floor = r.floor_squared[piece];
   const int* start = &r.cell_start[region.cell_first];
   const int end = region.first + start[cell + 1];
   for (int j = region.first + start[cell]; j < end; ++j) {
@@ -723,42 +915,73 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
     // both are near enough.
     ++num_tests_;
     const PackedTriangle& t = r.packed[j];
-    if (SquaredBoxDistance(t.box_min, t.box_max, point) > best) continue;
+    const double box = SquaredBoxDistance(t.box_min, t.box_max, point);
     const double plane = t.normal.dot(point - t.a);
-    if (plane * plane > best) continue;
+    const double bound = std::max(box, plane * plane);
+    if (bound > best) {
+      floor = std::min(floor, bound);
+      continue;
+    }
     const TrianglePoint closest = ClosestPointOnTriangle(point, t.a, t.b, t.c);
     const double squared = (point - closest.point).squaredNorm();
     // Ties keep the first found, except that the first triangle may sit exactly at reach.
-    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) continue;
+    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) {
+      floor = std::min(floor, squared);
+      continue;
+    }
     best = squared;
     r.best_triangle[piece] = r.cell_triangles[j];
     r.best_point[piece] = closest;
   }
+  r.best_squared[piece] = best;
+  r.floor_squared[piece] = floor;
 }
 
-MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point, int* hints) {
+void MeshCollider::ResolvePieces(const Eigen::Vector3d& point) {
+  MeshColliderRegions& r = *regions_;
+  for (; r.num_resolved < static_cast<int>(r.touched.size()); ++r.num_resolved) {
+    const int piece = r.touched[r.num_resolved];
+    const int t = r.best_triangle[piece];
+    if (t < 0) {
+      r.piece_distance[piece] = kInf;
+      continue;
+    }
+    // Each piece's own closest feature decides its sign; the union takes the smallest.
+    const TrianglePoint& closest = r.best_point[piece];
+    const double distance = std::sqrt(r.best_squared[piece]);
+    const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature)) < 0.0;
+    r.piece_distance[piece] = inside ? -distance : distance;
+    r.lowest = std::min(r.lowest, r.piece_distance[piece]);
+  }
+}
+
+int MeshCollider::Winner() const {
+  const MeshColliderRegions& r = *regions_;
+  double lowest = kInf;
+  int winner = -1;
+  for (int piece : r.touched) {
+    if (r.best_triangle[piece] >= 0 && r.piece_distance[piece] < lowest) {
+      lowest = r.piece_distance[piece];
+      winner = piece;
+    }
+  }
+  return winner;
+}
+
+MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   Nearest nearest;
-  nearest.signed_distance = kInf;
-  int num_hints = 0;
-  for (int piece : r.touched) {
-    r.active[piece] = 0;  // ready for the next query
-    const int t = r.best_triangle[piece];
-    if (t < 0) continue;
-    r.best_triangle[piece] = -1;
-    if (hints != nullptr && num_hints < kHintsPerParticle) hints[num_hints++] = t;
-    const TrianglePoint& closest = r.best_point[piece];
-    // Each piece's own closest feature decides its sign; the union takes the smallest.
-    const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
+  const int winner = Winner();
+  if (winner >= 0) {
+    nearest.signed_distance = r.piece_distance[winner];
+    const int t = r.best_triangle[winner];
+    const TrianglePoint& closest = r.best_point[winner];
     const Eigen::Vector3d offset = point - closest.point;
-    const double distance = std::sqrt(r.best_squared[piece]);
-    const bool inside = offset.dot(pseudonormal) < 0.0;
-    const double signed_distance = inside ? -distance : distance;
-    if (signed_distance >= nearest.signed_distance) continue;
+    const double distance = std::abs(nearest.signed_distance);
+    const bool inside = nearest.signed_distance < 0.0;
     nearest.found = true;
-    nearest.signed_distance = signed_distance;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
-                                    : pseudonormal;
+                                    : normals_.Of(t, closest.feature);
     const Eigen::Vector3i& tri = normals_.triangles()[t];
     nearest.surface_velocity.setZero();
     for (int k = 0; k < 3; ++k) {
@@ -766,9 +989,56 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point, int* h
           closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
     }
   }
+  for (int piece : r.touched) {
+    r.active[piece] = 0;  // ready for the next query
+    r.best_triangle[piece] = -1;
+  }
   r.touched.clear();
-  if (hints != nullptr && num_hints < kHintsPerParticle) hints[num_hints] = -1;
+  r.num_resolved = 0;
   return nearest;
+}
+
+void MeshCollider::Remember(int particle, const Eigen::Vector3d& point, double others_bound,
+                            int num_slots) {
+  MeshColliderRegions& r = *regions_;
+  Slot* slots = &slots_[kSlots * particle];
+  // Candidates for the new slots, with their bound now [m]: the pieces searched (their
+  // exact signed distance) and the remembered pieces skipped (their bound).
+  int n = 0;
+  double unlisted = others_bound;  // lower bound on the distance to every unlisted piece
+  for (int piece : r.touched) {
+    if (r.best_triangle[piece] < 0) {
+      // Nothing within the radius: no triangle of it is nearer than the lowest distance or
+      // bound met on the way.
+      unlisted = std::min(unlisted, std::sqrt(r.floor_squared[piece]));
+      continue;
+    }
+    const double distance = r.piece_distance[piece];
+    r.new_slots[n++] = {r.best_triangle[piece], piece_closed_[piece] ? distance : -kInf,
+                        std::abs(distance)};
+  }
+  for (int k = 0; k < num_slots; ++k) {
+    const int triangle = slots[r.slot_order[k].index].triangle;
+    r.in_slot[normals_.piece_of(triangle)] = 0;
+    if (!r.skipped[k]) continue;
+    const double bound = r.slot_order[k].bound;
+    r.new_slots[n++] = {triangle, bound, std::max(bound, 0.0)};
+  }
+  unlisted = std::min(unlisted, std::sqrt(r.others_floor));
+  // Keep the lowest bounds (the pieces nearest to mattering); the rest join the unlisted.
+  InsertionSort(r.new_slots.data(), n,
+                [](const NewSlot& a, const NewSlot& b) { return a.bound < b.bound; });
+  for (int k = kSlots; k < n; ++k) unlisted = std::min(unlisted, r.new_slots[k].distance);
+  for (int k = 0; k < kSlots; ++k) {
+    if (k < n) {
+      const NewSlot& s = r.new_slots[k];
+      slots[k] = {s.triangle, s.bound + piece_travel_[normals_.piece_of(s.triangle)]};
+    } else {
+      slots[k] = Slot{};
+    }
+  }
+  others_bound_[particle] = unlisted + travel_;
+  anchors_.row(particle) = point.transpose();
 }
 
 double MeshCollider::ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const {
@@ -776,6 +1046,13 @@ double MeshCollider::ReachOf(const Eigen::Vector3d& velocity, double h, double m
   // max_penetration) and for one reached during the step at the relative speed.
   return settings_.thickness +
          std::max(margin + h * (velocity.norm() + max_vertex_speed_), options_.max_penetration);
+}
+
+double MeshCollider::ContactThreshold(const Eigen::Vector3d& velocity, double h,
+                                      double margin) const {
+  // Plus h × the piece's fastest vertex: above it, d + h·(v − v_surface)·n >=
+  // d − h·(|v| + |v_surface|) > thickness + margin.
+  return settings_.thickness + margin + h * velocity.norm();
 }
 
 bool MeshCollider::MakeContact(int particle, const Eigen::Vector3d& velocity,
@@ -804,9 +1081,7 @@ void MeshCollider::FindContacts(const Points& positions, const Points& velocitie
   num_queries_ = 0;
   if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
   margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
-  if (hints_.size() != kHintsPerParticle * static_cast<std::size_t>(positions.rows())) {
-    hints_.assign(kHintsPerParticle * positions.rows(), -1);
-  }
+  SizeMemory(positions.rows());
   if (options_.cloth_regions && cloth_ != nullptr &&
       positions.rows() == cloth_->num_particles()) {
     FindContactsPerRegion(positions, velocities, h, margin, contacts);
@@ -825,7 +1100,8 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     const double reach = ReachOf(v, h, margin);
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
-    const Nearest nearest = FindNearest(x, reach, &hints_[kHintsPerParticle * i]);
+    const Nearest nearest =
+        Query(x, reach, ContactThreshold(v, h, margin), h, static_cast<int>(i), Source{});
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -842,8 +1118,8 @@ void MeshCollider::FindContactsPerRegion(const Points& positions, const Points& 
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const double reach = ReachOf(velocities.row(i).transpose(), h, margin);
     const bool valid = reach < kInf && positions.row(i).allFinite();
-    // The same query box as FindNearest's, so a region's box holds its particles' boxes.
-    half_extents_[i] = valid ? std::max(reach - shell, 0.0) : -1.0;
+    // The largest query box Query walks, so a region's box holds its particles' boxes.
+    half_extents_[i] = valid ? std::max(reach + kBoundExtension - shell, 0.0) : -1.0;
     reaches_[i] = reach;
   }
   num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive);
@@ -894,12 +1170,12 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
   for (int s = node.first; s < node.first + node.count; ++s) {
     const int p = particles[s];
     if (half_extents_[p] < 0.0) continue;
+    const Eigen::Vector3d velocity = velocities.row(p).transpose();
     const Nearest nearest =
-        FindNearestAmongCandidates(positions.row(p).transpose(), reaches_[p],
-                                   &hints_[kHintsPerParticle * p], first, count);
+        Query(positions.row(p).transpose(), reaches_[p], ContactThreshold(velocity, h, margin),
+              h, p, Source{true, first, count});
     if (!nearest.found) continue;
-    has_contact_[p] =
-        MakeContact(p, velocities.row(p).transpose(), nearest, h, margin, particle_contacts_[p]);
+    has_contact_[p] = MakeContact(p, velocity, nearest, h, margin, particle_contacts_[p]);
   }
 }
 
@@ -908,12 +1184,13 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
   double deepest = 0.0;
-  const bool hinted =
-      hints_.size() == kHintsPerParticle * static_cast<std::size_t>(positions.rows());
+  // The memory FindContacts left, when it was given these particles.
+  const bool remembered = slots_.size() == kSlots * static_cast<std::size_t>(positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     if (!x.allFinite()) continue;
-    const Nearest nearest = FindNearest(x, reach, hinted ? &hints_[kHintsPerParticle * i] : nullptr);
+    const Nearest nearest =
+        Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
     if (!nearest.found || nearest.signed_distance >= shell) continue;
     deepest = std::max(deepest, shell - nearest.signed_distance);
     positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();

@@ -52,6 +52,14 @@ struct MeshCollisionOptions {
   /// Penetration below the surface [m] > 0 that FindContacts and ProjectOut still see;
   /// particles deeper than this are lost, as with any proximity method.
   double max_penetration = 0.05;
+  /// Remember per particle what its last search learnt (its nearest triangle per piece and
+  /// bounds on the distances), so that a piece which the particle's and the body's motion
+  /// since cannot have brought near enough to matter is not searched again. Contacts and
+  /// corrections are those of a full search, up to which of equally near triangles is
+  /// kept, wherever each piece of the body is closed and does not intersect itself (the
+  /// bounds rely on its signed distance being 1-Lipschitz); false searches every piece
+  /// within reach every time.
+  bool reuse_bounds = true;
   /// Query the body per cloth region rather than per particle (once SetCloth has given the
   /// cloth's topology); false reproduces the per-particle queries exactly. Off by default:
   /// it saves 10–30 % of the counted tests but measured 2–8 % slower in time
@@ -132,19 +140,47 @@ class MeshCollider : public BodyCollider {
     Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
   };
-  /// `hints`: kHintsPerParticle triangles to try first (the particle's last closest ones,
-  /// one per piece, ended by −1), overwritten with this query's; null for none. Any hints
-  /// give the same answer, up to which of equally close triangles is kept.
-  Nearest FindNearest(const Eigen::Vector3d& point, double reach, int* hints);
-  /// As FindNearest, searching only the body regions in candidate slots
-  /// [first, first + count).
-  Nearest FindNearestAmongCandidates(const Eigen::Vector3d& point, double reach, int* hints,
-                                     int first, int count);
+  /// Where a query's body regions come from: the per-piece region trees, or candidate
+  /// slots [first, first + count) gathered for a cloth region.
+  struct Source {
+    bool from_list = false;
+    int first = 0;
+    int count = 0;
+  };
+  /// One remembered piece of a particle: its closest triangle in the last query that
+  /// searched it, and `bound` + the piece's travel then: a lower bound on its signed
+  /// distance [m] at the particle's anchor (+ travel [m]).
+  struct Slot {
+    int triangle = -1;
+    double bound = 0.0;
+  };
+  static constexpr int kSlots = 4;
+
+  /// The nearest surface point to `point` within `reach` [m], exact whenever it matters:
+  /// when its signed distance is at most `threshold` + h × its piece's fastest vertex speed
+  /// [m]. Otherwise the answer may be another piece's or none, also above its threshold.
+  /// `particle` >= 0 uses and updates that particle's memory (its slots, anchor and bound
+  /// on the other pieces).
+  Nearest Query(const Eigen::Vector3d& point, double reach, double threshold, double h,
+                int particle, const Source& source);
+  /// The touched piece with the lowest signed distance, −1 for none.
+  int Winner() const;
+  /// Lists the regions of `piece` (−1: of every piece not in the particle's slots) within
+  /// `radius` [m] of `point`; regions within `extended` >= radius only lower the bound on
+  /// the unlisted pieces.
+  int Collect(const Eigen::Vector3d& point, int piece, double radius, double extended,
+              const Source& source);
+  /// Searches the `count` listed regions nearest box first, each piece's radius shrinking
+  /// from reach to the distance of its nearest triangle found so far.
+  void SearchCandidates(const Eigen::Vector3d& point, double reach_squared, int count);
   /// Gathers the body regions whose boxes overlap [box_min, box_max] into candidate slots
-  /// [0, count), in the order FindNearest visits them; returns the count.
+  /// [0, count), piece by piece in tree order; returns the count.
   int GatherCandidates(const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max);
   /// How far a particle's search must reach [m]; +inf or NaN for bad input.
   double ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const;
+  /// The signed distance above which FindContacts makes no contact for a particle moving
+  /// at `velocity` with a piece at rest [m] (Query adds h × the piece's speed).
+  double ContactThreshold(const Eigen::Vector3d& velocity, double h, double margin) const;
   /// The contact rule: fills `contact` and returns true when the particle needs one.
   bool MakeContact(int particle, const Eigen::Vector3d& velocity, const Nearest& nearest,
                    double h, double margin, Contact& contact) const;
@@ -156,25 +192,28 @@ class MeshCollider : public BodyCollider {
   /// narrowing the list for each child on the way down to the base regions.
   void TestClothNode(int k, int first, int count, const Points& positions,
                      const Points& velocities, double h, double margin);
-  /// Adds body region `region` to the current query's list (`count` long) when its box
-  /// lies within `reach` [m] of `point`.
-  void AddCandidate(int region, const Eigen::Vector3d& point, double reach, int& count);
-  /// Searches the `count` listed regions nearest box first, each piece's search radius
-  /// shrinking from `reach` [m] to the distance of its nearest triangle found so far.
-  Nearest SearchNearestFirst(const Eigen::Vector3d& point, double reach, int* hints,
-                             int count);
-  /// Starts a query: each hinted triangle within reach starts its piece's radius.
-  void StartQuery(const Eigen::Vector3d& point, double reach, const int* hints);
+  /// Adds body region `region` to the query's list (`count` long) when its box lies within
+  /// `radius` [m] of `point`, else lowers the unlisted pieces' bound when within `extended`.
+  void AddCandidate(int region, const Eigen::Vector3d& point, double radius_squared,
+                    double extended_squared, int& count);
   /// Starts `piece`'s search radius at `reach_squared` [m²] unless already started.
   void ActivatePiece(int piece, double reach_squared);
-  /// The current squared search radius of `piece` [m²]: reach² until it is started.
-  double RadiusSquared(int piece, double reach) const;
+  /// Takes `triangle` as its piece's nearest so far when within the piece's radius.
+  void TryTriangle(int triangle, const Eigen::Vector3d& point);
   /// Keeps, for the region's piece, its nearest triangle within the piece's radius.
   void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point);
   void SearchCell(const MeshColliderRegion& region, int cell, const Eigen::Vector3d& point);
-  /// The smallest signed distance over the pieces the search touched; resets them and
-  /// writes their closest triangles to `hints` (if not null).
-  Nearest Resolve(const Eigen::Vector3d& point, int* hints);
+  /// The signed distance [m] of the touched pieces' nearest triangles (+inf for none).
+  void ResolvePieces(const Eigen::Vector3d& point);
+  /// The answer from the resolved pieces; resets the per-piece scratch.
+  Nearest Finish(const Eigen::Vector3d& point);
+  /// Remembers for `particle` what this query learnt at `point`.
+  void Remember(int particle, const Eigen::Vector3d& point, double others_bound,
+                int num_slots);
+  /// Makes the particle memory n particles long (allocates when n changes).
+  void SizeMemory(Eigen::Index n);
+  /// Adds how far each piece moves to `skinned_vertices` to the travels.
+  void AddTravel(const Points& skinned_vertices);
   void Refit();
 
   std::shared_ptr<const Avatar> avatar_;
@@ -197,11 +236,25 @@ class MeshCollider : public BodyCollider {
   std::vector<double> reaches_;
   std::vector<Contact> particle_contacts_;
   std::vector<char> has_contact_;
-  /// Per particle, kHintsPerParticle slots: its closest triangle per piece in the last query
-  /// (ended by −1), tried first in the next: FindContacts' answers start ProjectOut's
-  /// searches, and each step's the next one's.
-  static constexpr int kHintsPerParticle = 4;
-  std::vector<int> hints_;
+  /// Per particle, what its last query learnt (see Query): up to kSlots pieces with their
+  /// closest triangle and a lower bound on their signed distance, a lower bound on the
+  /// distance to every other piece (both minus the body's travel since), and where the
+  /// particle was. The bounds shrink by the particle's and the body's motion since;
+  /// pieces whose bound shows they cannot matter are not searched. Ordered like the
+  /// particles.
+  std::vector<Slot> slots_;
+  std::vector<double> others_bound_;
+  Points anchors_;
+  /// How far each piece's vertices have moved in all Updates, summed [m], and the largest
+  /// over pieces, summed; +inf after a non-finite pose.
+  std::vector<double> piece_travel_;
+  double travel_ = 0.0;
+  std::vector<double> piece_speed_;  // fastest vertex of each piece [m/s]
+  std::vector<double> piece_step_;   // Update scratch: per piece, then per vertex [m², m²]
+  std::vector<double> vertex_step_;
+  /// Pieces that are closed (every edge shared by two triangles): only their signed
+  /// distance is 1-Lipschitz, which the bounds rely on.
+  std::vector<char> piece_closed_;
 };
 
 }  // namespace costume::sim
