@@ -22,7 +22,7 @@ constexpr double kRoundingSlack = 1e-12;
 /// How far beyond its reach a query walks the region trees [m], only to bound the distance
 /// to the pieces it finds nothing of: a particle moving less than this keeps them out of
 /// reach without walking them again.
-constexpr double kBoundExtension = 0.02;
+constexpr double kBoundExtension = 0.04;
 
 /// Sorts [first, first + count) by `less`, keeping equal elements in order, without
 /// allocating (the lists are short).
@@ -237,19 +237,14 @@ struct RegionCandidate {
   double squared_distance = 0.0;
 };
 
-/// A remembered piece of the current query: its slot and its bound now [m].
-struct SlotBound {
-  int index = 0;
+/// A piece to search and the lower bound on its signed distance now [m].
+struct PieceBound {
+  int piece = 0;
   double bound = 0.0;
 };
 
-/// A piece the current query will remember: a triangle, a lower bound on the piece's signed
-/// distance [m] and on its unsigned distance [m].
-struct NewSlot {
-  int triangle = -1;
-  double bound = 0.0;
-  double distance = 0.0;
-};
+/// What the current query did with a piece.
+enum PieceState : char { kSearched, kSkipped, kOutOfReach };
 
 struct MeshColliderRegions {
   std::vector<MeshColliderRegion> data;
@@ -277,31 +272,22 @@ struct MeshColliderRegions {
   std::vector<const btDbvtNode*> candidates;
   /// The regions of the current query, nearest box first (as long as `data`).
   std::vector<RegionCandidate> near;
-  /// Per piece of the current query: the squared search radius [m²] (the reach until a
-  /// triangle is found, then the distance to the nearest one: the radius shrinks), that
-  /// triangle (−1: none yet) and its closest point; `active` marks the pieces `touched`
-  /// lists.
+  /// Per piece of the current query: the squared search radius [m²] (the extended reach
+  /// until a triangle is found, then the distance to the nearest one: the radius shrinks),
+  /// that triangle (−1: none yet) and its closest point; the pieces searched.
   std::vector<double> best_squared;
   std::vector<int> best_triangle;
   std::vector<TrianglePoint> best_point;
-  std::vector<char> active;
   std::vector<int> touched;
-  /// Per piece of the current query: the lowest squared distance [m²] of what its search
-  /// ruled out (a bound on it when it ends with no triangle), its signed distance [m] once
-  /// resolved, and whether it is one of the particle's remembered pieces.
-  std::vector<double> floor_squared;
+  /// Per piece of the current query: its signed distance [m] once resolved, whether that
+  /// is within reach, and what the query did with it.
   std::vector<double> piece_distance;
-  std::vector<char> in_slot;
-  /// touched[0, num_resolved) have their signed distance; `lowest` is the smallest.
-  int num_resolved = 0;
+  std::vector<char> in_reach;
+  std::vector<PieceState> piece_state;
+  /// The lowest signed distance within reach resolved so far [m].
   double lowest = 0.0;
-  /// The lowest squared box distance [m²] of the regions walked but not listed.
-  double others_floor = 0.0;
-  /// The remembered pieces in search order and whether each was skipped; the pieces to
-  /// remember next.
-  std::vector<SlotBound> slot_order;
-  std::vector<char> skipped;
-  std::vector<NewSlot> new_slots;
+  /// The pieces to search, in order.
+  std::vector<PieceBound> order;
 };
 
 namespace {
@@ -382,13 +368,10 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.best_squared.assign(normals_.num_pieces(), kInf);
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
-  r.active.assign(normals_.num_pieces(), 0);
-  r.floor_squared.assign(normals_.num_pieces(), kInf);
+  r.in_reach.assign(normals_.num_pieces(), 0);
   r.piece_distance.assign(normals_.num_pieces(), kInf);
-  r.in_slot.assign(normals_.num_pieces(), 0);
-  r.slot_order.resize(kSlots);
-  r.skipped.resize(kSlots);
-  r.new_slots.resize(normals_.num_pieces() + kSlots);
+  r.piece_state.assign(normals_.num_pieces(), kSearched);
+  r.order.resize(normals_.num_pieces());
   piece_travel_.assign(normals_.num_pieces(), 0.0);
   piece_step_.assign(normals_.num_pieces(), 0.0);
   piece_speed_.assign(normals_.num_pieces(), 0.0);
@@ -417,12 +400,14 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
 }
 
 void MeshCollider::SizeMemory(Eigen::Index n) {
-  if (slots_.size() == static_cast<std::size_t>(kSlots * n)) return;
-  slots_.assign(kSlots * n, Slot{});
-  // Nothing known: every piece is searched at the first query.
-  others_bound_.assign(n, -kInf);
+  if (!UsesMemory() || memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * n)) {
+    return;
+  }
+  memory_.assign(normals_.num_pieces() * n, PieceMemory{});  // nothing known
   anchors_.setZero(n, 3);
 }
+
+bool MeshCollider::UsesMemory() const { return normals_.num_pieces() <= kMaxRememberedPieces; }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
 
@@ -565,13 +550,7 @@ void MeshCollider::AddTravel(const Points& skinned_vertices) {
       step = std::isfinite(squared) ? std::max(step, squared) : kInf;
     }
   }
-  double largest = 0.0;
-  for (std::size_t p = 0; p < piece_step_.size(); ++p) {
-    const double step = std::sqrt(piece_step_[p]);
-    piece_travel_[p] += step;
-    largest = std::max(largest, step);
-  }
-  travel_ += largest;
+  for (std::size_t p = 0; p < piece_step_.size(); ++p) piece_travel_[p] += std::sqrt(piece_step_[p]);
 }
 
 void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
@@ -649,117 +628,123 @@ MeshCollider::Nearest MeshCollider::Query(const Eigen::Vector3d& point, double r
                                           double threshold, double h, int particle,
                                           const Source& source) {
   MeshColliderRegions& r = *regions_;
-  const double reach_squared = reach * reach;
-  // What the particle's last query learnt, moved to now: the particle has moved `slack`
-  // and each piece has travelled, and a signed (or, for the other pieces, unsigned)
-  // distance changes by at most that much (it is 1-Lipschitz, and a surface point moves
-  // no farther than its vertices).
-  const bool remembered = particle >= 0;
+  const int num_pieces = normals_.num_pieces();
+  // Pieces are searched a little beyond the reach: what is found there takes no part in
+  // the answer, but its distance and sign are remembered, so the piece stays out of the
+  // next searches until it could matter.
+  const double extended = reach + kBoundExtension;
+  // What the particle's last query learnt about each piece, moved to now: since then the
+  // particle has moved `slack` and the piece `piece_travel_` more, and its signed and
+  // unsigned distances change by at most that much (both are 1-Lipschitz in the point,
+  // and no surface point moves farther than its vertices).
+  PieceMemory* memory = particle >= 0 ? &memory_[num_pieces * particle] : nullptr;
   const double slack =
-      remembered ? (point - anchors_.row(particle).transpose()).norm() : 0.0;
-  double others_bound = remembered && options_.reuse_bounds
-                            ? others_bound_[particle] - travel_ - slack
-                            : -kInf;
-  int num_slots = 0;
-  if (remembered) {
-    const Slot* slots = &slots_[kSlots * particle];
-    for (; num_slots < kSlots && slots[num_slots].triangle >= 0; ++num_slots) {
-      const int piece = normals_.piece_of(slots[num_slots].triangle);
-      const double bound = options_.reuse_bounds
-                               ? slots[num_slots].bound - piece_travel_[piece] - slack
-                               : -kInf;
-      r.slot_order[num_slots] = {num_slots, bound};
-      r.in_slot[piece] = 1;
+      memory != nullptr ? (point - anchors_.row(particle).transpose()).norm() : 0.0;
+  int num_order = 0;
+  for (int piece = 0; piece < num_pieces; ++piece) {
+    double signed_bound = -kInf;
+    if (memory != nullptr && options_.reuse_bounds) {
+      const double moved = piece_travel_[piece] + slack;
+      // Out of reach (as a full search would find it): not searched.
+      if (memory[piece].distance_bound - moved > reach) {
+        r.piece_state[piece] = kOutOfReach;
+        continue;
+      }
+      signed_bound = memory[piece].signed_bound - moved;
     }
+    r.piece_state[piece] = kSkipped;
+    r.order[num_order++] = {piece, signed_bound};
   }
-  // Each remembered piece in turn, lowest bound first.
-  InsertionSort(r.slot_order.data(), num_slots,
-                [](const SlotBound& a, const SlotBound& b) { return a.bound < b.bound; });
+  // Pieces of unknown sign first (their bound is −inf), then lowest bound first.
+  InsertionSort(r.order.data(), num_order,
+                [](const PieceBound& a, const PieceBound& b) { return a.bound < b.bound; });
   r.lowest = kInf;
-  r.others_floor = kInf;
-  // The other pieces first: nothing bounds their sign, so they are searched whenever one
-  // may lie within reach.
-  const bool search_others = !(others_bound > reach);
-  // How far the walks below reached: every region they did not list lies farther.
-  double walked = kInf;
-  if (search_others) {
-    walked = reach + kBoundExtension;
-    const int count = Collect(point, -1, reach, reach + kBoundExtension, source);
-    SearchCandidates(point, reach_squared, count);
-    ResolvePieces(point);
-  }
-  // A remembered piece is skipped when its bound exceeds the lowest signed distance found
-  // so far (it cannot be the nearest) or its own threshold (as the nearest it would not
-  // matter).
-  auto search_slot = [&](int k) {
-    r.skipped[k] = 0;
-    const int triangle = slots_[kSlots * particle + r.slot_order[k].index].triangle;
-    const int piece = normals_.piece_of(triangle);
-    ActivatePiece(piece, reach_squared);
-    TryTriangle(triangle, point);  // its last closest triangle starts its radius
-    // Found within reach: searched within its distance. Not: within reach, and a little
-    // beyond for the bound on it, as the other pieces.
-    const double radius = std::sqrt(r.best_squared[piece]);
-    const bool found = r.best_triangle[piece] >= 0;
-    if (!found) walked = reach + kBoundExtension;
-    const int count =
-        Collect(point, piece, radius, found ? radius : reach + kBoundExtension, source);
-    SearchCandidates(point, reach_squared, count);
-    ResolvePieces(point);
+  auto search = [&](int piece) {
+    r.piece_state[piece] = kSearched;
+    ActivatePiece(piece, extended * extended);
+    const int hint = memory != nullptr ? memory[piece].triangle : -1;
+    if (hint >= 0) TryTriangle(hint, point);  // its last nearest triangle starts the radius
+    const int count = Collect(point, piece, std::sqrt(r.best_squared[piece]), source);
+    SearchCandidates(point, count);
+    ResolvePiece(piece, point, reach);
   };
-  for (int k = 0; k < num_slots; ++k) {
-    const SlotBound& slot = r.slot_order[k];
-    const int piece = normals_.piece_of(slots_[kSlots * particle + slot.index].triangle);
-    if (slot.bound > r.lowest || slot.bound > threshold + h * piece_speed_[piece]) {
-      r.skipped[k] = 1;
-    } else {
-      search_slot(k);
+  // A piece is skipped when its bound exceeds the lowest signed distance found so far (it
+  // cannot be the nearest) or its own threshold (as the nearest it would not matter).
+  auto over_threshold = [&](int piece, double bound) {
+    return bound > threshold + h * piece_speed_[piece];
+  };
+  for (int k = 0; k < num_order; ++k) {
+    const PieceBound& entry = r.order[k];
+    if (!(entry.bound > r.lowest) && !over_threshold(entry.piece, entry.bound)) {
+      search(entry.piece);
     }
   }
-  // The nearest so far matters (it is below its threshold): a piece skipped by its own
+  // The nearest so far matters (it is within its threshold): a piece skipped by its own
   // threshold alone may still be nearer, and is searched.
   const int winner = Winner();
-  if (winner >= 0 && r.lowest <= threshold + h * piece_speed_[winner]) {
-    for (int k = 0; k < num_slots; ++k) {
-      if (r.skipped[k] && !(r.slot_order[k].bound > r.lowest)) search_slot(k);
+  if (winner >= 0 && !over_threshold(winner, r.lowest)) {
+    for (int k = 0; k < num_order; ++k) {
+      const PieceBound& entry = r.order[k];
+      if (r.piece_state[entry.piece] == kSkipped && !(entry.bound > r.lowest)) {
+        search(entry.piece);
+      }
     }
   }
-  if (particle >= 0) {
-    Remember(particle, point, std::min(search_others ? kInf : others_bound, walked),
-             num_slots);
-  }
+  if (memory != nullptr) Remember(memory, particle, point, slack, extended);
   return Finish(point);
 }
 
+void MeshCollider::Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
+                            double slack, double extended) {
+  MeshColliderRegions& r = *regions_;
+  for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
+    PieceMemory& m = memory[piece];
+    if (r.piece_state[piece] != kSearched) {
+      // Not searched: the bounds carry over to the new anchor.
+      m.signed_bound -= slack;
+      m.distance_bound -= slack;
+      continue;
+    }
+    const double travel = piece_travel_[piece];
+    if (r.best_triangle[piece] >= 0) {
+      const double distance = r.piece_distance[piece];
+      m.triangle = r.best_triangle[piece];
+      m.signed_bound = (piece_closed_[piece] ? distance : -kInf) + travel;
+      m.distance_bound = std::abs(distance) + travel;
+    } else {
+      // Nothing within the extended reach; the sign is unknown (inside or out). The old
+      // bound, carried over, may still be the better one (a search of shorter reach).
+      m.signed_bound = -kInf;
+      m.distance_bound = std::max(extended + travel, m.distance_bound - slack);
+    }
+  }
+  anchors_.row(particle) = point.transpose();
+}
+
 int MeshCollider::Collect(const Eigen::Vector3d& point, int piece, double radius,
-                          double extended, const Source& source) {
+                          const Source& source) {
   MeshColliderRegions& r = *regions_;
   const double radius_squared = radius * radius;
-  const double extended_squared = std::max(extended, radius) * std::max(extended, radius);
-  const btDbvtVolume box =
-      QueryBox(point, std::max(extended, radius), settings_.thickness);
-  auto wanted = [&](int p) { return piece >= 0 ? p == piece : !r.in_slot[p]; };
+  const btDbvtVolume box = QueryBox(point, radius, settings_.thickness);
   int count = 0;
+  auto add = [&](int region) {
+    // The query box is a cube around the ball; its corners reach further.
+    const double squared =
+        SquaredBoxDistance(r.data[region].box_min, r.data[region].box_max, point);
+    if (squared <= radius_squared) r.near[count++] = RegionCandidate{region, squared};
+  };
   if (source.from_list) {
     for (int c = source.first; c < source.first + source.count; ++c) {
       const btDbvtNode* node = r.candidates[c];
       const int region = RegionOf(node);
-      if (!wanted(r.data[region].piece)) continue;
+      if (r.data[region].piece != piece) continue;
       ++num_tests_;
-      if (Intersect(node->volume, box)) {
-        AddCandidate(region, point, radius_squared, extended_squared, count);
-      }
+      if (Intersect(node->volume, box)) add(region);
     }
     return count;
   }
-  const int first = piece >= 0 ? piece : 0;
-  const int last = piece >= 0 ? piece + 1 : normals_.num_pieces();
-  for (int p = first; p < last; ++p) {
-    if (!wanted(p)) continue;
-    VisitOverlappingLeaves(r, *r.trees[p], box, num_tests_, [&](const btDbvtNode* leaf) {
-      AddCandidate(RegionOf(leaf), point, radius_squared, extended_squared, count);
-    });
-  }
+  VisitOverlappingLeaves(r, *r.trees[piece], box, num_tests_,
+                         [&](const btDbvtNode* leaf) { add(RegionOf(leaf)); });
   return count;
 }
 
@@ -775,25 +760,9 @@ int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
   return count;
 }
 
-void MeshCollider::AddCandidate(int index, const Eigen::Vector3d& point, double radius_squared,
-                                double extended_squared, int& count) {
+void MeshCollider::ActivatePiece(int piece, double radius_squared) {
   MeshColliderRegions& r = *regions_;
-  const MeshColliderRegion& region = r.data[index];
-  const double squared = SquaredBoxDistance(region.box_min, region.box_max, point);
-  // The query box is a cube around the ball; its corners reach further.
-  if (squared <= radius_squared) {
-    r.near[count++] = RegionCandidate{index, squared};
-  } else if (squared <= extended_squared) {
-    r.others_floor = std::min(r.others_floor, squared);
-  }
-}
-
-void MeshCollider::ActivatePiece(int piece, double reach_squared) {
-  MeshColliderRegions& r = *regions_;
-  if (r.active[piece]) return;
-  r.active[piece] = 1;
-  r.best_squared[piece] = reach_squared;
-  r.floor_squared[piece] = kInf;
+  r.best_squared[piece] = radius_squared;
   r.touched.push_back(piece);
 }
 
@@ -806,17 +775,13 @@ void MeshCollider::TryTriangle(int triangle, const Eigen::Vector3d& point) {
       ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
                              vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
   const double squared = (point - closest.point).squaredNorm();
-  if (squared > r.best_squared[piece]) {
-    r.floor_squared[piece] = std::min(r.floor_squared[piece], squared);
-    return;
-  }
+  if (squared > r.best_squared[piece]) return;
   r.best_squared[piece] = squared;
   r.best_triangle[piece] = triangle;
   r.best_point[piece] = closest;
 }
 
-void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, double reach_squared,
-                                    int count) {
+void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, int count) {
   MeshColliderRegions& r = *regions_;
   // Nearest box first (an insertion sort, stable: equal boxes keep the walk's order): the
   // nearest triangle is usually in the first region, and the radius it sets rules out
@@ -827,13 +792,8 @@ void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, double reach_s
   });
   for (int i = 0; i < count; ++i) {
     const MeshColliderRegion& region = r.data[near[i].region];
-    const int piece = region.piece;
-    ActivatePiece(piece, reach_squared);
     ++num_tests_;  // the region's box against the piece's current radius
-    if (near[i].squared_distance > r.best_squared[piece]) {
-      r.floor_squared[piece] = std::min(r.floor_squared[piece], near[i].squared_distance);
-      continue;
-    }
+    if (near[i].squared_distance > r.best_squared[region.piece]) continue;
     SearchRegion(region, point);
   }
 }
@@ -841,7 +801,6 @@ void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, double reach_s
 void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   const double& best = r.best_squared[region.piece];
-  double& floor = r.floor_squared[region.piece];
   ++num_tests_;  // the region's box in its own frame: the slab along its mean normal
   const double u = point.dot(region.tangent_u);
   const double v = point.dot(region.tangent_v);
@@ -849,11 +808,7 @@ void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::V
   const double gap_w = IntervalGap(w, region.w_min, region.w_max);
   const double gap_u = IntervalGap(u, region.u_min, region.u_max);
   const double gap_v = IntervalGap(v, region.v_min, region.v_max);
-  const double frame_squared = gap_u * gap_u + gap_v * gap_v + gap_w * gap_w;
-  if (frame_squared > best) {
-    floor = std::min(floor, frame_squared);
-    return;
-  }
+  if (gap_u * gap_u + gap_v * gap_v + gap_w * gap_w > best) return;
   const FrameBox* box = &r.cell_box[region.cell_first];
   // The box of a cell's triangles bounds their distance from below. The cell under the
   // point first: on a surface it usually holds the nearest triangle, whose distance then
@@ -864,21 +819,14 @@ void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::V
     const double du = IntervalGap(u, b.u_lo, b.u_hi);
     const double dv = IntervalGap(v, b.v_lo, b.v_hi);
     const double dw = IntervalGap(w, b.w_lo, b.w_hi);
-    const double squared = du * du + dv * dv + dw * dw;
-    if (squared <= best) {
-      SearchCell(region, cell, point);
-    } else {
-      floor = std::min(floor, squared);
-    }
+    if (du * du + dv * dv + dw * dw <= best) SearchCell(region, cell, point);
   };
   const int home_u = CellIndex(u, region.u_min, region.cell_size_u, region.cells_u);
   const int home_v = CellIndex(v, region.v_min, region.cell_size_v, region.cells_v);
   search_if_near(home_v * region.cells_u + home_u);
   // The other cells that can hold a triangle within the radius: a triangle binned in a
   // cell (by centroid) lies within its spread of the cell's rectangle. Row by row, a disc
-  // of cells, not a square. (Cells left out lie farther than the radius, so farther than
-  // the bound `floor` keeps only when the piece ends with no triangle: the radius is then
-  // the reach, a bound itself.)
+  // of cells, not a square.
   const double spread_u = region.spread_u + kRoundingSlack;
   const double spread_v = region.spread_v + kRoundingSlack;
   const double gap_w_squared = gap_w * gap_w;
@@ -907,7 +855,6 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
   MeshColliderRegions& r = *regions_;
   const int piece = region.piece;
   double best = r.best_squared[piece];
-  double floor = r.floor_squared[piece];
   const int* start = &r.cell_start[region.cell_first];
   const int end = region.first + start[cell + 1];
   for (int j = region.first + start[cell]; j < end; ++j) {
@@ -915,44 +862,36 @@ void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
     // both are near enough.
     ++num_tests_;
     const PackedTriangle& t = r.packed[j];
-    const double box = SquaredBoxDistance(t.box_min, t.box_max, point);
+    if (SquaredBoxDistance(t.box_min, t.box_max, point) > best) continue;
     const double plane = t.normal.dot(point - t.a);
-    const double bound = std::max(box, plane * plane);
-    if (bound > best) {
-      floor = std::min(floor, bound);
-      continue;
-    }
+    if (plane * plane > best) continue;
     const TrianglePoint closest = ClosestPointOnTriangle(point, t.a, t.b, t.c);
     const double squared = (point - closest.point).squaredNorm();
-    // Ties keep the first found, except that the first triangle may sit exactly at reach.
-    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) {
-      floor = std::min(floor, squared);
-      continue;
-    }
+    // Ties keep the first found, except that the first triangle may sit exactly at the
+    // radius.
+    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) continue;
     best = squared;
     r.best_triangle[piece] = r.cell_triangles[j];
     r.best_point[piece] = closest;
   }
   r.best_squared[piece] = best;
-  r.floor_squared[piece] = floor;
 }
 
-void MeshCollider::ResolvePieces(const Eigen::Vector3d& point) {
+void MeshCollider::ResolvePiece(int piece, const Eigen::Vector3d& point, double reach) {
   MeshColliderRegions& r = *regions_;
-  for (; r.num_resolved < static_cast<int>(r.touched.size()); ++r.num_resolved) {
-    const int piece = r.touched[r.num_resolved];
-    const int t = r.best_triangle[piece];
-    if (t < 0) {
-      r.piece_distance[piece] = kInf;
-      continue;
-    }
-    // Each piece's own closest feature decides its sign; the union takes the smallest.
-    const TrianglePoint& closest = r.best_point[piece];
-    const double distance = std::sqrt(r.best_squared[piece]);
-    const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature)) < 0.0;
-    r.piece_distance[piece] = inside ? -distance : distance;
-    r.lowest = std::min(r.lowest, r.piece_distance[piece]);
+  const int t = r.best_triangle[piece];
+  if (t < 0) {
+    r.piece_distance[piece] = kInf;
+    return;
   }
+  // Each piece's own closest feature decides its sign; the union takes the smallest, among
+  // the pieces within reach.
+  const TrianglePoint& closest = r.best_point[piece];
+  const double distance = std::sqrt(r.best_squared[piece]);
+  const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature)) < 0.0;
+  r.piece_distance[piece] = inside ? -distance : distance;
+  r.in_reach[piece] = r.best_squared[piece] <= reach * reach;
+  if (r.in_reach[piece]) r.lowest = std::min(r.lowest, r.piece_distance[piece]);
 }
 
 int MeshCollider::Winner() const {
@@ -960,7 +899,7 @@ int MeshCollider::Winner() const {
   double lowest = kInf;
   int winner = -1;
   for (int piece : r.touched) {
-    if (r.best_triangle[piece] >= 0 && r.piece_distance[piece] < lowest) {
+    if (r.best_triangle[piece] >= 0 && r.in_reach[piece] && r.piece_distance[piece] < lowest) {
       lowest = r.piece_distance[piece];
       winner = piece;
     }
@@ -989,56 +928,9 @@ MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
           closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
     }
   }
-  for (int piece : r.touched) {
-    r.active[piece] = 0;  // ready for the next query
-    r.best_triangle[piece] = -1;
-  }
+  for (int piece : r.touched) r.best_triangle[piece] = -1;  // ready for the next query
   r.touched.clear();
-  r.num_resolved = 0;
   return nearest;
-}
-
-void MeshCollider::Remember(int particle, const Eigen::Vector3d& point, double others_bound,
-                            int num_slots) {
-  MeshColliderRegions& r = *regions_;
-  Slot* slots = &slots_[kSlots * particle];
-  // Candidates for the new slots, with their bound now [m]: the pieces searched (their
-  // exact signed distance) and the remembered pieces skipped (their bound).
-  int n = 0;
-  double unlisted = others_bound;  // lower bound on the distance to every unlisted piece
-  for (int piece : r.touched) {
-    if (r.best_triangle[piece] < 0) {
-      // Nothing within the radius: no triangle of it is nearer than the lowest distance or
-      // bound met on the way.
-      unlisted = std::min(unlisted, std::sqrt(r.floor_squared[piece]));
-      continue;
-    }
-    const double distance = r.piece_distance[piece];
-    r.new_slots[n++] = {r.best_triangle[piece], piece_closed_[piece] ? distance : -kInf,
-                        std::abs(distance)};
-  }
-  for (int k = 0; k < num_slots; ++k) {
-    const int triangle = slots[r.slot_order[k].index].triangle;
-    r.in_slot[normals_.piece_of(triangle)] = 0;
-    if (!r.skipped[k]) continue;
-    const double bound = r.slot_order[k].bound;
-    r.new_slots[n++] = {triangle, bound, std::max(bound, 0.0)};
-  }
-  unlisted = std::min(unlisted, std::sqrt(r.others_floor));
-  // Keep the lowest bounds (the pieces nearest to mattering); the rest join the unlisted.
-  InsertionSort(r.new_slots.data(), n,
-                [](const NewSlot& a, const NewSlot& b) { return a.bound < b.bound; });
-  for (int k = kSlots; k < n; ++k) unlisted = std::min(unlisted, r.new_slots[k].distance);
-  for (int k = 0; k < kSlots; ++k) {
-    if (k < n) {
-      const NewSlot& s = r.new_slots[k];
-      slots[k] = {s.triangle, s.bound + piece_travel_[normals_.piece_of(s.triangle)]};
-    } else {
-      slots[k] = Slot{};
-    }
-  }
-  others_bound_[particle] = unlisted + travel_;
-  anchors_.row(particle) = point.transpose();
 }
 
 double MeshCollider::ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const {
@@ -1185,7 +1077,9 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const double reach = shell + options_.max_penetration;
   double deepest = 0.0;
   // The memory FindContacts left, when it was given these particles.
-  const bool remembered = slots_.size() == kSlots * static_cast<std::size_t>(positions.rows());
+  const bool remembered =
+      UsesMemory() &&
+      memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     if (!x.allFinite()) continue;

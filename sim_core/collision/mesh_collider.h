@@ -21,6 +21,7 @@
 /// that query returned. Contacts are the same with or without them.
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -147,32 +148,30 @@ class MeshCollider : public BodyCollider {
     int first = 0;
     int count = 0;
   };
-  /// One remembered piece of a particle: its closest triangle in the last query that
-  /// searched it, and `bound` + the piece's travel then: a lower bound on its signed
-  /// distance [m] at the particle's anchor (+ travel [m]).
-  struct Slot {
+  /// What a particle's last search learnt about one piece of the body: its nearest
+  /// triangle (−1: none yet) and lower bounds on its signed and unsigned distance [m] at
+  /// the particle's anchor, each plus the piece's travel then [m]. −inf: unknown.
+  struct PieceMemory {
     int triangle = -1;
-    double bound = 0.0;
+    double signed_bound = -std::numeric_limits<double>::infinity();
+    double distance_bound = -std::numeric_limits<double>::infinity();
   };
-  static constexpr int kSlots = 4;
+  /// Bodies of more pieces search without memory (it would cost pieces × particles).
+  static constexpr int kMaxRememberedPieces = 64;
 
   /// The nearest surface point to `point` within `reach` [m], exact whenever it matters:
   /// when its signed distance is at most `threshold` + h × its piece's fastest vertex speed
   /// [m]. Otherwise the answer may be another piece's or none, also above its threshold.
-  /// `particle` >= 0 uses and updates that particle's memory (its slots, anchor and bound
-  /// on the other pieces).
+  /// `particle` >= 0 uses and updates that particle's memory (see memory_).
   Nearest Query(const Eigen::Vector3d& point, double reach, double threshold, double h,
                 int particle, const Source& source);
-  /// The touched piece with the lowest signed distance, −1 for none.
+  /// The searched piece within reach with the lowest signed distance, −1 for none.
   int Winner() const;
-  /// Lists the regions of `piece` (−1: of every piece not in the particle's slots) within
-  /// `radius` [m] of `point`; regions within `extended` >= radius only lower the bound on
-  /// the unlisted pieces.
-  int Collect(const Eigen::Vector3d& point, int piece, double radius, double extended,
-              const Source& source);
-  /// Searches the `count` listed regions nearest box first, each piece's radius shrinking
-  /// from reach to the distance of its nearest triangle found so far.
-  void SearchCandidates(const Eigen::Vector3d& point, double reach_squared, int count);
+  /// Lists the regions of `piece` within `radius` [m] of `point`; returns how many.
+  int Collect(const Eigen::Vector3d& point, int piece, double radius, const Source& source);
+  /// Searches the `count` listed regions nearest box first, the piece's radius shrinking
+  /// to the distance of its nearest triangle found so far.
+  void SearchCandidates(const Eigen::Vector3d& point, int count);
   /// Gathers the body regions whose boxes overlap [box_min, box_max] into candidate slots
   /// [0, count), piece by piece in tree order; returns the count.
   int GatherCandidates(const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max);
@@ -192,26 +191,25 @@ class MeshCollider : public BodyCollider {
   /// narrowing the list for each child on the way down to the base regions.
   void TestClothNode(int k, int first, int count, const Points& positions,
                      const Points& velocities, double h, double margin);
-  /// Adds body region `region` to the query's list (`count` long) when its box lies within
-  /// `radius` [m] of `point`, else lowers the unlisted pieces' bound when within `extended`.
-  void AddCandidate(int region, const Eigen::Vector3d& point, double radius_squared,
-                    double extended_squared, int& count);
-  /// Starts `piece`'s search radius at `reach_squared` [m²] unless already started.
-  void ActivatePiece(int piece, double reach_squared);
+  /// Starts searching `piece` within radius² `radius_squared` [m²].
+  void ActivatePiece(int piece, double radius_squared);
   /// Takes `triangle` as its piece's nearest so far when within the piece's radius.
   void TryTriangle(int triangle, const Eigen::Vector3d& point);
   /// Keeps, for the region's piece, its nearest triangle within the piece's radius.
   void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point);
   void SearchCell(const MeshColliderRegion& region, int cell, const Eigen::Vector3d& point);
-  /// The signed distance [m] of the touched pieces' nearest triangles (+inf for none).
-  void ResolvePieces(const Eigen::Vector3d& point);
+  /// The signed distance [m] of the piece's nearest triangle (+inf for none), and whether
+  /// it lies within `reach` [m].
+  void ResolvePiece(int piece, const Eigen::Vector3d& point, double reach);
   /// The answer from the resolved pieces; resets the per-piece scratch.
   Nearest Finish(const Eigen::Vector3d& point);
-  /// Remembers for `particle` what this query learnt at `point`.
-  void Remember(int particle, const Eigen::Vector3d& point, double others_bound,
-                int num_slots);
+  /// Remembers for `particle` what this query learnt at `point`, `slack` [m] from its
+  /// anchor; `extended` [m]: how far the walks of pieces found empty reached.
+  void Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
+                double slack, double extended);
   /// Makes the particle memory n particles long (allocates when n changes).
   void SizeMemory(Eigen::Index n);
+  bool UsesMemory() const;
   /// Adds how far each piece moves to `skinned_vertices` to the travels.
   void AddTravel(const Points& skinned_vertices);
   void Refit();
@@ -236,19 +234,15 @@ class MeshCollider : public BodyCollider {
   std::vector<double> reaches_;
   std::vector<Contact> particle_contacts_;
   std::vector<char> has_contact_;
-  /// Per particle, what its last query learnt (see Query): up to kSlots pieces with their
-  /// closest triangle and a lower bound on their signed distance, a lower bound on the
-  /// distance to every other piece (both minus the body's travel since), and where the
-  /// particle was. The bounds shrink by the particle's and the body's motion since;
-  /// pieces whose bound shows they cannot matter are not searched. Ordered like the
-  /// particles.
-  std::vector<Slot> slots_;
-  std::vector<double> others_bound_;
+  /// Per particle and piece, what the particle's last query learnt (PieceMemory), and
+  /// where the particle was then (its anchor). Bounds shrink by the particle's and the
+  /// piece's motion since; a piece whose bound shows it cannot matter is not searched.
+  /// Empty when the body has more than kMaxRememberedPieces pieces.
+  std::vector<PieceMemory> memory_;
   Points anchors_;
-  /// How far each piece's vertices have moved in all Updates, summed [m], and the largest
-  /// over pieces, summed; +inf after a non-finite pose.
+  /// How far each piece's vertices have moved in all Updates, summed [m]; +inf after a
+  /// non-finite pose.
   std::vector<double> piece_travel_;
-  double travel_ = 0.0;
   std::vector<double> piece_speed_;  // fastest vertex of each piece [m/s]
   std::vector<double> piece_step_;   // Update scratch: per piece, then per vertex [m², m²]
   std::vector<double> vertex_step_;
