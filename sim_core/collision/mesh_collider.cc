@@ -523,7 +523,8 @@ inline double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3
 }  // namespace
 
 void MeshCollider::Refit() {
-  normals_.Update(vertices_);
+  // Vertex pseudonormals only for the few closest points at a vertex (Of with vertices_).
+  normals_.Update(vertices_, /*vertex_normals=*/false);
   MeshColliderRegions& r = *regions_;
   const btVector3 fatten(settings_.thickness, settings_.thickness, settings_.thickness);
   for (MeshColliderRegion& region : r.data) {
@@ -888,7 +889,7 @@ void MeshCollider::ResolvePiece(int piece, const Eigen::Vector3d& point, double 
   // the pieces within reach.
   const TrianglePoint& closest = r.best_point[piece];
   const double distance = std::sqrt(r.best_squared[piece]);
-  const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature)) < 0.0;
+  const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature, vertices_)) < 0.0;
   r.piece_distance[piece] = inside ? -distance : distance;
   r.in_reach[piece] = r.best_squared[piece] <= reach * reach;
   if (r.in_reach[piece]) r.lowest = std::min(r.lowest, r.piece_distance[piece]);
@@ -920,7 +921,7 @@ MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
     const bool inside = nearest.signed_distance < 0.0;
     nearest.found = true;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
-                                    : normals_.Of(t, closest.feature);
+                                    : normals_.Of(t, closest.feature, vertices_);
     const Eigen::Vector3i& tri = normals_.triangles()[t];
     nearest.surface_velocity.setZero();
     for (int k = 0; k < 3; ++k) {

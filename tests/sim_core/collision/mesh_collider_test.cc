@@ -375,6 +375,88 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
   }
 }
 
+// The remembered bounds skip pieces the particle's and the body's motion cannot have
+// brought near enough to matter: over a moving, deforming body of three closed pieces and
+// particles moving through its shell, the contacts and corrections are those of searching
+// every piece every time.
+TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
+  const TestMesh a = test::TessellatedBox(Eigen::Vector3d(0.0, 1.0, 0.0),
+                                          Eigen::Vector3d(0.15, 0.1, 0.12), Eigen::Vector3i(9, 6, 7));
+  const TestMesh b = test::TessellatedBox(Eigen::Vector3d(0.12, 1.05, 0.04),
+                                          Eigen::Vector3d(0.08, 0.12, 0.1), Eigen::Vector3i(5, 7, 6));
+  const TestMesh c = test::CubeSphere(Eigen::Vector3d(-0.2, 0.95, 0.05), 0.09, 6);
+  TestMesh body;
+  body.vertices.resize(a.vertices.rows() + b.vertices.rows() + c.vertices.rows(), 3);
+  body.vertices << a.vertices, b.vertices, c.vertices;
+  body.triangles = a.triangles;
+  int offset = static_cast<int>(a.vertices.rows());
+  for (const TestMesh* piece : {&b, &c}) {
+    for (const Eigen::Vector3i& t : piece->triangles) {
+      body.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+    }
+    offset += static_cast<int>(piece->vertices.rows());
+  }
+  MeshCollisionOptions reuse, full;
+  full.reuse_bounds = false;
+  BodyCollisionSettings settings;
+  MeshCollider remembering(RigidAvatar(body), settings, reuse);
+  MeshCollider searching(RigidAvatar(body), settings, full);
+  // Particles around the body, from inside it to 8 cm out, each on its own straight path.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> across(-0.35, 0.3), speed(-0.6, 0.6);
+  const int n = 1500;
+  Points x(n, 3), v(n, 3);
+  for (int i = 0; i < n; ++i) {
+    x.row(i) = Eigen::RowVector3d(across(rng), 1.0 + across(rng) * 0.6, across(rng) * 0.7);
+    v.row(i) = Eigen::RowVector3d(speed(rng), speed(rng), speed(rng));
+  }
+  long long tests_remembering = 0, tests_searching = 0;
+  int num_contacts = 0;
+  for (int step = 0; step < 40; ++step) {
+    // The body sways, turns and breathes: each piece moves, no piece passes through itself.
+    const double t = step * kH;
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(0.8 * std::sin(3.0 * t), Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const double scale = 1.0 + 0.05 * std::sin(5.0 * t);
+    const Eigen::Vector3d shift(0.1 * std::sin(4.0 * t), 0.02 * std::cos(6.0 * t), 0.0);
+    Points pose = body.vertices;
+    for (Eigen::Index k = 0; k < pose.rows(); ++k) {
+      const Eigen::Vector3d rest = body.vertices.row(k).transpose() - Eigen::Vector3d(0, 1, 0);
+      pose.row(k) = (scale * (turn * rest) + Eigen::Vector3d(0, 1, 0) + shift).transpose();
+    }
+    std::vector<Contact> got, want;
+    for (MeshCollider* collider : {&remembering, &searching}) collider->Update(kJoints, pose, kH);
+    remembering.FindContacts(x, v, kH, 0.003, got);
+    searching.FindContacts(x, v, kH, 0.003, want);
+    tests_remembering += remembering.stats().num_tests;
+    tests_searching += searching.stats().num_tests;
+    ASSERT_EQ(got.size(), want.size()) << "step " << step;
+    for (std::size_t k = 0; k < got.size(); ++k) {
+      ASSERT_EQ(got[k].particle, want[k].particle) << "step " << step;
+      EXPECT_LT((got[k].normal - want[k].normal).norm(), 1e-9);
+      EXPECT_NEAR(got[k].target_normal_velocity, want[k].target_normal_velocity, 1e-7);
+    }
+    num_contacts += static_cast<int>(got.size());
+    // The particles move on (some into the body), then both correct them.
+    x += kH * v;
+    Points x_got = x, v_got = v, x_want = x, v_want = v;
+    EXPECT_EQ(remembering.ProjectOut(x_got, v_got), searching.ProjectOut(x_want, v_want));
+    EXPECT_LT((x_got - x_want).cwiseAbs().maxCoeff(), 1e-12) << "step " << step;
+    EXPECT_LT((v_got - v_want).cwiseAbs().maxCoeff(), 1e-12) << "step " << step;
+    // Bounce off the box enclosing the scene so that particles keep crossing the shell.
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(x(i, k) - (k == 1 ? 1.0 : 0.0)) > 0.35) v(i, k) = -v(i, k);
+      }
+    }
+  }
+  EXPECT_GT(num_contacts, 2000);
+  // The memory saves work (it is not a search of everything every time).
+  EXPECT_LT(10 * tests_remembering, 7 * tests_searching);
+  std::printf("moving body: tests %lld remembering / %lld searching everything\n",
+              tests_remembering, tests_searching);
+}
+
 TEST(MeshCollider, UpdateFindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 8);
   MeshCollider collider(RigidAvatar(sphere), BodyCollisionSettings{});
