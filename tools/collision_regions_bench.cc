@@ -17,6 +17,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "sim_core/avatar/avatar.h"
@@ -39,6 +40,8 @@ struct Settings {
   double fold_height = 0.012;  // zig-zag amplitude [m]
   double max_penetration = 0.05;  // MeshCollisionOptions::max_penetration [m]
   std::uint32_t seed = 1;
+  /// Run only this mode (−1: all three, side by side), for profiling one of them.
+  int only = -1;
 };
 
 /// A box avatar (one joint) whose top face is y = 0: half extents (a, b, a) around
@@ -149,6 +152,7 @@ json RunCase(const std::shared_ptr<const Avatar>& avatar, const ClothModel& shee
   for (int rep = -1; rep < s.reps; ++rep) {  // rep −1 warms up (first-call allocations)
     for (int k = 0; k < 3; ++k) {
       const int mode = (rep + 3 + k) % 3;
+      if (s.only >= 0 && mode != s.only) continue;
       contacts.clear();
       const auto start = std::chrono::steady_clock::now();
       colliders[mode]->FindContacts(x, v, h, margin, contacts);
@@ -161,11 +165,13 @@ json RunCase(const std::shared_ptr<const Avatar>& avatar, const ClothModel& shee
   }
   json out;
   for (int mode = 0; mode < 3; ++mode) {
+    if (s.only >= 0 && mode != s.only) continue;
     out[kModes[mode]] = {{"median_ms", Median(ms[mode])},
                          {"num_tests", colliders[mode]->stats().num_tests},
                          {"broad_phase_queries", colliders[mode]->num_broad_phase_queries()},
                          {"num_contacts", num_contacts[mode]}};
   }
+  if (s.only >= 0) return out;  // the comparisons need all three
   auto saving = [&](int mode, int against, const char* key) {
     const double a = out[kModes[mode]][key].get<double>();
     const double b = out[kModes[against]][key].get<double>();
@@ -201,7 +207,13 @@ int main(int argc, char** argv) {
   app.add_option("--max-penetration", s.max_penetration,
                  "collider's max_penetration [m]: sets how far each particle searches")
       ->check(CLI::PositiveNumber);
+  std::string only = "all";
+  app.add_option("--only", only, "run one mode only (for profiling): off, fixed or adaptive")
+      ->check(CLI::IsMember({"all", "off", "fixed", "adaptive"}));
   CLI11_PARSE(app, argc, argv);
+  for (int mode = 0; mode < 3; ++mode) {
+    if (only == kModes[mode]) s.only = mode;
+  }
   try {
     const auto avatar = BoxAvatar(s.box_size / 2, 0.2, s.cell);
     const auto sheet = Sheet(s);
