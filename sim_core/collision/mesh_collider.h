@@ -4,12 +4,20 @@
 /// mesh. The mesh is split into regions of about N×N triangles grown over triangle
 /// adjacency; neighbouring regions whose normals fit in a flatness cone (Provot 1997's
 /// normal-cone test) are merged level by level, up to four at a time (quadtree-like), so
-/// flat parts of the body are covered by few large regions. A Bullet btDbvt over the
-/// region boxes, refitted every frame, is the broad phase. Inside a region the triangles
-/// are found through a grid over the region's mean plane: the region is tested as the
-/// height field a flat region is, which is what makes a large flat region cheap. Contacts
-/// follow Bridson, Fedkiw & Anderson 2002: proximity within the cloth's thickness, resolved
-/// as velocity constraints in the implicit solve.
+/// flat parts of the body are covered by few large regions. A Bullet btDbvt per connected
+/// piece of the body over its region boxes, refitted every frame, is the broad phase.
+/// Inside a region the triangles are found through a grid over the region's mean plane:
+/// the region is tested as the height field a flat region is, which is what makes a large
+/// flat region cheap. Contacts follow Bridson, Fedkiw & Anderson 2002: proximity within the
+/// cloth's thickness, resolved as velocity constraints in the implicit solve.
+///
+/// The narrow phase looks for each piece's nearest triangle nearest first: the particle's
+/// last nearest triangle starts the search radius, regions are taken nearest box first,
+/// and the radius shrinks to the best distance found, so that the boxes of the region,
+/// grid cells and triangles rule out all but a few triangles. Per particle and piece it
+/// remembers that triangle and bounds on the distance, which the particle's and the
+/// piece's motion since can only shrink by as much: a piece that cannot have come near
+/// enough to matter is not searched at all (MeshCollisionOptions::reuse_bounds).
 ///
 /// Deviation from the paper: the paper tests a flat region "coarsely" without saying how;
 /// here it is the slab and plane grid above, which is exact (no contact is lost, whatever
@@ -112,13 +120,14 @@ class MeshCollider : public BodyCollider {
   /// surface. Target normal velocity: the surface velocity at the closest point along the
   /// normal plus (thickness − signed distance)/h. Contacts are appended in particle order.
   /// Never throws; allocates only through `contacts` growing (and, without SetCloth, on
-  /// its first call).
+  /// its first call or when the particle count changes: the particles' memory).
   void FindContacts(const Points& positions, const Points& velocities, double h, double margin,
                     std::vector<Contact>& contacts) override;
 
   /// See BodyCollider: moves particles inside the shell along the normal onto it and
   /// removes their velocity into the body relative to the surface's. Returns the deepest
-  /// penetration of the shell before the correction [m]. Never throws; never allocates.
+  /// penetration of the shell before the correction [m]. Uses (and updates) the particles'
+  /// memory when FindContacts last had as many particles. Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
