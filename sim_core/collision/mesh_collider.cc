@@ -182,6 +182,10 @@ struct MeshColliderRegion {
   /// and of MeshColliderRegions::cell_triangles (by region, then by cell).
   int first = 0;
   int count = 0;
+  /// Its vertices: slots [first_vertex, first_vertex + num_vertices) of
+  /// MeshColliderRegions::vertices, each projected once per frame.
+  int first_vertex = 0;
+  int num_vertices = 0;
   /// Its grid: cells_u × cells_v cells, whose start offsets (relative to `first`) are
   /// MeshColliderRegions::cell_start[cell_first + cell], plus one past the last cell.
   int cell_first = 0;
@@ -260,6 +264,12 @@ struct MeshColliderRegions {
   /// (scratch).
   std::vector<double> centroid_u, centroid_v;
   std::vector<FrameBox> triangle_box;
+  /// The vertices of each region (grouped by region), and per slot of `triangles` its
+  /// corners as indices into its region's vertices.
+  std::vector<int> vertices;
+  std::vector<Eigen::Vector3i> local_corners;
+  /// Projection scratch: a region's vertices in its plane frame [m].
+  std::vector<double> project_u, project_v, project_w;
   std::vector<int> triangle_cell;
   std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
   /// One tree of region boxes per piece of the body, so that each piece is walked with
@@ -295,6 +305,8 @@ namespace {
 /// Recomputes a region's plane frame, extents, centroids and box for `vertices`.
 void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
                    MeshColliderRegions& regions, MeshColliderRegion& region);
+void IndexRegionVertices(const SurfacePseudonormals& mesh, int num_vertices,
+                         MeshColliderRegions& regions);
 
 }  // namespace
 
@@ -344,6 +356,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
   r.triangle_box.assign(num_triangles, FrameBox{});
+  IndexRegionVertices(normals_, avatar_->num_vertices(), r);
   r.trees.resize(normals_.num_pieces());
   for (auto& tree : r.trees) tree = std::make_unique<btDbvt>();
   r.triangle_cell.assign(num_triangles, 0);
@@ -425,40 +438,77 @@ void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
   if (sum.norm() > 0.0) region.axis = sum.normalized();
   region.tangent_u = region.axis.unitOrthogonal();
   region.tangent_v = region.axis.cross(region.tangent_u);
-  region.w_min = region.u_min = region.v_min = kInf;
-  region.w_max = region.u_max = region.v_max = -kInf;
-  region.spread_u = region.spread_v = 0.0;
+  // Each vertex once (a vertex has about six triangles).
+  double* pu = regions.project_u.data();
+  double* pv = regions.project_v.data();
+  double* pw = regions.project_w.data();
   region.box_min.setConstant(kInf);
   region.box_max.setConstant(-kInf);
-  for (int j = region.first; j < region.first + region.count; ++j) {
-    const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
-    double u[3], v[3];
-    FrameBox& box = regions.triangle_box[j];
-    box = FrameBox{};
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d x = vertices.row(tri[k]).transpose();
-      u[k] = x.dot(region.tangent_u);
-      v[k] = x.dot(region.tangent_v);
-      const double w = x.dot(region.axis);
-      box.Add(FrameBox{u[k], u[k], v[k], v[k], w, w});
-      region.w_min = std::min(region.w_min, w);
-      region.w_max = std::max(region.w_max, w);
-      region.box_min = region.box_min.cwiseMin(x);
-      region.box_max = region.box_max.cwiseMax(x);
+  for (int i = 0; i < region.num_vertices; ++i) {
+    const Eigen::Vector3d x = vertices.row(regions.vertices[region.first_vertex + i]).transpose();
+    pu[i] = x.dot(region.tangent_u);
+    pv[i] = x.dot(region.tangent_v);
+    pw[i] = x.dot(region.axis);
+    region.box_min = region.box_min.cwiseMin(x);
+    region.box_max = region.box_max.cwiseMax(x);
+  }
+  auto extent = [&](const double* p, double& lo, double& hi) {
+    lo = kInf;
+    hi = -kInf;
+    for (int i = 0; i < region.num_vertices; ++i) {
+      lo = std::min(lo, p[i]);
+      hi = std::max(hi, p[i]);
     }
-    const double cu = (u[0] + u[1] + u[2]) / 3.0;
-    const double cv = (v[0] + v[1] + v[2]) / 3.0;
+  };
+  extent(pu, region.u_min, region.u_max);
+  extent(pv, region.v_min, region.v_max);
+  extent(pw, region.w_min, region.w_max);
+  region.spread_u = region.spread_v = 0.0;
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const Eigen::Vector3i& c = regions.local_corners[j];
+    FrameBox& box = regions.triangle_box[j];
+    box.u_lo = std::min({pu[c[0]], pu[c[1]], pu[c[2]]});
+    box.u_hi = std::max({pu[c[0]], pu[c[1]], pu[c[2]]});
+    box.v_lo = std::min({pv[c[0]], pv[c[1]], pv[c[2]]});
+    box.v_hi = std::max({pv[c[0]], pv[c[1]], pv[c[2]]});
+    box.w_lo = std::min({pw[c[0]], pw[c[1]], pw[c[2]]});
+    box.w_hi = std::max({pw[c[0]], pw[c[1]], pw[c[2]]});
+    const double cu = (pu[c[0]] + pu[c[1]] + pu[c[2]]) / 3.0;
+    const double cv = (pv[c[0]] + pv[c[1]] + pv[c[2]]) / 3.0;
     regions.centroid_u[j] = cu;
     regions.centroid_v[j] = cv;
-    for (int k = 0; k < 3; ++k) {
-      region.u_min = std::min(region.u_min, u[k]);
-      region.u_max = std::max(region.u_max, u[k]);
-      region.v_min = std::min(region.v_min, v[k]);
-      region.v_max = std::max(region.v_max, v[k]);
-      region.spread_u = std::max(region.spread_u, std::abs(u[k] - cu));
-      region.spread_v = std::max(region.spread_v, std::abs(v[k] - cv));
+    region.spread_u = std::max({region.spread_u, cu - box.u_lo, box.u_hi - cu});
+    region.spread_v = std::max({region.spread_v, cv - box.v_lo, box.v_hi - cv});
+  }
+}
+
+/// Lists each region's vertices once and its triangles' corners as indices into them.
+void IndexRegionVertices(const SurfacePseudonormals& mesh, int num_vertices,
+                         MeshColliderRegions& regions) {
+  std::vector<int> local(num_vertices, -1);
+  regions.local_corners.resize(regions.triangles.size());
+  int largest = 0;
+  for (MeshColliderRegion& region : regions.data) {
+    region.first_vertex = static_cast<int>(regions.vertices.size());
+    for (int j = region.first; j < region.first + region.count; ++j) {
+      const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
+      for (int k = 0; k < 3; ++k) {
+        if (local[tri[k]] < 0) {
+          local[tri[k]] = static_cast<int>(regions.vertices.size()) - region.first_vertex;
+          regions.vertices.push_back(tri[k]);
+        }
+        regions.local_corners[j][k] = local[tri[k]];
+      }
+    }
+    region.num_vertices = static_cast<int>(regions.vertices.size()) - region.first_vertex;
+    largest = std::max(largest, region.num_vertices);
+    for (int i = region.first_vertex; i < region.first_vertex + region.num_vertices; ++i) {
+      local[regions.vertices[i]] = -1;
     }
   }
+  regions.project_u.assign(largest, 0.0);
+  regions.project_v.assign(largest, 0.0);
+  regions.project_w.assign(largest, 0.0);
 }
 
 /// Sorts a region's triangles into its grid cells by centroid (a counting sort).
