@@ -165,6 +165,7 @@ bool MergeLevel(const SurfacePseudonormals& mesh, double flatness_angle, RegionL
 }
 
 btVector3 ToBullet(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+Eigen::Vector3d ToEigen(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
 
 /// Index of the grid cell holding coordinate `x` along one axis, clamped to the grid.
 int CellIndex(double x, double origin, double size, int count) {
@@ -293,6 +294,8 @@ struct MeshColliderRegions {
   /// is within reach, and what the query did with it.
   std::vector<double> piece_distance;
   std::vector<char> in_reach;
+  /// A lower bound on the distance [m] of a searched piece in which nothing was found.
+  std::vector<double> unfound_bound;
   std::vector<PieceState> piece_state;
   /// The lowest signed distance within reach resolved so far [m].
   double lowest = 0.0;
@@ -382,6 +385,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
   r.in_reach.assign(normals_.num_pieces(), 0);
+  r.unfound_bound.assign(normals_.num_pieces(), 0.0);
   r.piece_distance.assign(normals_.num_pieces(), kInf);
   r.piece_state.assign(normals_.num_pieces(), kSearched);
   r.order.resize(normals_.num_pieces());
@@ -713,6 +717,19 @@ MeshCollider::Nearest MeshCollider::Query(const Eigen::Vector3d& point, double r
   auto search = [&](int piece) {
     r.piece_state[piece] = kSearched;
     ActivatePiece(piece, extended * extended);
+    // A piece whose whole box lies beyond the extended reach needs no walk, and its box's
+    // distance bounds it better than the reach.
+    const btDbvtNode* root = r.trees[piece]->m_root;
+    ++num_tests_;
+    const double root_squared =
+        root == nullptr ? kInf
+                        : SquaredBoxDistance(ToEigen(root->volume.Mins()),
+                                             ToEigen(root->volume.Maxs()), point);
+    r.unfound_bound[piece] = std::max(extended, std::sqrt(root_squared));
+    if (root_squared > extended * extended) {
+      ResolvePiece(piece, point, reach);
+      return;
+    }
     const int hint = memory != nullptr ? memory[piece].triangle : -1;
     if (hint >= 0) TryTriangle(hint, point);  // its last nearest triangle starts the radius
     const int count = Collect(point, piece, std::sqrt(r.best_squared[piece]), source);
@@ -741,12 +758,12 @@ MeshCollider::Nearest MeshCollider::Query(const Eigen::Vector3d& point, double r
       }
     }
   }
-  if (memory != nullptr) Remember(memory, particle, point, slack, extended);
+  if (memory != nullptr) Remember(memory, particle, point, slack);
   return Finish(point);
 }
 
 void MeshCollider::Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
-                            double slack, double extended) {
+                            double slack) {
   MeshColliderRegions& r = *regions_;
   for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
     PieceMemory& m = memory[piece];
@@ -763,10 +780,10 @@ void MeshCollider::Remember(PieceMemory* memory, int particle, const Eigen::Vect
       m.signed_bound = (piece_closed_[piece] ? distance : -kInf) + travel;
       m.distance_bound = std::abs(distance) + travel;
     } else {
-      // Nothing within the extended reach; the sign is unknown (inside or out). The old
-      // bound, carried over, may still be the better one (a search of shorter reach).
+      // Nothing within the extended reach (or the piece's box); the sign is unknown
+      // (inside or out). The old bound, carried over, may still be the better one.
       m.signed_bound = -kInf;
-      m.distance_bound = std::max(extended + travel, m.distance_bound - slack);
+      m.distance_bound = std::max(r.unfound_bound[piece] + travel, m.distance_bound - slack);
     }
   }
   anchors_.row(particle) = point.transpose();

@@ -213,9 +213,9 @@ class MeshCollider : public BodyCollider {
   /// The answer from the resolved pieces; resets the per-piece scratch.
   Nearest Finish(const Eigen::Vector3d& point);
   /// Remembers for `particle` what this query learnt at `point`, `slack` [m] from its
-  /// anchor; `extended` [m]: how far the walks of pieces found empty reached.
+  /// anchor.
   void Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
-                double slack, double extended);
+                double slack);
   /// Makes the particle memory n particles long (allocates when n changes).
   void SizeMemory(Eigen::Index n);
   bool UsesMemory() const;
