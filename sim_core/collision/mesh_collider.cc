@@ -63,6 +63,10 @@ void ValidateInputs(const Avatar* avatar, const BodyCollisionSettings& settings,
     throw InputError(where + ": options.cloth_region_size is " +
                      std::to_string(options.cloth_region_size) + " (allowed 1..256)");
   }
+  if (options.cloth_cone_period < 1 || options.cloth_cone_period > 64) {
+    throw InputError(where + ": options.cloth_cone_period is " +
+                     std::to_string(options.cloth_cone_period) + " (allowed 1..64)");
+  }
   if (!(options.cloth_flatness_angle >= 0.0 && options.cloth_flatness_angle < kPi / 2)) {
     throw InputError(where + ": options.cloth_flatness_angle is " +
                      FormatValue(options.cloth_flatness_angle) + " rad (allowed [0, pi/2))");
@@ -1082,7 +1086,8 @@ void MeshCollider::FindContactsPerRegion(const Points& positions, const Points& 
     half_extents_[i] = valid ? std::max(reach + kBoundExtension - shell, 0.0) : -1.0;
     reaches_[i] = reach;
   }
-  num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive);
+  num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive,
+                              options_.cloth_cone_period);
   // Fixed regions: no angle passes, so the walk goes down to the base regions.
   const double flatness = options_.cloth_adaptive ? options_.cloth_flatness_angle : -1.0;
   for (int k : cloth_->Select(flatness)) {

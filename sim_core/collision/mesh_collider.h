@@ -84,6 +84,11 @@ struct MeshCollisionOptions {
   /// Cloth flatness cone [rad], in [0, π/2): a node of the cloth's hierarchy whose
   /// triangle normals all lie within this angle of its axis is queried as one region.
   double cloth_flatness_angle = 0.35;
+  /// The cloth's normal cones are refreshed for one base region in every
+  /// cloth_cone_period per FindContacts call, in turns [-], 1 ..= 64: they only choose
+  /// how coarsely to query (contacts are the same whatever they say), and one cone per
+  /// cloth triangle every call costs more than taking flat cloth whole saves.
+  int cloth_cone_period = 4;
 };
 
 /// Cloth against the avatar's skinned mesh. Works for open meshes too, but inside and
