@@ -430,6 +430,8 @@ void MeshCollider::SizeMemory(Eigen::Index n) {
 
 bool MeshCollider::UsesMemory() const { return normals_.num_pieces() <= kMaxRememberedPieces; }
 
+int MeshCollider::MemoryOf(int particle) const { return UsesMemory() ? particle : -1; }
+
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
 
 namespace {
@@ -1065,7 +1067,8 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
     const Nearest nearest =
-        Query(x, reach, ContactThreshold(v, h, margin), h, static_cast<int>(i), Source{});
+        Query(x, reach, ContactThreshold(v, h, margin), h, MemoryOf(static_cast<int>(i)),
+              Source{});
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -1138,7 +1141,7 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
     const Eigen::Vector3d velocity = velocities.row(p).transpose();
     const Nearest nearest =
         Query(positions.row(p).transpose(), reaches_[p], ContactThreshold(velocity, h, margin),
-              h, p, Source{true, first, count});
+              h, MemoryOf(p), Source{true, first, count});
     if (!nearest.found) continue;
     has_contact_[p] = MakeContact(p, velocity, nearest, h, margin, particle_contacts_[p]);
   }

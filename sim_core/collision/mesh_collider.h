@@ -225,6 +225,8 @@ class MeshCollider : public BodyCollider {
   /// Makes the particle memory n particles long (allocates when n changes).
   void SizeMemory(Eigen::Index n);
   bool UsesMemory() const;
+  /// `particle`, the index of its memory, or −1 when the body goes without memory.
+  int MemoryOf(int particle) const;
   /// Adds how far each piece moves to `skinned_vertices` to the travels.
   void AddTravel(const Points& skinned_vertices);
   void Refit();

@@ -457,6 +457,39 @@ TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
               tests_remembering, tests_searching);
 }
 
+TEST(MeshCollider, ABodyOfManyPiecesGoesWithoutMemoryAndFindsTheSameContacts) {
+  // 80 small closed boxes in a row (more pieces than the memory serves), a particle 2 mm
+  // above the middle of each top: each is in contact, with normal +y, twice in a row.
+  TestMesh body;
+  const int n = 80;
+  const Eigen::Vector3d half(0.01, 0.01, 0.01);
+  std::vector<Eigen::Vector3d> centers;
+  for (int k = 0; k < n; ++k) {
+    centers.emplace_back(0.05 * k, 1.0, 0.0);
+    const TestMesh box = test::TessellatedBox(centers.back(), half, Eigen::Vector3i(1, 1, 1));
+    const int offset = static_cast<int>(body.vertices.rows());
+    body.vertices.conservativeResize(offset + box.vertices.rows(), 3);
+    body.vertices.bottomRows(box.vertices.rows()) = box.vertices;
+    for (const Eigen::Vector3i& t : box.triangles) {
+      body.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+    }
+  }
+  MeshCollider collider(RigidAvatar(body), BodyCollisionSettings{});
+  collider.Update(kJoints, body.vertices, kH);
+  Points x(n, 3), v = Points::Zero(n, 3);
+  for (int k = 0; k < n; ++k) x.row(k) = (centers[k] + Eigen::Vector3d(0.003, 0.012, -0.002)).transpose();
+  for (int call = 0; call < 2; ++call) {
+    std::vector<Contact> contacts;
+    collider.FindContacts(x, v, kH, 0.003, contacts);
+    ASSERT_EQ(contacts.size(), static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) {
+      EXPECT_EQ(contacts[k].particle, k);
+      EXPECT_LT((contacts[k].normal - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+      EXPECT_NEAR(contacts[k].target_normal_velocity, (0.004 - 0.002) / kH, 1e-9);
+    }
+  }
+}
+
 TEST(MeshCollider, UpdateFindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 8);
   MeshCollider collider(RigidAvatar(sphere), BodyCollisionSettings{});
