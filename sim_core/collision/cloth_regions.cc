@@ -321,9 +321,16 @@ void ParentCone(const ClothRegionNode* children, int count, ClothRegionNode& nod
 
 }  // namespace
 
-long long ClothRegions::Refit(const Points& positions, const double* half_extents,
-                             bool cones) {
+long long ClothRegions::Refit(const Points& positions, const double* half_extents, bool cones,
+                             int cone_period) {
   long long tests = 0;
+  // Base regions whose cone is refreshed this call: all the first time (and after a call
+  // without cones), then one in every cone_period, taking turns.
+  cone_period = cones_current_ ? std::max(cone_period, 1) : 1;
+  const int phase = cone_phase_ % cone_period;
+  cone_phase_ = phase + 1;
+  cones_current_ = cones;
+  int leaf = 0;
   // Children have larger indices than their parent: backwards, children come first.
   for (int k = num_nodes() - 1; k >= 0; --k) {
     ClothRegionNode& node = nodes_[k];
@@ -350,7 +357,7 @@ long long ClothRegions::Refit(const Points& positions, const double* half_extent
       node.box_min = node.box_min.cwiseMin(x - extent);
       node.box_max = node.box_max.cwiseMax(x + extent);
     }
-    if (cones) {
+    if (cones && leaf++ % cone_period == phase) {
       tests += LeafCone(positions, corners_, triangles_.data() + node.first_triangle,
                         node.num_triangles, normals_.data() + node.first_triangle,
                         norms_.data() + node.first_triangle, node);

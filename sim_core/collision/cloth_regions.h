@@ -71,10 +71,15 @@ class ClothRegions {
   /// Recomputes every node's box and, if `cones`, its normal cone. Particle i covers the
   /// box positions.row(i) ± half_extents[i] (num_particles() values [m]); a particle with
   /// a negative half extent is left out of the boxes. `positions` must have
-  /// num_particles() rows. Returns the cone tests done (one per triangle of a base region,
-  /// one per child of a parent), for BodyCollisionStats::num_tests. Never throws; never
-  /// allocates.
-  long long Refit(const Points& positions, const double* half_extents, bool cones = true);
+  /// num_particles() rows. With `cone_period` > 1 only one base region in every
+  /// cone_period refreshes its cone, in turns (all of them at the first call with cones):
+  /// the boxes are exact every call, the cones up to cone_period − 1 calls old, which is
+  /// enough to choose how coarsely to query (the contacts do not depend on it). Parents'
+  /// cones follow their children's every call. Returns the cone tests done (one per
+  /// triangle of a refreshed base region, one per child of a parent), for
+  /// BodyCollisionStats::num_tests. Never throws; never allocates.
+  long long Refit(const Points& positions, const double* half_extents, bool cones = true,
+                  int cone_period = 1);
 
   /// The nodes to query after Refit, walking top down: a base region, or a node whose
   /// cone half angle is at most `flatness_angle` [rad] (taken whole, its descendants
@@ -93,6 +98,8 @@ class ClothRegions {
   std::vector<Eigen::Vector3d> normals_;  // Refit scratch, by slot of triangles_
   std::vector<double> norms_;
   std::vector<char> reached_;             // Select scratch
+  int cone_phase_ = 0;                    // which base regions refresh their cone next
+  bool cones_current_ = false;            // the last Refit computed cones
   std::vector<int> selected_;
 };
 

@@ -16,6 +16,25 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+/// Added to the triangles' spread around their cells [m], so that rounding in the cell
+/// bounds can only make them more conservative.
+constexpr double kRoundingSlack = 1e-12;
+/// How far beyond its reach a query walks the region trees [m], only to bound the distance
+/// to the pieces it finds nothing of: a particle moving less than this keeps them out of
+/// reach without walking them again.
+constexpr double kBoundExtension = 0.04;
+
+/// Sorts [first, first + count) by `less`, keeping equal elements in order, without
+/// allocating (the lists are short).
+template <class T, class Less>
+void InsertionSort(T* first, int count, Less less) {
+  for (int i = 1; i < count; ++i) {
+    const T moving = first[i];
+    int j = i;
+    for (; j > 0 && less(moving, first[j - 1]); --j) first[j] = first[j - 1];
+    first[j] = moving;
+  }
+}
 
 /// Triangles of each region.
 using RegionList = std::vector<std::vector<int>>;
@@ -43,6 +62,10 @@ void ValidateInputs(const Avatar* avatar, const BodyCollisionSettings& settings,
   if (options.cloth_region_size < 1 || options.cloth_region_size > 256) {
     throw InputError(where + ": options.cloth_region_size is " +
                      std::to_string(options.cloth_region_size) + " (allowed 1..256)");
+  }
+  if (options.cloth_cone_period < 1 || options.cloth_cone_period > 64) {
+    throw InputError(where + ": options.cloth_cone_period is " +
+                     std::to_string(options.cloth_cone_period) + " (allowed 1..64)");
   }
   if (!(options.cloth_flatness_angle >= 0.0 && options.cloth_flatness_angle < kPi / 2)) {
     throw InputError(where + ": options.cloth_flatness_angle is " +
@@ -146,6 +169,7 @@ bool MergeLevel(const SurfacePseudonormals& mesh, double flatness_angle, RegionL
 }
 
 btVector3 ToBullet(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+Eigen::Vector3d ToEigen(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
 
 /// Index of the grid cell holding coordinate `x` along one axis, clamped to the grid.
 int CellIndex(double x, double origin, double size, int count) {
@@ -163,12 +187,19 @@ struct MeshColliderRegion {
   /// and of MeshColliderRegions::cell_triangles (by region, then by cell).
   int first = 0;
   int count = 0;
+  /// Its vertices: slots [first_vertex, first_vertex + num_vertices) of
+  /// MeshColliderRegions::vertices, each projected once per frame.
+  int first_vertex = 0;
+  int num_vertices = 0;
   /// Its grid: cells_u × cells_v cells, whose start offsets (relative to `first`) are
   /// MeshColliderRegions::cell_start[cell_first + cell], plus one past the last cell.
   int cell_first = 0;
   int cells_u = 1;
   int cells_v = 1;
   btDbvtNode* leaf = nullptr;
+  /// The connected piece of the body its triangles belong to (regions grow and merge over
+  /// shared edges, so all of them lie in one piece).
+  int piece = 0;
   /// Mean plane frame: unit normal axis and two tangents [-].
   Eigen::Vector3d axis = Eigen::Vector3d::UnitY();
   Eigen::Vector3d tangent_u = Eigen::Vector3d::UnitZ();
@@ -184,26 +215,96 @@ struct MeshColliderRegion {
   Eigen::Vector3d box_min = Eigen::Vector3d::Zero(), box_max = Eigen::Vector3d::Zero();
 };
 
+/// A triangle's corners and box [m], copied in grid order at every refit so the search
+/// reads one contiguous record per triangle instead of three scattered vertex rows.
+struct PackedTriangle {
+  Eigen::Vector3d a, b, c;
+  Eigen::Vector3d box_min, box_max;
+  /// Unit normal [-] (zero for a degenerate triangle): |normal·(p − a)| is the distance to
+  /// its plane, a lower bound of the distance to it.
+  Eigen::Vector3d normal;
+};
+
+/// A box in a region's plane frame: along tangent_u, tangent_v and the axis [m].
+struct FrameBox {
+  double u_lo = kInf, u_hi = -kInf, v_lo = kInf, v_hi = -kInf, w_lo = kInf, w_hi = -kInf;
+
+  void Add(const FrameBox& other) {
+    u_lo = std::min(u_lo, other.u_lo);
+    u_hi = std::max(u_hi, other.u_hi);
+    v_lo = std::min(v_lo, other.v_lo);
+    v_hi = std::max(v_hi, other.v_hi);
+    w_lo = std::min(w_lo, other.w_lo);
+    w_hi = std::max(w_hi, other.w_hi);
+  }
+};
+
+/// A body region met by the current query, and the squared distance [m²] from the query
+/// point to its box: a lower bound on the distance to any of its triangles.
+struct RegionCandidate {
+  int region = 0;
+  double squared_distance = 0.0;
+};
+
+/// A piece to search and the lower bound on its signed distance now [m].
+struct PieceBound {
+  int piece = 0;
+  double bound = 0.0;
+};
+
+/// What the current query did with a piece.
+enum PieceState : char { kSearched, kSkipped, kOutOfReach };
+
 struct MeshColliderRegions {
   std::vector<MeshColliderRegion> data;
   std::vector<int> triangles;
   std::vector<int> cell_start;
+  /// Per cell (indexed as cell_start), the frame box of its triangles; empty when it has
+  /// none. Its distance from a point bounds the distance to any of them from below.
+  std::vector<FrameBox> cell_box;
   std::vector<int> cell_triangles;
-  /// Per slot of `triangles`: the centroid's plane coordinates and its cell (scratch).
+  /// The triangles of `cell_triangles`, slot for slot.
+  std::vector<PackedTriangle> packed;
+  /// Per slot of `triangles`: the centroid's plane coordinates, its frame box and its cell
+  /// (scratch).
   std::vector<double> centroid_u, centroid_v;
+  std::vector<FrameBox> triangle_box;
+  /// The vertices of each region (grouped by region), and per slot of `triangles` its
+  /// corners as indices into its region's vertices.
+  std::vector<int> vertices;
+  std::vector<Eigen::Vector3i> local_corners;
+  /// Projection scratch: a region's vertices in its plane frame [m].
+  std::vector<double> project_u, project_v, project_w;
   std::vector<int> triangle_cell;
   std::vector<int> cursor;  // counting-sort scratch, as long as the largest grid
-  btDbvt tree;
+  /// One tree of region boxes per piece of the body, so that each piece is walked with
+  /// its own search radius.
+  std::vector<std::unique_ptr<btDbvt>> trees;
   std::vector<const btDbvtNode*> stack;
   /// Body regions (tree leaves) overlapping the current cloth node's box, in depth-first
   /// order; below them each deeper cloth node's share, one list per depth (sized by
   /// SetCloth: cloth depth + 1 lists of up to all leaves).
   std::vector<const btDbvtNode*> candidates;
-  /// Nearest triangle per piece of the current query, and the pieces touched.
+  /// The regions of the current query, nearest box first (as long as `data`).
+  std::vector<RegionCandidate> near;
+  /// Per piece of the current query: the squared search radius [m²] (the extended reach
+  /// until a triangle is found, then the distance to the nearest one: the radius shrinks),
+  /// that triangle (−1: none yet) and its closest point; the pieces searched.
   std::vector<double> best_squared;
   std::vector<int> best_triangle;
   std::vector<TrianglePoint> best_point;
   std::vector<int> touched;
+  /// Per piece of the current query: its signed distance [m] once resolved, whether that
+  /// is within reach, and what the query did with it.
+  std::vector<double> piece_distance;
+  std::vector<char> in_reach;
+  /// A lower bound on the distance [m] of a searched piece in which nothing was found.
+  std::vector<double> unfound_bound;
+  std::vector<PieceState> piece_state;
+  /// The lowest signed distance within reach resolved so far [m].
+  double lowest = 0.0;
+  /// The pieces to search, in order.
+  std::vector<PieceBound> order;
 };
 
 namespace {
@@ -211,6 +312,8 @@ namespace {
 /// Recomputes a region's plane frame, extents, centroids and box for `vertices`.
 void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
                    MeshColliderRegions& regions, MeshColliderRegion& region);
+void IndexRegionVertices(const SurfacePseudonormals& mesh, int num_vertices,
+                         MeshColliderRegions& regions);
 
 }  // namespace
 
@@ -252,11 +355,17 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   for (std::size_t i = 0; i < list.size(); ++i) {
     r.data[i].first = static_cast<int>(r.triangles.size());
     r.data[i].count = static_cast<int>(list[i].size());
+    r.data[i].piece = normals_.piece_of(list[i].front());
     r.triangles.insert(r.triangles.end(), list[i].begin(), list[i].end());
   }
   r.cell_triangles.assign(num_triangles, 0);
+  r.packed.resize(num_triangles);
   r.centroid_u.assign(num_triangles, 0.0);
   r.centroid_v.assign(num_triangles, 0.0);
+  r.triangle_box.assign(num_triangles, FrameBox{});
+  IndexRegionVertices(normals_, avatar_->num_vertices(), r);
+  r.trees.resize(normals_.num_pieces());
+  for (auto& tree : r.trees) tree = std::make_unique<btDbvt>();
   r.triangle_cell.assign(num_triangles, 0);
   // Grids sized on the rest pose, kept as the skin moves.
   int max_cells = 1;
@@ -265,18 +374,35 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
     SizeGrid(region);
     region.cell_first = static_cast<int>(r.cell_start.size());
     r.cell_start.resize(r.cell_start.size() + region.cells_u * region.cells_v + 1, 0);
+    r.cell_box.resize(r.cell_start.size());
     max_cells = std::max(max_cells, region.cells_u * region.cells_v);
-    region.leaf = r.tree.insert(
+    region.leaf = r.trees[region.piece]->insert(
         btDbvtVolume::FromMM(ToBullet(region.box_min), ToBullet(region.box_max)),
         reinterpret_cast<void*>(static_cast<std::intptr_t>(&region - r.data.data())));
   }
   r.cursor.assign(max_cells, 0);
-  r.tree.optimizeTopDown();
+  for (auto& tree : r.trees) tree->optimizeTopDown();
   r.stack.reserve(r.data.size() + 2);
   r.candidates.resize(r.data.size());
+  r.near.resize(r.data.size());
   r.best_squared.assign(normals_.num_pieces(), kInf);
   r.best_triangle.assign(normals_.num_pieces(), -1);
   r.best_point.assign(normals_.num_pieces(), TrianglePoint{});
+  r.in_reach.assign(normals_.num_pieces(), 0);
+  r.unfound_bound.assign(normals_.num_pieces(), 0.0);
+  r.piece_distance.assign(normals_.num_pieces(), kInf);
+  r.piece_state.assign(normals_.num_pieces(), kSearched);
+  r.order.resize(normals_.num_pieces());
+  piece_travel_.assign(normals_.num_pieces(), 0.0);
+  piece_step_.assign(normals_.num_pieces(), 0.0);
+  piece_speed_.assign(normals_.num_pieces(), 0.0);
+  vertex_step_.assign(avatar_->num_vertices(), 0.0);
+  piece_closed_.assign(normals_.num_pieces(), 1);
+  for (int t = 0; t < num_triangles; ++t) {
+    for (int k = 0; k < 3; ++k) {
+      if (normals_.neighbour(t, k) < 0) piece_closed_[normals_.piece_of(t)] = 0;
+    }
+  }
   r.touched.reserve(normals_.num_pieces());
   Refit();
 }
@@ -291,7 +417,20 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
   regions_->candidates.resize((cloth_->max_depth() + 1) * regions_->data.size());
   particle_contacts_.assign(n, Contact{});
   has_contact_.assign(n, 0);
+  SizeMemory(cloth.num_particles());
 }
+
+void MeshCollider::SizeMemory(Eigen::Index n) {
+  if (!UsesMemory() || memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * n)) {
+    return;
+  }
+  memory_.assign(normals_.num_pieces() * n, PieceMemory{});  // nothing known
+  anchors_.setZero(n, 3);
+}
+
+bool MeshCollider::UsesMemory() const { return normals_.num_pieces() <= kMaxRememberedPieces; }
+
+int MeshCollider::MemoryOf(int particle) const { return UsesMemory() ? particle : -1; }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
 
@@ -309,37 +448,77 @@ void ProjectRegion(const SurfacePseudonormals& mesh, const Points& vertices,
   if (sum.norm() > 0.0) region.axis = sum.normalized();
   region.tangent_u = region.axis.unitOrthogonal();
   region.tangent_v = region.axis.cross(region.tangent_u);
-  region.w_min = region.u_min = region.v_min = kInf;
-  region.w_max = region.u_max = region.v_max = -kInf;
-  region.spread_u = region.spread_v = 0.0;
+  // Each vertex once (a vertex has about six triangles).
+  double* pu = regions.project_u.data();
+  double* pv = regions.project_v.data();
+  double* pw = regions.project_w.data();
   region.box_min.setConstant(kInf);
   region.box_max.setConstant(-kInf);
-  for (int j = region.first; j < region.first + region.count; ++j) {
-    const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
-    double u[3], v[3];
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d x = vertices.row(tri[k]).transpose();
-      u[k] = x.dot(region.tangent_u);
-      v[k] = x.dot(region.tangent_v);
-      const double w = x.dot(region.axis);
-      region.w_min = std::min(region.w_min, w);
-      region.w_max = std::max(region.w_max, w);
-      region.box_min = region.box_min.cwiseMin(x);
-      region.box_max = region.box_max.cwiseMax(x);
+  for (int i = 0; i < region.num_vertices; ++i) {
+    const Eigen::Vector3d x = vertices.row(regions.vertices[region.first_vertex + i]).transpose();
+    pu[i] = x.dot(region.tangent_u);
+    pv[i] = x.dot(region.tangent_v);
+    pw[i] = x.dot(region.axis);
+    region.box_min = region.box_min.cwiseMin(x);
+    region.box_max = region.box_max.cwiseMax(x);
+  }
+  auto extent = [&](const double* p, double& lo, double& hi) {
+    lo = kInf;
+    hi = -kInf;
+    for (int i = 0; i < region.num_vertices; ++i) {
+      lo = std::min(lo, p[i]);
+      hi = std::max(hi, p[i]);
     }
-    const double cu = (u[0] + u[1] + u[2]) / 3.0;
-    const double cv = (v[0] + v[1] + v[2]) / 3.0;
+  };
+  extent(pu, region.u_min, region.u_max);
+  extent(pv, region.v_min, region.v_max);
+  extent(pw, region.w_min, region.w_max);
+  region.spread_u = region.spread_v = 0.0;
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const Eigen::Vector3i& c = regions.local_corners[j];
+    FrameBox& box = regions.triangle_box[j];
+    box.u_lo = std::min({pu[c[0]], pu[c[1]], pu[c[2]]});
+    box.u_hi = std::max({pu[c[0]], pu[c[1]], pu[c[2]]});
+    box.v_lo = std::min({pv[c[0]], pv[c[1]], pv[c[2]]});
+    box.v_hi = std::max({pv[c[0]], pv[c[1]], pv[c[2]]});
+    box.w_lo = std::min({pw[c[0]], pw[c[1]], pw[c[2]]});
+    box.w_hi = std::max({pw[c[0]], pw[c[1]], pw[c[2]]});
+    const double cu = (pu[c[0]] + pu[c[1]] + pu[c[2]]) / 3.0;
+    const double cv = (pv[c[0]] + pv[c[1]] + pv[c[2]]) / 3.0;
     regions.centroid_u[j] = cu;
     regions.centroid_v[j] = cv;
-    for (int k = 0; k < 3; ++k) {
-      region.u_min = std::min(region.u_min, u[k]);
-      region.u_max = std::max(region.u_max, u[k]);
-      region.v_min = std::min(region.v_min, v[k]);
-      region.v_max = std::max(region.v_max, v[k]);
-      region.spread_u = std::max(region.spread_u, std::abs(u[k] - cu));
-      region.spread_v = std::max(region.spread_v, std::abs(v[k] - cv));
+    region.spread_u = std::max({region.spread_u, cu - box.u_lo, box.u_hi - cu});
+    region.spread_v = std::max({region.spread_v, cv - box.v_lo, box.v_hi - cv});
+  }
+}
+
+/// Lists each region's vertices once and its triangles' corners as indices into them.
+void IndexRegionVertices(const SurfacePseudonormals& mesh, int num_vertices,
+                         MeshColliderRegions& regions) {
+  std::vector<int> local(num_vertices, -1);
+  regions.local_corners.resize(regions.triangles.size());
+  int largest = 0;
+  for (MeshColliderRegion& region : regions.data) {
+    region.first_vertex = static_cast<int>(regions.vertices.size());
+    for (int j = region.first; j < region.first + region.count; ++j) {
+      const Eigen::Vector3i& tri = mesh.triangles()[regions.triangles[j]];
+      for (int k = 0; k < 3; ++k) {
+        if (local[tri[k]] < 0) {
+          local[tri[k]] = static_cast<int>(regions.vertices.size()) - region.first_vertex;
+          regions.vertices.push_back(tri[k]);
+        }
+        regions.local_corners[j][k] = local[tri[k]];
+      }
+    }
+    region.num_vertices = static_cast<int>(regions.vertices.size()) - region.first_vertex;
+    largest = std::max(largest, region.num_vertices);
+    for (int i = region.first_vertex; i < region.first_vertex + region.num_vertices; ++i) {
+      local[regions.vertices[i]] = -1;
     }
   }
+  regions.project_u.assign(largest, 0.0);
+  regions.project_v.assign(largest, 0.0);
+  regions.project_w.assign(largest, 0.0);
 }
 
 /// Sorts a region's triangles into its grid cells by centroid (a counting sort).
@@ -357,6 +536,11 @@ void BinRegion(MeshColliderRegions& regions, MeshColliderRegion& region) {
     regions.triangle_cell[j] = cell;
     ++start[cell + 1];
   }
+  FrameBox* box = &regions.cell_box[region.cell_first];
+  std::fill(box, box + num_cells, FrameBox{});
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    box[regions.triangle_cell[j]].Add(regions.triangle_box[j]);
+  }
   for (int c = 0; c < num_cells; ++c) start[c + 1] += start[c];
   std::copy(start, start + num_cells, regions.cursor.begin());
   for (int j = region.first; j < region.first + region.count; ++j) {
@@ -365,25 +549,75 @@ void BinRegion(MeshColliderRegions& regions, MeshColliderRegion& region) {
   }
 }
 
+/// Copies a region's triangles, in grid order, into the packed records.
+void PackRegion(const SurfacePseudonormals& mesh, const Points& vertices,
+                MeshColliderRegions& regions, const MeshColliderRegion& region) {
+  for (int j = region.first; j < region.first + region.count; ++j) {
+    const Eigen::Vector3i& tri = mesh.triangles()[regions.cell_triangles[j]];
+    PackedTriangle& packed = regions.packed[j];
+    packed.a = vertices.row(tri[0]).transpose();
+    packed.b = vertices.row(tri[1]).transpose();
+    packed.c = vertices.row(tri[2]).transpose();
+    packed.box_min = packed.a.cwiseMin(packed.b).cwiseMin(packed.c);
+    packed.box_max = packed.a.cwiseMax(packed.b).cwiseMax(packed.c);
+    packed.normal = mesh.double_area(regions.cell_triangles[j]) > 0.0
+                        ? mesh.face_normal(regions.cell_triangles[j])
+                        : Eigen::Vector3d::Zero();
+  }
+}
+
+/// Distance [m] from `x` to the interval [lo, hi] (0 inside).
+inline double IntervalGap(double x, double lo, double hi) {
+  return std::max(std::max(lo - x, x - hi), 0.0);
+}
+
+/// Squared distance [m²] from `p` to the box [lo, hi] (0 inside).
+inline double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                                 const Eigen::Vector3d& p) {
+  const double x = IntervalGap(p.x(), lo.x(), hi.x());
+  const double y = IntervalGap(p.y(), lo.y(), hi.y());
+  const double z = IntervalGap(p.z(), lo.z(), hi.z());
+  return x * x + y * y + z * z;
+}
+
 }  // namespace
 
 void MeshCollider::Refit() {
-  normals_.Update(vertices_);
+  // Vertex pseudonormals only for the few closest points at a vertex (Of with vertices_).
+  normals_.Update(vertices_, /*vertex_normals=*/false);
   MeshColliderRegions& r = *regions_;
   const btVector3 fatten(settings_.thickness, settings_.thickness, settings_.thickness);
   for (MeshColliderRegion& region : r.data) {
     ProjectRegion(normals_, vertices_, r, region);
     BinRegion(r, region);
+    PackRegion(normals_, vertices_, r, region);
     // Boxes fattened by the thickness; the query box adds the margin and the motion.
     btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(region.box_min) - fatten,
                                             ToBullet(region.box_max) + fatten);
-    r.tree.update(region.leaf, box);
+    r.trees[region.piece]->update(region.leaf, box);
   }
+}
+
+void MeshCollider::AddTravel(const Points& skinned_vertices) {
+  for (Eigen::Index v = 0; v < vertices_.rows(); ++v) {
+    vertex_step_[v] = (skinned_vertices.row(v) - vertices_.row(v)).squaredNorm();
+  }
+  std::fill(piece_step_.begin(), piece_step_.end(), 0.0);
+  for (int t = 0; t < normals_.num_triangles(); ++t) {
+    double& step = piece_step_[normals_.piece_of(t)];
+    for (int k = 0; k < 3; ++k) {
+      const double squared = vertex_step_[normals_.triangles()[t][k]];
+      // NaN-proof: a non-finite step makes the travel infinite, so no bound is trusted.
+      step = std::isfinite(squared) ? std::max(step, squared) : kInf;
+    }
+  }
+  for (std::size_t p = 0; p < piece_step_.size(); ++p) piece_travel_[p] += std::sqrt(piece_step_[p]);
 }
 
 void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
                           const Points& skinned_vertices, double dt) {
   if (skinned_vertices.rows() != vertices_.rows()) return;
+  AddTravel(skinned_vertices);
   if (has_pose_ && dt > 0.0) {
     vertex_velocities_.noalias() = (skinned_vertices - vertices_) / dt;
   } else {
@@ -391,6 +625,20 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
   }
   max_vertex_speed_ = vertex_velocities_.rowwise().norm().maxCoeff();
   if (!std::isfinite(max_vertex_speed_)) max_vertex_speed_ = 0.0;
+  // Per piece, the fastest of its vertices [m/s] (+inf if not finite, so nothing is skipped
+  // for its sake).
+  for (Eigen::Index v = 0; v < vertices_.rows(); ++v) {
+    vertex_step_[v] = vertex_velocities_.row(v).squaredNorm();
+  }
+  std::fill(piece_speed_.begin(), piece_speed_.end(), 0.0);
+  for (int t = 0; t < normals_.num_triangles(); ++t) {
+    double& speed = piece_speed_[normals_.piece_of(t)];
+    for (int k = 0; k < 3; ++k) {
+      const double squared = vertex_step_[normals_.triangles()[t][k]];
+      speed = std::isfinite(squared) ? std::max(speed, squared) : kInf;
+    }
+  }
+  for (double& speed : piece_speed_) speed = std::sqrt(speed);
   vertices_ = skinned_vertices;
   has_pose_ = true;
   Refit();
@@ -398,29 +646,29 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
 
 namespace {
 
-/// A particle's query box: `point` ± (reach − thickness), the region boxes being fattened by
-/// the thickness already.
-btDbvtVolume QueryBox(const Eigen::Vector3d& point, double reach, double thickness) {
-  const double half = std::max(reach - thickness, 0.0);
+/// A particle's query box for search radius `radius` [m]: `point` ± (radius − thickness),
+/// the region boxes being fattened by the thickness already.
+btDbvtVolume QueryBox(const Eigen::Vector3d& point, double radius, double thickness) {
+  const double half = std::max(radius - thickness, 0.0);
   const btVector3 center = ToBullet(point);
   const btVector3 extent(half, half, half);
   return btDbvtVolume::FromMM(center - extent, center + extent);
 }
 
 /// The body region a leaf of the region tree stands for.
-const MeshColliderRegion& RegionOf(const MeshColliderRegions& r, const btDbvtNode* leaf) {
-  return r.data[static_cast<std::size_t>(reinterpret_cast<std::intptr_t>(leaf->data))];
+int RegionOf(const btDbvtNode* leaf) {
+  return static_cast<int>(reinterpret_cast<std::intptr_t>(leaf->data));
 }
 
-/// Visits, depth first, every leaf of the region tree whose box overlaps `query`, counting
-/// each node examined in `num_tests`. The per-particle and the per-region searches both walk
-/// the tree this way, so a particle meets its regions (and ties between equally close
-/// triangles break) in the same order in both.
+/// Visits, depth first, every leaf of `tree` whose box overlaps `query`, counting each node
+/// examined in `num_tests`. The per-particle and the per-region searches both walk the
+/// trees this way, piece by piece, so a particle meets its regions (and ties between
+/// equally close triangles break) in the same order in both.
 template <class Visit>
-void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
-                            long long& num_tests, Visit&& visit) {
+void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvt& tree,
+                            const btDbvtVolume& query, long long& num_tests, Visit&& visit) {
   r.stack.clear();
-  if (r.tree.m_root != nullptr) r.stack.push_back(r.tree.m_root);
+  if (tree.m_root != nullptr) r.stack.push_back(tree.m_root);
   while (!r.stack.empty()) {
     const btDbvtNode* node = r.stack.back();
     r.stack.pop_back();
@@ -437,112 +685,316 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvtVolume& query,
 
 }  // namespace
 
-MeshCollider::Nearest MeshCollider::FindNearest(const Eigen::Vector3d& point, double reach) {
+MeshCollider::Nearest MeshCollider::Query(const Eigen::Vector3d& point, double reach,
+                                          double threshold, double h, int particle,
+                                          const Source& source) {
   MeshColliderRegions& r = *regions_;
-  r.touched.clear();
-  VisitOverlappingLeaves(r, QueryBox(point, reach, settings_.thickness), num_tests_,
-                         [&](const btDbvtNode* leaf) {
-                           SearchRegion(RegionOf(r, leaf), point, reach);
-                         });
-  return Resolve(point);
+  const int num_pieces = normals_.num_pieces();
+  // Pieces are searched a little beyond the reach: what is found there takes no part in
+  // the answer, but its distance and sign are remembered, so the piece stays out of the
+  // next searches until it could matter.
+  const double extended = reach + kBoundExtension;
+  // What the particle's last query learnt about each piece, moved to now: since then the
+  // particle has moved `slack` and the piece `piece_travel_` more, and its signed and
+  // unsigned distances change by at most that much (both are 1-Lipschitz in the point,
+  // and no surface point moves farther than its vertices).
+  PieceMemory* memory = particle >= 0 ? &memory_[num_pieces * particle] : nullptr;
+  const double slack =
+      memory != nullptr ? (point - anchors_.row(particle).transpose()).norm() : 0.0;
+  int num_order = 0;
+  for (int piece = 0; piece < num_pieces; ++piece) {
+    double signed_bound = -kInf;
+    if (memory != nullptr && options_.reuse_bounds) {
+      const double moved = piece_travel_[piece] + slack;
+      // Out of reach (as a full search would find it): not searched.
+      if (memory[piece].distance_bound - moved > reach) {
+        r.piece_state[piece] = kOutOfReach;
+        continue;
+      }
+      signed_bound = memory[piece].signed_bound - moved;
+    }
+    r.piece_state[piece] = kSkipped;
+    r.order[num_order++] = {piece, signed_bound};
+  }
+  // Pieces of unknown sign first (their bound is −inf), then lowest bound first.
+  InsertionSort(r.order.data(), num_order,
+                [](const PieceBound& a, const PieceBound& b) { return a.bound < b.bound; });
+  r.lowest = kInf;
+  auto search = [&](int piece) {
+    r.piece_state[piece] = kSearched;
+    ActivatePiece(piece, extended * extended);
+    // A piece whose whole box lies beyond the extended reach needs no walk, and its box's
+    // distance bounds it better than the reach.
+    const btDbvtNode* root = r.trees[piece]->m_root;
+    ++num_tests_;
+    const double root_squared =
+        root == nullptr ? kInf
+                        : SquaredBoxDistance(ToEigen(root->volume.Mins()),
+                                             ToEigen(root->volume.Maxs()), point);
+    r.unfound_bound[piece] = std::max(extended, std::sqrt(root_squared));
+    if (root_squared > extended * extended) {
+      ResolvePiece(piece, point, reach);
+      return;
+    }
+    const int hint = memory != nullptr ? memory[piece].triangle : -1;
+    if (hint >= 0) TryTriangle(hint, point);  // its last nearest triangle starts the radius
+    const int count = Collect(point, piece, std::sqrt(r.best_squared[piece]), source);
+    SearchCandidates(point, count);
+    ResolvePiece(piece, point, reach);
+  };
+  // A piece is skipped when its bound exceeds the lowest signed distance found so far (it
+  // cannot be the nearest) or its own threshold (as the nearest it would not matter).
+  auto over_threshold = [&](int piece, double bound) {
+    return bound > threshold + h * piece_speed_[piece];
+  };
+  for (int k = 0; k < num_order; ++k) {
+    const PieceBound& entry = r.order[k];
+    if (!(entry.bound > r.lowest) && !over_threshold(entry.piece, entry.bound)) {
+      search(entry.piece);
+    }
+  }
+  // The nearest so far matters (it is within its threshold): a piece skipped by its own
+  // threshold alone may still be nearer, and is searched.
+  const int winner = Winner();
+  if (winner >= 0 && !over_threshold(winner, r.lowest)) {
+    for (int k = 0; k < num_order; ++k) {
+      const PieceBound& entry = r.order[k];
+      if (r.piece_state[entry.piece] == kSkipped && !(entry.bound > r.lowest)) {
+        search(entry.piece);
+      }
+    }
+  }
+  if (memory != nullptr) Remember(memory, particle, point, slack);
+  return Finish(point);
+}
+
+void MeshCollider::Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
+                            double slack) {
+  MeshColliderRegions& r = *regions_;
+  for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
+    PieceMemory& m = memory[piece];
+    if (r.piece_state[piece] != kSearched) {
+      // Not searched: the bounds carry over to the new anchor.
+      m.signed_bound -= slack;
+      m.distance_bound -= slack;
+      continue;
+    }
+    const double travel = piece_travel_[piece];
+    if (r.best_triangle[piece] >= 0) {
+      const double distance = r.piece_distance[piece];
+      m.triangle = r.best_triangle[piece];
+      m.signed_bound = (piece_closed_[piece] ? distance : -kInf) + travel;
+      m.distance_bound = std::abs(distance) + travel;
+    } else {
+      // Nothing within the extended reach (or the piece's box); the sign is unknown
+      // (inside or out). The old bound, carried over, may still be the better one.
+      m.signed_bound = -kInf;
+      m.distance_bound = std::max(r.unfound_bound[piece] + travel, m.distance_bound - slack);
+    }
+  }
+  anchors_.row(particle) = point.transpose();
+}
+
+int MeshCollider::Collect(const Eigen::Vector3d& point, int piece, double radius,
+                          const Source& source) {
+  MeshColliderRegions& r = *regions_;
+  const double radius_squared = radius * radius;
+  const btDbvtVolume box = QueryBox(point, radius, settings_.thickness);
+  int count = 0;
+  auto add = [&](int region) {
+    // The query box is a cube around the ball; its corners reach further.
+    const double squared =
+        SquaredBoxDistance(r.data[region].box_min, r.data[region].box_max, point);
+    if (squared <= radius_squared) r.near[count++] = RegionCandidate{region, squared};
+  };
+  if (source.from_list) {
+    for (int c = source.first; c < source.first + source.count; ++c) {
+      const btDbvtNode* node = r.candidates[c];
+      const int region = RegionOf(node);
+      if (r.data[region].piece != piece) continue;
+      ++num_tests_;
+      if (Intersect(node->volume, box)) add(region);
+    }
+    return count;
+  }
+  VisitOverlappingLeaves(r, *r.trees[piece], box, num_tests_,
+                         [&](const btDbvtNode* leaf) { add(RegionOf(leaf)); });
+  return count;
 }
 
 int MeshCollider::GatherCandidates(const Eigen::Vector3d& box_min,
                                    const Eigen::Vector3d& box_max) {
   MeshColliderRegions& r = *regions_;
   int count = 0;
-  VisitOverlappingLeaves(r, btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max)),
-                         num_tests_,
-                         [&](const btDbvtNode* leaf) { r.candidates[count++] = leaf; });
+  const btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(box_min), ToBullet(box_max));
+  for (const auto& tree : r.trees) {
+    VisitOverlappingLeaves(r, *tree, box, num_tests_,
+                           [&](const btDbvtNode* leaf) { r.candidates[count++] = leaf; });
+  }
   return count;
 }
 
-MeshCollider::Nearest MeshCollider::FindNearestAmongCandidates(const Eigen::Vector3d& point,
-                                                               double reach, int first,
-                                                               int count) {
+void MeshCollider::ActivatePiece(int piece, double radius_squared) {
   MeshColliderRegions& r = *regions_;
-  const btDbvtVolume query = QueryBox(point, reach, settings_.thickness);
-  r.touched.clear();
-  for (int c = first; c < first + count; ++c) {
-    const btDbvtNode* node = r.candidates[c];
-    ++num_tests_;
-    if (!Intersect(node->volume, query)) continue;
-    SearchRegion(RegionOf(r, node), point, reach);
-  }
-  return Resolve(point);
+  r.best_squared[piece] = radius_squared;
+  r.touched.push_back(piece);
 }
 
-void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
-                                double reach) {
+void MeshCollider::TryTriangle(int triangle, const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
-  ++num_tests_;  // the slab along the region's mean normal
-  const double w = point.dot(region.axis);
-  if (w < region.w_min - reach || w > region.w_max + reach) return;
-  // A triangle within `reach` of the point has its centroid's plane coordinates within
-  // reach + spread of the point's: those cells are all that can hold it.
-  const double u = point.dot(region.tangent_u);
-  const double v = point.dot(region.tangent_v);
-  const double range_u = reach + region.spread_u;
-  const double range_v = reach + region.spread_v;
-  if (u + range_u < region.u_min || u - range_u > region.u_max || v + range_v < region.v_min ||
-      v - range_v > region.v_max) {
-    return;
-  }
-  const int u_lo = CellIndex(u - range_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int u_hi = CellIndex(u + range_u, region.u_min, region.cell_size_u, region.cells_u);
-  const int v_lo = CellIndex(v - range_v, region.v_min, region.cell_size_v, region.cells_v);
-  const int v_hi = CellIndex(v + range_v, region.v_min, region.cell_size_v, region.cells_v);
-  const int* start = &r.cell_start[region.cell_first];
-  for (int cv = v_lo; cv <= v_hi; ++cv) {
-    for (int cu = u_lo; cu <= u_hi; ++cu) {
-      ++num_tests_;  // a grid cell
-      const int cell = cv * region.cells_u + cu;
-      for (int j = start[cell]; j < start[cell + 1]; ++j) {
-        TestTriangle(r.cell_triangles[region.first + j], point, reach);
-      }
-    }
-  }
-}
-
-void MeshCollider::TestTriangle(int triangle, const Eigen::Vector3d& point, double reach) {
-  MeshColliderRegions& r = *regions_;
+  const int piece = normals_.piece_of(triangle);
   ++num_tests_;
   const Eigen::Vector3i& tri = normals_.triangles()[triangle];
   const TrianglePoint closest =
       ClosestPointOnTriangle(point, vertices_.row(tri[0]).transpose(),
                              vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose());
   const double squared = (point - closest.point).squaredNorm();
-  if (squared > reach * reach) return;
-  const int piece = normals_.piece_of(triangle);
-  if (r.best_triangle[piece] < 0) {
-    r.touched.push_back(piece);
-  } else if (squared >= r.best_squared[piece]) {
-    return;
-  }
+  if (squared > r.best_squared[piece]) return;
   r.best_squared[piece] = squared;
   r.best_triangle[piece] = triangle;
   r.best_point[piece] = closest;
 }
 
-MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
+void MeshCollider::SearchCandidates(const Eigen::Vector3d& point, int count) {
+  MeshColliderRegions& r = *regions_;
+  // Nearest box first (an insertion sort, stable: equal boxes keep the walk's order): the
+  // nearest triangle is usually in the first region, and the radius it sets rules out
+  // the others by their boxes alone.
+  RegionCandidate* near = r.near.data();
+  InsertionSort(near, count, [](const RegionCandidate& a, const RegionCandidate& b) {
+    return a.squared_distance < b.squared_distance;
+  });
+  for (int i = 0; i < count; ++i) {
+    const MeshColliderRegion& region = r.data[near[i].region];
+    ++num_tests_;  // the region's box against the piece's current radius
+    if (near[i].squared_distance > r.best_squared[region.piece]) continue;
+    SearchRegion(region, point);
+  }
+}
+
+void MeshCollider::SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point) {
+  MeshColliderRegions& r = *regions_;
+  const double& best = r.best_squared[region.piece];
+  ++num_tests_;  // the region's box in its own frame: the slab along its mean normal
+  const double u = point.dot(region.tangent_u);
+  const double v = point.dot(region.tangent_v);
+  const double w = point.dot(region.axis);
+  const double gap_w = IntervalGap(w, region.w_min, region.w_max);
+  const double gap_u = IntervalGap(u, region.u_min, region.u_max);
+  const double gap_v = IntervalGap(v, region.v_min, region.v_max);
+  if (gap_u * gap_u + gap_v * gap_v + gap_w * gap_w > best) return;
+  const FrameBox* box = &r.cell_box[region.cell_first];
+  // The box of a cell's triangles bounds their distance from below. The cell under the
+  // point first: on a surface it usually holds the nearest triangle, whose distance then
+  // rules out most other cells.
+  auto search_if_near = [&](int cell) {
+    ++num_tests_;  // a grid cell
+    const FrameBox& b = box[cell];
+    const double du = IntervalGap(u, b.u_lo, b.u_hi);
+    const double dv = IntervalGap(v, b.v_lo, b.v_hi);
+    const double dw = IntervalGap(w, b.w_lo, b.w_hi);
+    if (du * du + dv * dv + dw * dw <= best) SearchCell(region, cell, point);
+  };
+  const int home_u = CellIndex(u, region.u_min, region.cell_size_u, region.cells_u);
+  const int home_v = CellIndex(v, region.v_min, region.cell_size_v, region.cells_v);
+  search_if_near(home_v * region.cells_u + home_u);
+  // The other cells that can hold a triangle within the radius: a triangle binned in a
+  // cell (by centroid) lies within its spread of the cell's rectangle. Row by row, a disc
+  // of cells, not a square.
+  const double spread_u = region.spread_u + kRoundingSlack;
+  const double spread_v = region.spread_v + kRoundingSlack;
+  const double gap_w_squared = gap_w * gap_w;
+  const double radius = std::sqrt(best);
+  const int v_lo = CellIndex(v - radius - spread_v, region.v_min, region.cell_size_v,
+                             region.cells_v);
+  const int v_hi = CellIndex(v + radius + spread_v, region.v_min, region.cell_size_v,
+                             region.cells_v);
+  for (int cv = v_lo; cv <= v_hi; ++cv) {
+    ++num_tests_;  // a row of cells
+    const double row_gap = IntervalGap(v, region.v_min + cv * region.cell_size_v - spread_v,
+                                       region.v_min + (cv + 1) * region.cell_size_v + spread_v);
+    const double row_squared = gap_w_squared + row_gap * row_gap;
+    if (row_squared > best) continue;
+    const double half_width = std::sqrt(best - row_squared) + spread_u;
+    const int u_lo = CellIndex(u - half_width, region.u_min, region.cell_size_u, region.cells_u);
+    const int u_hi = CellIndex(u + half_width, region.u_min, region.cell_size_u, region.cells_u);
+    for (int cu = u_lo; cu <= u_hi; ++cu) {
+      if (cu != home_u || cv != home_v) search_if_near(cv * region.cells_u + cu);
+    }
+  }
+}
+
+void MeshCollider::SearchCell(const MeshColliderRegion& region, int cell,
+                              const Eigen::Vector3d& point) {
+  MeshColliderRegions& r = *regions_;
+  const int piece = region.piece;
+  double best = r.best_squared[piece];
+  const int* start = &r.cell_start[region.cell_first];
+  const int end = region.first + start[cell + 1];
+  for (int j = region.first + start[cell]; j < end; ++j) {
+    // A triangle: its box and its plane first (lower bounds), its closest point only if
+    // both are near enough.
+    ++num_tests_;
+    const PackedTriangle& t = r.packed[j];
+    if (SquaredBoxDistance(t.box_min, t.box_max, point) > best) continue;
+    const double plane = t.normal.dot(point - t.a);
+    if (plane * plane > best) continue;
+    const TrianglePoint closest = ClosestPointOnTriangle(point, t.a, t.b, t.c);
+    const double squared = (point - closest.point).squaredNorm();
+    // Ties keep the first found, except that the first triangle may sit exactly at the
+    // radius.
+    if (squared > best || (squared == best && r.best_triangle[piece] >= 0)) continue;
+    best = squared;
+    r.best_triangle[piece] = r.cell_triangles[j];
+    r.best_point[piece] = closest;
+  }
+  r.best_squared[piece] = best;
+}
+
+void MeshCollider::ResolvePiece(int piece, const Eigen::Vector3d& point, double reach) {
+  MeshColliderRegions& r = *regions_;
+  const int t = r.best_triangle[piece];
+  if (t < 0) {
+    r.piece_distance[piece] = kInf;
+    return;
+  }
+  // Each piece's own closest feature decides its sign; the union takes the smallest, among
+  // the pieces within reach.
+  const TrianglePoint& closest = r.best_point[piece];
+  const double distance = std::sqrt(r.best_squared[piece]);
+  const bool inside = (point - closest.point).dot(normals_.Of(t, closest.feature, vertices_)) < 0.0;
+  r.piece_distance[piece] = inside ? -distance : distance;
+  r.in_reach[piece] = r.best_squared[piece] <= reach * reach;
+  if (r.in_reach[piece]) r.lowest = std::min(r.lowest, r.piece_distance[piece]);
+}
+
+int MeshCollider::Winner() const {
+  const MeshColliderRegions& r = *regions_;
+  double lowest = kInf;
+  int winner = -1;
+  for (int piece : r.touched) {
+    if (r.best_triangle[piece] >= 0 && r.in_reach[piece] && r.piece_distance[piece] < lowest) {
+      lowest = r.piece_distance[piece];
+      winner = piece;
+    }
+  }
+  return winner;
+}
+
+MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
   MeshColliderRegions& r = *regions_;
   Nearest nearest;
-  nearest.signed_distance = kInf;
-  for (int piece : r.touched) {
-    const int t = r.best_triangle[piece];
-    const TrianglePoint& closest = r.best_point[piece];
-    r.best_triangle[piece] = -1;  // ready for the next query
-    // Each piece's own closest feature decides its sign; the union takes the smallest.
-    const Eigen::Vector3d pseudonormal = normals_.Of(t, closest.feature);
+  const int winner = Winner();
+  if (winner >= 0) {
+    nearest.signed_distance = r.piece_distance[winner];
+    const int t = r.best_triangle[winner];
+    const TrianglePoint& closest = r.best_point[winner];
     const Eigen::Vector3d offset = point - closest.point;
-    const double distance = std::sqrt(r.best_squared[piece]);
-    const bool inside = offset.dot(pseudonormal) < 0.0;
-    const double signed_distance = inside ? -distance : distance;
-    if (signed_distance >= nearest.signed_distance) continue;
+    const double distance = std::abs(nearest.signed_distance);
+    const bool inside = nearest.signed_distance < 0.0;
     nearest.found = true;
-    nearest.signed_distance = signed_distance;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
-                                    : pseudonormal;
+                                    : normals_.Of(t, closest.feature, vertices_);
     const Eigen::Vector3i& tri = normals_.triangles()[t];
     nearest.surface_velocity.setZero();
     for (int k = 0; k < 3; ++k) {
@@ -550,6 +1002,8 @@ MeshCollider::Nearest MeshCollider::Resolve(const Eigen::Vector3d& point) {
           closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
     }
   }
+  for (int piece : r.touched) r.best_triangle[piece] = -1;  // ready for the next query
+  r.touched.clear();
   return nearest;
 }
 
@@ -558,6 +1012,13 @@ double MeshCollider::ReachOf(const Eigen::Vector3d& velocity, double h, double m
   // max_penetration) and for one reached during the step at the relative speed.
   return settings_.thickness +
          std::max(margin + h * (velocity.norm() + max_vertex_speed_), options_.max_penetration);
+}
+
+double MeshCollider::ContactThreshold(const Eigen::Vector3d& velocity, double h,
+                                      double margin) const {
+  // Plus h × the piece's fastest vertex: above it, d + h·(v − v_surface)·n >=
+  // d − h·(|v| + |v_surface|) > thickness + margin.
+  return settings_.thickness + margin + h * velocity.norm();
 }
 
 bool MeshCollider::MakeContact(int particle, const Eigen::Vector3d& velocity,
@@ -586,6 +1047,7 @@ void MeshCollider::FindContacts(const Points& positions, const Points& velocitie
   num_queries_ = 0;
   if (!(h > 0.0) || positions.rows() != velocities.rows()) return;
   margin = std::isfinite(margin) ? std::max(margin, 0.0) : 0.0;
+  SizeMemory(positions.rows());
   if (options_.cloth_regions && cloth_ != nullptr &&
       positions.rows() == cloth_->num_particles()) {
     FindContactsPerRegion(positions, velocities, h, margin, contacts);
@@ -604,7 +1066,9 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     const double reach = ReachOf(v, h, margin);
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
-    const Nearest nearest = FindNearest(x, reach);
+    const Nearest nearest =
+        Query(x, reach, ContactThreshold(v, h, margin), h, MemoryOf(static_cast<int>(i)),
+              Source{});
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -621,11 +1085,12 @@ void MeshCollider::FindContactsPerRegion(const Points& positions, const Points& 
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const double reach = ReachOf(velocities.row(i).transpose(), h, margin);
     const bool valid = reach < kInf && positions.row(i).allFinite();
-    // The same query box as FindNearest's, so a region's box holds its particles' boxes.
-    half_extents_[i] = valid ? std::max(reach - shell, 0.0) : -1.0;
+    // The largest query box Query walks, so a region's box holds its particles' boxes.
+    half_extents_[i] = valid ? std::max(reach + kBoundExtension - shell, 0.0) : -1.0;
     reaches_[i] = reach;
   }
-  num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive);
+  num_tests_ += cloth_->Refit(positions, half_extents_.data(), options_.cloth_adaptive,
+                              options_.cloth_cone_period);
   // Fixed regions: no angle passes, so the walk goes down to the base regions.
   const double flatness = options_.cloth_adaptive ? options_.cloth_flatness_angle : -1.0;
   for (int k : cloth_->Select(flatness)) {
@@ -673,11 +1138,12 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
   for (int s = node.first; s < node.first + node.count; ++s) {
     const int p = particles[s];
     if (half_extents_[p] < 0.0) continue;
+    const Eigen::Vector3d velocity = velocities.row(p).transpose();
     const Nearest nearest =
-        FindNearestAmongCandidates(positions.row(p).transpose(), reaches_[p], first, count);
+        Query(positions.row(p).transpose(), reaches_[p], ContactThreshold(velocity, h, margin),
+              h, MemoryOf(p), Source{true, first, count});
     if (!nearest.found) continue;
-    has_contact_[p] =
-        MakeContact(p, velocities.row(p).transpose(), nearest, h, margin, particle_contacts_[p]);
+    has_contact_[p] = MakeContact(p, velocity, nearest, h, margin, particle_contacts_[p]);
   }
 }
 
@@ -686,10 +1152,15 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
   double deepest = 0.0;
+  // The memory FindContacts left, when it was given these particles.
+  const bool remembered =
+      UsesMemory() &&
+      memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const Eigen::Vector3d x = positions.row(i).transpose();
     if (!x.allFinite()) continue;
-    const Nearest nearest = FindNearest(x, reach);
+    const Nearest nearest =
+        Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
     if (!nearest.found || nearest.signed_distance >= shell) continue;
     deepest = std::max(deepest, shell - nearest.signed_distance);
     positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();

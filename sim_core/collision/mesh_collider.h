@@ -4,12 +4,20 @@
 /// mesh. The mesh is split into regions of about N×N triangles grown over triangle
 /// adjacency; neighbouring regions whose normals fit in a flatness cone (Provot 1997's
 /// normal-cone test) are merged level by level, up to four at a time (quadtree-like), so
-/// flat parts of the body are covered by few large regions. A Bullet btDbvt over the
-/// region boxes, refitted every frame, is the broad phase. Inside a region the triangles
-/// are found through a grid over the region's mean plane: the region is tested as the
-/// height field a flat region is, which is what makes a large flat region cheap. Contacts
-/// follow Bridson, Fedkiw & Anderson 2002: proximity within the cloth's thickness, resolved
-/// as velocity constraints in the implicit solve.
+/// flat parts of the body are covered by few large regions. A Bullet btDbvt per connected
+/// piece of the body over its region boxes, refitted every frame, is the broad phase.
+/// Inside a region the triangles are found through a grid over the region's mean plane:
+/// the region is tested as the height field a flat region is, which is what makes a large
+/// flat region cheap. Contacts follow Bridson, Fedkiw & Anderson 2002: proximity within the
+/// cloth's thickness, resolved as velocity constraints in the implicit solve.
+///
+/// The narrow phase looks for each piece's nearest triangle nearest first: the particle's
+/// last nearest triangle starts the search radius, regions are taken nearest box first,
+/// and the radius shrinks to the best distance found, so that the boxes of the region,
+/// grid cells and triangles rule out all but a few triangles. Per particle and piece it
+/// remembers that triangle and bounds on the distance, which the particle's and the
+/// piece's motion since can only shrink by as much: a piece that cannot have come near
+/// enough to matter is not searched at all (MeshCollisionOptions::reuse_bounds).
 ///
 /// Deviation from the paper: the paper tests a flat region "coarsely" without saying how;
 /// here it is the slab and plane grid above, which is exact (no contact is lost, whatever
@@ -21,6 +29,7 @@
 /// that query returned. Contacts are the same with or without them.
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -52,11 +61,20 @@ struct MeshCollisionOptions {
   /// Penetration below the surface [m] > 0 that FindContacts and ProjectOut still see;
   /// particles deeper than this are lost, as with any proximity method.
   double max_penetration = 0.05;
+  /// Remember per particle what its last search learnt (its nearest triangle per piece and
+  /// bounds on the distances), so that a piece which the particle's and the body's motion
+  /// since cannot have brought near enough to matter is not searched again. Contacts and
+  /// corrections are those of a full search, up to which of equally near triangles is
+  /// kept, wherever each piece of the body is closed and does not intersect itself (the
+  /// bounds rely on its signed distance being 1-Lipschitz); false searches every piece
+  /// within reach every time.
+  bool reuse_bounds = true;
   /// Query the body per cloth region rather than per particle (once SetCloth has given the
-  /// cloth's topology); false reproduces the per-particle queries exactly. Off by default:
-  /// it saves 10–30 % of the counted tests but measured 2–8 % slower in time
-  /// (tools/collision_regions_bench, docs/collision.md), since the per-particle triangle
-  /// search it leaves untouched dominates.
+  /// cloth's topology); false reproduces the per-particle queries exactly. It takes about
+  /// half the counted tests and 2–15 % less time on a flat or folded sheet
+  /// (tools/collision_regions_bench, docs/collision.md). Off by default: the scene does not
+  /// give the collider its cloth, and with the particles' memory most body pieces are not
+  /// walked at all, leaving less broad phase to save.
   bool cloth_regions = false;
   /// Cloth base regions hold about cloth_region_size × cloth_region_size particles [-],
   /// 1 ..= 256.
@@ -67,6 +85,11 @@ struct MeshCollisionOptions {
   /// Cloth flatness cone [rad], in [0, π/2): a node of the cloth's hierarchy whose
   /// triangle normals all lie within this angle of its axis is queried as one region.
   double cloth_flatness_angle = 0.35;
+  /// The cloth's normal cones are refreshed for one base region in every
+  /// cloth_cone_period per FindContacts call, in turns [-], 1 ..= 64: they only choose
+  /// how coarsely to query (contacts are the same whatever they say), and one cone per
+  /// cloth triangle every call costs more than taking flat cloth whole saves.
+  int cloth_cone_period = 4;
 };
 
 /// Cloth against the avatar's skinned mesh. Works for open meshes too, but inside and
@@ -103,13 +126,14 @@ class MeshCollider : public BodyCollider {
   /// surface. Target normal velocity: the surface velocity at the closest point along the
   /// normal plus (thickness − signed distance)/h. Contacts are appended in particle order.
   /// Never throws; allocates only through `contacts` growing (and, without SetCloth, on
-  /// its first call).
+  /// its first call or when the particle count changes: the particles' memory).
   void FindContacts(const Points& positions, const Points& velocities, double h, double margin,
                     std::vector<Contact>& contacts) override;
 
   /// See BodyCollider: moves particles inside the shell along the normal onto it and
   /// removes their velocity into the body relative to the surface's. Returns the deepest
-  /// penetration of the shell before the correction [m]. Never throws; never allocates.
+  /// penetration of the shell before the correction [m]. Uses (and updates) the particles'
+  /// memory when FindContacts last had as many particles. Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
@@ -132,16 +156,45 @@ class MeshCollider : public BodyCollider {
     Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
   };
-  Nearest FindNearest(const Eigen::Vector3d& point, double reach);
-  /// As FindNearest, searching only the body regions in candidate slots
-  /// [first, first + count).
-  Nearest FindNearestAmongCandidates(const Eigen::Vector3d& point, double reach, int first,
-                                     int count);
+  /// Where a query's body regions come from: the per-piece region trees, or candidate
+  /// slots [first, first + count) gathered for a cloth region.
+  struct Source {
+    bool from_list = false;
+    int first = 0;
+    int count = 0;
+  };
+  /// What a particle's last search learnt about one piece of the body: its nearest
+  /// triangle (−1: none yet) and lower bounds on its signed and unsigned distance [m] at
+  /// the particle's anchor, each plus the piece's travel then [m]. −inf: unknown.
+  struct PieceMemory {
+    int triangle = -1;
+    double signed_bound = -std::numeric_limits<double>::infinity();
+    double distance_bound = -std::numeric_limits<double>::infinity();
+  };
+  /// Bodies of more pieces search without memory (it would cost pieces × particles).
+  static constexpr int kMaxRememberedPieces = 64;
+
+  /// The nearest surface point to `point` within `reach` [m], exact whenever it matters:
+  /// when its signed distance is at most `threshold` + h × its piece's fastest vertex speed
+  /// [m]. Otherwise the answer may be another piece's or none, also above its threshold.
+  /// `particle` >= 0 uses and updates that particle's memory (see memory_).
+  Nearest Query(const Eigen::Vector3d& point, double reach, double threshold, double h,
+                int particle, const Source& source);
+  /// The searched piece within reach with the lowest signed distance, −1 for none.
+  int Winner() const;
+  /// Lists the regions of `piece` within `radius` [m] of `point`; returns how many.
+  int Collect(const Eigen::Vector3d& point, int piece, double radius, const Source& source);
+  /// Searches the `count` listed regions nearest box first, the piece's radius shrinking
+  /// to the distance of its nearest triangle found so far.
+  void SearchCandidates(const Eigen::Vector3d& point, int count);
   /// Gathers the body regions whose boxes overlap [box_min, box_max] into candidate slots
-  /// [0, count), in the order FindNearest visits them; returns the count.
+  /// [0, count), piece by piece in tree order; returns the count.
   int GatherCandidates(const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max);
   /// How far a particle's search must reach [m]; +inf or NaN for bad input.
   double ReachOf(const Eigen::Vector3d& velocity, double h, double margin) const;
+  /// The signed distance above which FindContacts makes no contact for a particle moving
+  /// at `velocity` with a piece at rest [m] (Query adds h × the piece's speed).
+  double ContactThreshold(const Eigen::Vector3d& velocity, double h, double margin) const;
   /// The contact rule: fills `contact` and returns true when the particle needs one.
   bool MakeContact(int particle, const Eigen::Vector3d& velocity, const Nearest& nearest,
                    double h, double margin, Contact& contact) const;
@@ -153,12 +206,29 @@ class MeshCollider : public BodyCollider {
   /// narrowing the list for each child on the way down to the base regions.
   void TestClothNode(int k, int first, int count, const Points& positions,
                      const Points& velocities, double h, double margin);
-  /// Keeps, per piece, the closest of the region's triangles within `reach` of `point`.
-  void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point,
-                    double reach);
-  void TestTriangle(int triangle, const Eigen::Vector3d& point, double reach);
-  /// The smallest signed distance over the pieces SearchRegion touched; resets them.
-  Nearest Resolve(const Eigen::Vector3d& point);
+  /// Starts searching `piece` within radius² `radius_squared` [m²].
+  void ActivatePiece(int piece, double radius_squared);
+  /// Takes `triangle` as its piece's nearest so far when within the piece's radius.
+  void TryTriangle(int triangle, const Eigen::Vector3d& point);
+  /// Keeps, for the region's piece, its nearest triangle within the piece's radius.
+  void SearchRegion(const MeshColliderRegion& region, const Eigen::Vector3d& point);
+  void SearchCell(const MeshColliderRegion& region, int cell, const Eigen::Vector3d& point);
+  /// The signed distance [m] of the piece's nearest triangle (+inf for none), and whether
+  /// it lies within `reach` [m].
+  void ResolvePiece(int piece, const Eigen::Vector3d& point, double reach);
+  /// The answer from the resolved pieces; resets the per-piece scratch.
+  Nearest Finish(const Eigen::Vector3d& point);
+  /// Remembers for `particle` what this query learnt at `point`, `slack` [m] from its
+  /// anchor.
+  void Remember(PieceMemory* memory, int particle, const Eigen::Vector3d& point,
+                double slack);
+  /// Makes the particle memory n particles long (allocates when n changes).
+  void SizeMemory(Eigen::Index n);
+  bool UsesMemory() const;
+  /// `particle`, the index of its memory, or −1 when the body goes without memory.
+  int MemoryOf(int particle) const;
+  /// Adds how far each piece moves to `skinned_vertices` to the travels.
+  void AddTravel(const Points& skinned_vertices);
   void Refit();
 
   std::shared_ptr<const Avatar> avatar_;
@@ -181,6 +251,21 @@ class MeshCollider : public BodyCollider {
   std::vector<double> reaches_;
   std::vector<Contact> particle_contacts_;
   std::vector<char> has_contact_;
+  /// Per particle and piece, what the particle's last query learnt (PieceMemory), and
+  /// where the particle was then (its anchor). Bounds shrink by the particle's and the
+  /// piece's motion since; a piece whose bound shows it cannot matter is not searched.
+  /// Empty when the body has more than kMaxRememberedPieces pieces.
+  std::vector<PieceMemory> memory_;
+  Points anchors_;
+  /// How far each piece's vertices have moved in all Updates, summed [m]; +inf after a
+  /// non-finite pose.
+  std::vector<double> piece_travel_;
+  std::vector<double> piece_speed_;  // fastest vertex of each piece [m/s]
+  std::vector<double> piece_step_;   // Update scratch: per piece, then per vertex [m², m²]
+  std::vector<double> vertex_step_;
+  /// Pieces that are closed (every edge shared by two triangles): only their signed
+  /// distance is 1-Lipschitz, which the bounds rely on.
+  std::vector<char> piece_closed_;
 };
 
 }  // namespace costume::sim

@@ -80,6 +80,16 @@ SurfacePseudonormals::SurfacePseudonormals(int num_vertices,
       vertex_normals_(num_vertices, Eigen::Vector3d::UnitY()) {
   BuildAdjacency();
   BuildPieces();
+  corner_start_.assign(num_vertices + 1, 0);
+  for (const Eigen::Vector3i& tri : triangles_) {
+    for (int k = 0; k < 3; ++k) ++corner_start_[tri[k] + 1];
+  }
+  for (int v = 0; v < num_vertices; ++v) corner_start_[v + 1] += corner_start_[v];
+  corners_.resize(3 * triangles_.size());
+  std::vector<int> cursor(corner_start_.begin(), corner_start_.end() - 1);
+  for (int t = 0; t < num_triangles(); ++t) {
+    for (int k = 0; k < 3; ++k) corners_[cursor[triangles_[t][k]]++] = 3 * t + k;
+  }
 }
 
 void SurfacePseudonormals::BuildAdjacency() {
@@ -130,7 +140,19 @@ void SurfacePseudonormals::BuildPieces() {
   }
 }
 
-void SurfacePseudonormals::Update(const Points& vertices) {
+void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
+  has_vertex_normals_ = vertex_normals;
+  if (!vertex_normals) {
+    for (int t = 0; t < num_triangles(); ++t) {
+      const Eigen::Vector3i& tri = triangles_[t];
+      const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
+      const Eigen::Vector3d cross =
+          (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
+      double_areas_[t] = cross.norm();
+      if (double_areas_[t] > 0.0) face_normals_[t] = cross / double_areas_[t];
+    }
+    return;
+  }
   std::fill(vertex_normals_.begin(), vertex_normals_.end(), Eigen::Vector3d::Zero());
   for (int t = 0; t < num_triangles(); ++t) {
     const Eigen::Vector3i& tri = triangles_[t];
@@ -149,6 +171,33 @@ void SurfacePseudonormals::Update(const Points& vertices) {
     vertex_normals_[tri[2]] += CornerAngle(c, a, b) * n;
   }
   for (Eigen::Vector3d& n : vertex_normals_) n = NormalisedOr(n, Eigen::Vector3d::UnitY());
+}
+
+Eigen::Vector3d SurfacePseudonormals::VertexNormal(int vertex, const Points& vertices) const {
+  // Update's sum, term by term in the same order (by triangle), so the same bits.
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int j = corner_start_[vertex]; j < corner_start_[vertex + 1]; ++j) {
+    const int t = corners_[j] / 3;
+    const int k = corners_[j] % 3;
+    if (double_areas_[t] == 0.0) continue;
+    const Eigen::Vector3i& tri = triangles_[t];
+    sum += CornerAngle(vertices.row(tri[k]).transpose(), vertices.row(tri[(k + 1) % 3]).transpose(),
+                       vertices.row(tri[(k + 2) % 3]).transpose()) *
+           face_normals_[t];
+  }
+  return NormalisedOr(sum, Eigen::Vector3d::UnitY());
+}
+
+Eigen::Vector3d SurfacePseudonormals::Of(int triangle, TriangleFeature feature,
+                                         const Points& vertices) const {
+  if (has_vertex_normals_) return Of(triangle, feature);
+  const Eigen::Vector3i& tri = triangles_[triangle];
+  switch (feature) {
+    case TriangleFeature::kVertexA: return VertexNormal(tri[0], vertices);
+    case TriangleFeature::kVertexB: return VertexNormal(tri[1], vertices);
+    case TriangleFeature::kVertexC: return VertexNormal(tri[2], vertices);
+    default: return Of(triangle, feature);
+  }
 }
 
 Eigen::Vector3d SurfacePseudonormals::Of(int triangle, TriangleFeature feature) const {

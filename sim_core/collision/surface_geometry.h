@@ -53,13 +53,21 @@ class SurfacePseudonormals {
   SurfacePseudonormals(int num_vertices, const std::vector<Eigen::Vector3i>& triangles);
 
   /// Recomputes face, edge and vertex pseudonormals for `vertices` (num_vertices×3) [m].
-  /// Never throws; never allocates. Precondition: vertices.rows() == num_vertices.
-  void Update(const Points& vertices);
+  /// With `vertex_normals` false the vertex pseudonormals are left out (three arc
+  /// tangents per triangle, most of the cost) for the three-argument Of to compute the few
+  /// needed. Never throws; never allocates. Precondition: vertices.rows() == num_vertices.
+  void Update(const Points& vertices, bool vertex_normals = true);
 
   /// Unit pseudonormal of `feature` of triangle `triangle`: the face normal; for an edge
   /// the normalised sum of its two faces' normals (both have angle π); for a vertex the
-  /// incident face normals weighted by their angle there, normalised.
+  /// incident face normals weighted by their angle there, normalised. Precondition for a
+  /// vertex: the last Update computed the vertex pseudonormals.
   Eigen::Vector3d Of(int triangle, TriangleFeature feature) const;
+  /// The same, computing a vertex's pseudonormal from `vertices` (those of the last Update)
+  /// when Update left them out: bit for bit the value Update would have given.
+  Eigen::Vector3d Of(int triangle, TriangleFeature feature, const Points& vertices) const;
+  /// The pseudonormal of vertex `vertex` for `vertices` (those of the last Update).
+  Eigen::Vector3d VertexNormal(int vertex, const Points& vertices) const;
   const Eigen::Vector3d& face_normal(int triangle) const { return face_normals_[triangle]; }
   /// Twice the area of each triangle [m²] from the last Update.
   double double_area(int triangle) const { return double_areas_[triangle]; }
@@ -90,6 +98,11 @@ class SurfacePseudonormals {
   std::vector<Eigen::Vector3d> face_normals_;
   std::vector<double> double_areas_;
   std::vector<Eigen::Vector3d> vertex_normals_;
+  bool has_vertex_normals_ = false;
+  /// The corners (3 × triangle + k) at each vertex, in triangle order: vertex v's are
+  /// [corner_start_[v], corner_start_[v + 1]) of corners_.
+  std::vector<int> corner_start_;
+  std::vector<int> corners_;
 };
 
 }  // namespace costume::sim

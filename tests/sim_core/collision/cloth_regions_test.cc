@@ -342,6 +342,55 @@ TEST(MeshColliderClothRegions, FoldedSheetSameContactsQueryingEveryBaseRegion) {
               c.on->stats().num_tests, c.fixed->stats().num_tests, c.off->stats().num_tests);
 }
 
+TEST(MeshColliderClothRegions, StaleConesChangeOnlyHowCoarselyTheClothQueries) {
+  // By default a quarter of the base regions refresh their cone per call: right after the
+  // sheet folds, most cones still say flat and folded nodes are taken whole, yet the
+  // contacts are those of per-particle queries; four calls later every cone is current.
+  const auto sheet = Sheet(33);
+  Colliders c = MakeColliders(*sheet);
+  const Points flat = sheet->rest_positions();
+  const Points folded = FoldedPositions(*sheet, 11);
+  const Points v = RandomVelocities(sheet->num_particles(), 0.5, 13);
+  std::vector<Contact> on, off;
+  c.on->FindContacts(flat, v, kH, kMargin, on);
+  EXPECT_EQ(c.on->num_broad_phase_queries(), 1);
+  const int base_regions = c.on->cloth_regions()->num_base_regions();
+  for (int call = 0; call < 4; ++call) {
+    on.clear();
+    off.clear();
+    c.on->FindContacts(folded, v, kH, kMargin, on);
+    c.off->FindContacts(folded, v, kH, kMargin, off);
+    ASSERT_EQ(on.size(), off.size());
+    for (std::size_t k = 0; k < on.size(); ++k) {
+      ASSERT_EQ(on[k].particle, off[k].particle);
+      EXPECT_EQ(on[k].normal, off[k].normal);
+      EXPECT_EQ(on[k].target_normal_velocity, off[k].target_normal_velocity);
+    }
+  }
+  EXPECT_EQ(c.on->num_broad_phase_queries(), base_regions);
+}
+
+TEST(ClothRegions, ConePeriodRefreshesTheBaseRegionsInTurns) {
+  const auto sheet = Sheet(33);
+  ClothRegions regions(*sheet, 8);
+  const std::vector<double> half(sheet->num_particles(), 0.01);
+  auto folded_leaves = [&] {
+    int n = 0;
+    for (const ClothRegionNode& node : regions.nodes()) {
+      if (node.num_children == 0 && node.cone_angle > 0.5) ++n;
+    }
+    return n;
+  };
+  regions.Refit(sheet->rest_positions(), half.data(), true, 4);  // first call: every cone
+  EXPECT_EQ(folded_leaves(), 0);
+  const Points folded = FoldedPositions(*sheet, 11);
+  const int base = regions.num_base_regions();
+  for (int call = 1; call <= 4; ++call) {
+    regions.Refit(folded, half.data(), true, 4);
+    EXPECT_EQ(folded_leaves(), call * base / 4) << call;  // 16 base regions, 4 per call
+  }
+}
+
 TEST(MeshColliderClothRegions, OtherParticleCountsAndBadParticlesFallBackSafely) {
   const auto sheet = Sheet(17);
   Colliders c = MakeColliders(*sheet);

@@ -278,6 +278,218 @@ TEST(MeshCollider, CurvedBodyGivesTheSameContactsAdaptiveOrFixed) {
   }
 }
 
+// Two overlapping boxes as two pieces: the body is their union. Their closed form gives
+// each particle's expected contact: per box the exact signed distance and its gradient
+// (the direction from the closest surface point, or inside the nearest face's normal);
+// the box with the smaller signed distance wins.
+struct BoxContact {
+  double distance;
+  Eigen::Vector3d normal;
+};
+
+BoxContact ClosedFormBoxContact(const Eigen::Vector3d& p, const Eigen::Vector3d& center,
+                                const Eigen::Vector3d& half) {
+  const double d = test::BoxSignedDistance(p, center, half);
+  const Eigen::Vector3d local = p - center;
+  if (d > 0.0) {
+    const Eigen::Vector3d closest = center + local.cwiseMax(-half).cwiseMin(half);
+    return {d, (p - closest) / d};
+  }
+  Eigen::Index axis = 0;
+  (local.cwiseAbs() - half).maxCoeff(&axis);
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  normal[axis] = local[axis] < 0.0 ? -1.0 : 1.0;
+  return {d, normal};
+}
+
+TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBoxes) {
+  const Eigen::Vector3d center_a(0.0, 1.0, 0.0), half_a(0.15, 0.1, 0.12);
+  const Eigen::Vector3d center_b(0.12, 1.05, 0.04), half_b(0.08, 0.12, 0.1);
+  const TestMesh a = test::TessellatedBox(center_a, half_a, Eigen::Vector3i(9, 6, 7));
+  const TestMesh b = test::TessellatedBox(center_b, half_b, Eigen::Vector3i(5, 7, 6));
+  TestMesh both;
+  both.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
+  both.vertices << a.vertices, b.vertices;
+  both.triangles = a.triangles;
+  for (const Eigen::Vector3i& t : b.triangles) {
+    both.triangles.push_back(t + Eigen::Vector3i::Constant(static_cast<int>(a.vertices.rows())));
+  }
+  // Particles from 4 cm inside either box (within max_penetration, so the search reaches
+  // both boxes' surfaces) to 5 cm outside the union, near faces, edges and corners alike,
+  // moving at up to 1 m/s.
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> across(-0.25, 0.28), speed(-1.0, 1.0);
+  const int n = 3000;
+  Points x(n, 3), v(n, 3);
+  std::vector<BoxContact> truth;
+  for (int i = 0; i < n;) {
+    const Eigen::Vector3d p = Eigen::Vector3d(0.0, 1.02, 0.02) +
+                              Eigen::Vector3d(across(rng), across(rng), across(rng));
+    const BoxContact in_a = ClosedFormBoxContact(p, center_a, half_a);
+    const BoxContact in_b = ClosedFormBoxContact(p, center_b, half_b);
+    if (in_a.distance < -0.04 || in_b.distance < -0.04) continue;
+    const BoxContact& nearest = in_a.distance < in_b.distance ? in_a : in_b;
+    if (nearest.distance > 0.05) continue;
+    x.row(i) = p.transpose();
+    v.row(i) = Eigen::Vector3d(speed(rng), speed(rng), speed(rng)).transpose();
+    truth.push_back(nearest);
+    ++i;
+  }
+  BodyCollisionSettings settings;
+  const double margin = 0.003;
+  for (bool adaptive : {true, false}) {
+    MeshCollisionOptions options;
+    options.adaptive = adaptive;
+    MeshCollider collider(RigidAvatar(both), settings, options);
+    collider.Update(kJoints, both.vertices, kH);  // at rest
+    std::vector<Contact> contacts;
+    collider.FindContacts(x, v, kH, margin, contacts);
+    std::size_t k = 0;
+    int num_inside = 0;
+    for (int i = 0; i < n; ++i) {
+      const double d = truth[i].distance;
+      const Eigen::Vector3d& normal = truth[i].normal;
+      num_inside += d < 0.0 ? 1 : 0;
+      const bool expected =
+          d < settings.thickness ||
+          d + kH * v.row(i).dot(normal) <= settings.thickness + margin;
+      const bool got = k < contacts.size() && contacts[k].particle == i;
+      ASSERT_EQ(got, expected) << "particle " << i << " at distance " << d;
+      if (!got) continue;
+      EXPECT_LT((contacts[k].normal - normal).norm(), 1e-9) << i;
+      EXPECT_NEAR(contacts[k].target_normal_velocity, (settings.thickness - d) / kH, 1e-7) << i;
+      ++k;
+    }
+    EXPECT_EQ(k, contacts.size());
+    EXPECT_GT(num_inside, 300);
+    // The correction moves each particle inside the shell by thickness − d along its normal.
+    Points moved = x, moved_v = Points::Zero(n, 3);
+    double deepest = 0.0;
+    for (int i = 0; i < n; ++i) deepest = std::max(deepest, settings.thickness - truth[i].distance);
+    EXPECT_NEAR(collider.ProjectOut(moved, moved_v), deepest, 1e-12);
+    for (int i = 0; i < n; ++i) {
+      const double lift = std::max(settings.thickness - truth[i].distance, 0.0);
+      const Eigen::Vector3d want = x.row(i).transpose() + lift * truth[i].normal;
+      EXPECT_LT((moved.row(i).transpose() - want).norm(), 1e-9) << i;
+    }
+  }
+}
+
+// The remembered bounds skip pieces the particle's and the body's motion cannot have
+// brought near enough to matter: over a moving, deforming body of three closed pieces and
+// particles moving through its shell, the contacts and corrections are those of searching
+// every piece every time.
+TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
+  const TestMesh a = test::TessellatedBox(Eigen::Vector3d(0.0, 1.0, 0.0),
+                                          Eigen::Vector3d(0.15, 0.1, 0.12), Eigen::Vector3i(9, 6, 7));
+  const TestMesh b = test::TessellatedBox(Eigen::Vector3d(0.12, 1.05, 0.04),
+                                          Eigen::Vector3d(0.08, 0.12, 0.1), Eigen::Vector3i(5, 7, 6));
+  const TestMesh c = test::CubeSphere(Eigen::Vector3d(-0.2, 0.95, 0.05), 0.09, 6);
+  TestMesh body;
+  body.vertices.resize(a.vertices.rows() + b.vertices.rows() + c.vertices.rows(), 3);
+  body.vertices << a.vertices, b.vertices, c.vertices;
+  body.triangles = a.triangles;
+  int offset = static_cast<int>(a.vertices.rows());
+  for (const TestMesh* piece : {&b, &c}) {
+    for (const Eigen::Vector3i& t : piece->triangles) {
+      body.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+    }
+    offset += static_cast<int>(piece->vertices.rows());
+  }
+  MeshCollisionOptions reuse, full;
+  full.reuse_bounds = false;
+  BodyCollisionSettings settings;
+  MeshCollider remembering(RigidAvatar(body), settings, reuse);
+  MeshCollider searching(RigidAvatar(body), settings, full);
+  // Particles around the body, from inside it to 8 cm out, each on its own straight path.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> across(-0.35, 0.3), speed(-0.6, 0.6);
+  const int n = 1500;
+  Points x(n, 3), v(n, 3);
+  for (int i = 0; i < n; ++i) {
+    x.row(i) = Eigen::RowVector3d(across(rng), 1.0 + across(rng) * 0.6, across(rng) * 0.7);
+    v.row(i) = Eigen::RowVector3d(speed(rng), speed(rng), speed(rng));
+  }
+  long long tests_remembering = 0, tests_searching = 0;
+  int num_contacts = 0;
+  for (int step = 0; step < 40; ++step) {
+    // The body sways, turns and breathes: each piece moves, no piece passes through itself.
+    const double t = step * kH;
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(0.8 * std::sin(3.0 * t), Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const double scale = 1.0 + 0.05 * std::sin(5.0 * t);
+    const Eigen::Vector3d shift(0.1 * std::sin(4.0 * t), 0.02 * std::cos(6.0 * t), 0.0);
+    Points pose = body.vertices;
+    for (Eigen::Index k = 0; k < pose.rows(); ++k) {
+      const Eigen::Vector3d rest = body.vertices.row(k).transpose() - Eigen::Vector3d(0, 1, 0);
+      pose.row(k) = (scale * (turn * rest) + Eigen::Vector3d(0, 1, 0) + shift).transpose();
+    }
+    std::vector<Contact> got, want;
+    for (MeshCollider* collider : {&remembering, &searching}) collider->Update(kJoints, pose, kH);
+    remembering.FindContacts(x, v, kH, 0.003, got);
+    searching.FindContacts(x, v, kH, 0.003, want);
+    tests_remembering += remembering.stats().num_tests;
+    tests_searching += searching.stats().num_tests;
+    ASSERT_EQ(got.size(), want.size()) << "step " << step;
+    for (std::size_t k = 0; k < got.size(); ++k) {
+      ASSERT_EQ(got[k].particle, want[k].particle) << "step " << step;
+      EXPECT_LT((got[k].normal - want[k].normal).norm(), 1e-9);
+      EXPECT_NEAR(got[k].target_normal_velocity, want[k].target_normal_velocity, 1e-7);
+    }
+    num_contacts += static_cast<int>(got.size());
+    // The particles move on (some into the body), then both correct them.
+    x += kH * v;
+    Points x_got = x, v_got = v, x_want = x, v_want = v;
+    EXPECT_EQ(remembering.ProjectOut(x_got, v_got), searching.ProjectOut(x_want, v_want));
+    EXPECT_LT((x_got - x_want).cwiseAbs().maxCoeff(), 1e-12) << "step " << step;
+    EXPECT_LT((v_got - v_want).cwiseAbs().maxCoeff(), 1e-12) << "step " << step;
+    // Bounce off the box enclosing the scene so that particles keep crossing the shell.
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(x(i, k) - (k == 1 ? 1.0 : 0.0)) > 0.35) v(i, k) = -v(i, k);
+      }
+    }
+  }
+  EXPECT_GT(num_contacts, 2000);
+  // The memory saves work (it is not a search of everything every time).
+  EXPECT_LT(10 * tests_remembering, 7 * tests_searching);
+  std::printf("moving body: tests %lld remembering / %lld searching everything\n",
+              tests_remembering, tests_searching);
+}
+
+TEST(MeshCollider, ABodyOfManyPiecesGoesWithoutMemoryAndFindsTheSameContacts) {
+  // 80 small closed boxes in a row (more pieces than the memory serves), a particle 2 mm
+  // above the middle of each top: each is in contact, with normal +y, twice in a row.
+  TestMesh body;
+  const int n = 80;
+  const Eigen::Vector3d half(0.01, 0.01, 0.01);
+  std::vector<Eigen::Vector3d> centers;
+  for (int k = 0; k < n; ++k) {
+    centers.emplace_back(0.05 * k, 1.0, 0.0);
+    const TestMesh box = test::TessellatedBox(centers.back(), half, Eigen::Vector3i(1, 1, 1));
+    const int offset = static_cast<int>(body.vertices.rows());
+    body.vertices.conservativeResize(offset + box.vertices.rows(), 3);
+    body.vertices.bottomRows(box.vertices.rows()) = box.vertices;
+    for (const Eigen::Vector3i& t : box.triangles) {
+      body.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+    }
+  }
+  MeshCollider collider(RigidAvatar(body), BodyCollisionSettings{});
+  collider.Update(kJoints, body.vertices, kH);
+  Points x(n, 3), v = Points::Zero(n, 3);
+  for (int k = 0; k < n; ++k) x.row(k) = (centers[k] + Eigen::Vector3d(0.003, 0.012, -0.002)).transpose();
+  for (int call = 0; call < 2; ++call) {
+    std::vector<Contact> contacts;
+    collider.FindContacts(x, v, kH, 0.003, contacts);
+    ASSERT_EQ(contacts.size(), static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) {
+      EXPECT_EQ(contacts[k].particle, k);
+      EXPECT_LT((contacts[k].normal - Eigen::Vector3d::UnitY()).norm(), 1e-12);
+      EXPECT_NEAR(contacts[k].target_normal_velocity, (0.004 - 0.002) / kH, 1e-9);
+    }
+  }
+}
+
 TEST(MeshCollider, UpdateFindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   const TestMesh sphere = test::CubeSphere(kCenter, 0.25, 8);
   MeshCollider collider(RigidAvatar(sphere), BodyCollisionSettings{});
