@@ -17,17 +17,19 @@ Eigen::Quaterniond About(const Eigen::Vector3d& axis, double angle) {
 }
 
 /// root at `root` → a 1 m along x → b 1 m along x (identity rest rotations unless given).
+// GCC 12 at -O3 warns that assigning a one-letter literal to a std::string may overlap
+// (-Wrestrict, a false positive: GCC bug 105329); giving the names as strings avoids it.
 std::shared_ptr<const Skeleton> Chain(
     const Eigen::Vector3d& root, const Eigen::Quaterniond& a_rest = Eigen::Quaterniond::Identity(),
     const Eigen::Vector3d& b_offset = Eigen::Vector3d::UnitX()) {
   std::vector<Joint> joints(3);
-  joints[0].name = "root";
+  joints[0].name = std::string("root");
   joints[0].rest_local.translation() = root;
-  joints[1].name = "a";
+  joints[1].name = std::string("a");
   joints[1].parent = 0;
   joints[1].rest_local.translation() = Eigen::Vector3d::UnitX();
   joints[1].rest_local.linear() = a_rest.toRotationMatrix();
-  joints[2].name = "b";
+  joints[2].name = std::string("b");
   joints[2].parent = 1;
   joints[2].rest_local.translation() = b_offset;
   return Skeleton::Create("chain", joints);

@@ -72,7 +72,9 @@ TEST(BuildLatticePanel, TotalMassAndStiffnessesAreIndependentOfSampling) {
     EXPECT_NEAR(data.masses.sum(), 0.3, 1e-12);  // 0.3 kg/m² × 1 m²
     for (const Spring& s : data.springs) {
       const double k = s.kind == SpringKind::kBending ? 2e-5 / (h * h) : 800.0;
-      if (s.kind != SpringKind::kShear) EXPECT_NEAR(s.stiffness, k, 1e-9 * k);
+      if (s.kind != SpringKind::kShear) {
+        EXPECT_NEAR(s.stiffness, k, 1e-9 * k);
+      }
       EXPECT_NEAR(s.damping, 2e-3 * s.stiffness, 1e-12 * s.stiffness);
     }
   }
