@@ -41,11 +41,8 @@ void ValidateOptions(const SuperquadricColliderOptions& options, const std::stri
     throw InputError(where + ": min_vertices_per_segment " +
                      std::to_string(options.min_vertices_per_segment) + " (allowed: >= 11)");
   }
-  if (options.map_eta_intervals < 4 || options.map_omega_intervals < 4) {
-    throw InputError(where + ": distance map intervals " +
-                     std::to_string(options.map_eta_intervals) + "×" +
-                     std::to_string(options.map_omega_intervals) + " (allowed: >= 4 each)");
-  }
+  // Below 2 mm a torso's map would hold hundreds of thousands of nodes.
+  RequireInRange(where + ": map_spacing", options.map_spacing, 0.002, 0.2, "m");
 }
 
 std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const SegmentGroups& groups,
@@ -70,232 +67,374 @@ std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const Segmen
   return fits;
 }
 
-// ---- distance map ---------------------------------------------------------------------------
+// ---- distance map: a cube map of rays ------------------------------------------------------
 
-/// A skin triangle in superquadric coordinates with the cone of ray directions it can meet.
-struct RayTriangle {
-  Eigen::Vector3d v0, e1, e2;
-  Eigen::Vector3i vertices{-1, -1, -1};  // the avatar's vertex indices
-  Eigen::Vector3d axis;  // unit centroid direction
-  double cone_cos = -1;  // rays with direction·axis below this miss the triangle
-};
-
-RayTriangle MakeRayTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                            const Eigen::Vector3d& c) {
-  RayTriangle t{a, b - a, c - a, Eigen::Vector3i::Constant(-1), (a + b + c).normalized(), -1.0};
-  if (a.norm() > 0 && b.norm() > 0 && c.norm() > 0 && (a + b + c).norm() > 0) {
-    // The triangle's directions lie in the spherical hull of its corners' directions, which
-    // the cap about the centroid direction through the farthest corner contains when that
-    // cap is smaller than a hemisphere.
-    const double cone = std::min(
-        {t.axis.dot(a.normalized()), t.axis.dot(b.normalized()), t.axis.dot(c.normalized())});
-    t.cone_cos = cone > 0.0 ? cone - 1e-9 : -1.0;
-  }
-  return t;
+/// The face of the box [−1, 1]³ through which the ray from the origin through the scaled
+/// point `p` = (x/a1, y/a2, z/a3) leaves, and the in-face coordinates s = p_j/|p_i|,
+/// t = p_k/|p_i| ∈ [−1, 1] (i the face's axis, j = (i+1)%3, k = (i+2)%3). False at the
+/// origin, which has no ray.
+bool LocateOnBox(const Eigen::Vector3d& p, int& face, double& s, double& t) {
+  const double ax = std::abs(p.x()), ay = std::abs(p.y()), az = std::abs(p.z());
+  const int i = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+  const double w = i == 0 ? ax : (i == 1 ? ay : az);
+  if (!(w > 0.0)) return false;
+  face = 2 * i + (p[i] < 0.0 ? 1 : 0);
+  s = p[(i + 1) % 3] / w;
+  t = p[(i + 2) % 3] / w;
+  return true;
 }
 
-/// Möller–Trumbore from the origin along `d`: distance t > 0 of the hit, or −1; the hit's
-/// barycentric coordinates (u, v) of e1 and e2 in `uv`.
-double RayHit(const RayTriangle& tri, const Eigen::Vector3d& d, Eigen::Vector2d* uv = nullptr) {
-  const Eigen::Vector3d p = d.cross(tri.e2);
-  const double det = tri.e1.dot(p);
-  if (std::abs(det) < 1e-300) return -1.0;
-  const Eigen::Vector3d s = -tri.v0;
-  const double u = s.dot(p) / det;
-  if (u < 0.0 || u > 1.0) return -1.0;
-  const Eigen::Vector3d q = s.cross(tri.e1);
-  const double v = d.dot(q) / det;
-  if (v < 0.0 || u + v > 1.0) return -1.0;
-  const double t = tri.e2.dot(q) / det;
-  if (uv) *uv = Eigen::Vector2d(u, v);
-  return t > 0.0 ? t : -1.0;
-}
-
-int NodeIndex(const SkinDistanceMap& map, int j, int k) { return j * map.num_omega + k; }
-
-/// Gives nodes whose ray missed the skin the mean of their filled neighbours, ring by ring.
-void FillMissedNodes(SkinDistanceMap& map, std::vector<char>& known) {
-  const int rows = map.num_eta + 1;
-  for (bool changed = true; changed;) {
-    changed = false;
-    std::vector<char> next = known;
-    for (int j = 0; j < rows; ++j) {
-      for (int k = 0; k < map.num_omega; ++k) {
-        const int node = NodeIndex(map, j, k);
-        if (known[node]) continue;
-        double offset = 0.0;
-        Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-        int count = 0;
-        const int neighbours[4][2] = {{j - 1, k}, {j + 1, k}, {j, k - 1}, {j, k + 1}};
-        for (const auto& [nj, nk] : neighbours) {
-          if (nj < 0 || nj >= rows) continue;
-          const int other = NodeIndex(map, nj, (nk + map.num_omega) % map.num_omega);
-          if (!known[other]) continue;
-          offset += map.skin_offset[other];
-          normal += map.skin_normal[other];
-          ++count;
-        }
-        if (count == 0) continue;
-        map.skin_offset[node] = offset / count;
-        map.skin_normal[node] = normal.norm() > 0 ? normal.normalized() : Eigen::Vector3d::UnitZ();
-        next[node] = 1;
-        changed = true;
-      }
-    }
-    known.swap(next);
-  }
-}
-
-/// Casts every node's ray against `triangles` (superquadric frame); the outermost hit is the
-/// skin, so the shell holds everything the ray crosses.
-SkinDistanceMap BuildMap(const Superquadric& sq, const std::vector<RayTriangle>& triangles,
-                         int num_eta, int num_omega) {
+/// The node grid on the bounding box's faces: rays, the superquadric's radius along each,
+/// the faces' node tables and the node adjacency. The skin fields start on the
+/// superquadric itself.
+SkinDistanceMap MakeMapGrid(const Superquadric& sq, double spacing) {
   SkinDistanceMap map;
-  map.num_eta = num_eta;
-  map.num_omega = num_omega;
-  const int num_nodes = (num_eta + 1) * num_omega;
-  map.skin_offset.assign(num_nodes, 0.0);
-  map.skin_normal.assign(num_nodes, Eigen::Vector3d::UnitZ());
-  map.hit_vertices.assign(num_nodes, Eigen::Vector3i::Constant(-1));
-  map.hit_weights.assign(num_nodes, Eigen::Vector3d::Zero());
-  map.ray.assign(num_nodes, Eigen::Vector3d::UnitZ());
-  map.surface_radius.assign(num_nodes, 0.0);
-  std::vector<char> known(num_nodes, 0);
-  for (int j = 0; j <= num_eta; ++j) {
-    for (int k = 0; k < num_omega; ++k) {
-      const Eigen::Vector3d surface =
-          ParametricSurfacePoint(sq, -kPi / 2 + j * kPi / num_eta, -kPi + k * 2 * kPi / num_omega);
-      const Eigen::Vector3d d = surface.normalized();
-      const int node = NodeIndex(map, j, k);
-      map.ray[node] = d;
-      map.surface_radius[node] = surface.norm();
-      double farthest = -1.0;
-      const RayTriangle* hit = nullptr;
-      Eigen::Vector2d uv, hit_uv;
-      for (const RayTriangle& tri : triangles) {
-        if (d.dot(tri.axis) < tri.cone_cos) continue;
-        const double t = RayHit(tri, d, &uv);
-        if (t > farthest) {
-          farthest = t;
-          hit = &tri;
-          hit_uv = uv;
+  const Eigen::Vector3d size(sq.a1, sq.a2, sq.a3);
+  const auto& n = map.intervals;
+  for (int a = 0; a < 3; ++a) {
+    map.intervals[a] = std::max(2, static_cast<int>(std::ceil(2.0 * size[a] / spacing)));
+  }
+  // Nodes are the lattice points on the boundary of [0, n0]×[0, n1]×[0, n2], so faces
+  // share their edge and corner nodes.
+  std::vector<int> lattice((n[0] + 1) * (n[1] + 1) * (n[2] + 1), -1);
+  for (int f = 0; f < 6; ++f) {
+    const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
+    std::vector<int>& table = map.face_nodes[f];
+    table.resize((n[j] + 1) * (n[k] + 1));
+    for (int u = 0; u <= n[j]; ++u) {
+      for (int v = 0; v <= n[k]; ++v) {
+        std::array<int, 3> g{};
+        g[i] = f % 2 == 0 ? n[i] : 0;
+        g[j] = u;
+        g[k] = v;
+        int& node = lattice[(g[0] * (n[1] + 1) + g[1]) * (n[2] + 1) + g[2]];
+        if (node < 0) {
+          node = map.num_nodes();
+          Eigen::Vector3d box;
+          for (int a = 0; a < 3; ++a) box[a] = size[a] * (-1.0 + 2.0 * g[a] / n[a]);
+          map.ray.push_back(box.normalized());
+          map.surface_radius.push_back(box.norm() *
+                                       std::pow(InsideOutside(sq, box), -0.5 * sq.e1));
         }
+        table[u * (n[k] + 1) + v] = node;
       }
-      if (!hit) continue;
-      map.hit_vertices[node] = hit->vertices;
-      map.hit_weights[node] = Eigen::Vector3d(1.0 - hit_uv.x() - hit_uv.y(), hit_uv.x(), hit_uv.y());
-      map.skin_offset[node] = farthest - surface.norm();
-      // Outward: the side the ray leaves through (winding is not trusted).
-      const Eigen::Vector3d normal = hit->e1.cross(hit->e2).normalized();
-      map.skin_normal[node] = normal.dot(d) >= 0.0 ? normal : Eigen::Vector3d(-normal);
-      known[node] = 1;
     }
   }
-  map.num_filled_nodes = num_nodes - static_cast<int>(std::count(known.begin(), known.end(), 1));
-  if (map.num_filled_nodes < num_nodes) FillMissedNodes(map, known);
+  std::vector<std::vector<int>> adjacent(map.num_nodes());
+  for (int f = 0; f < 6; ++f) {
+    const int i = f / 2, nj = n[(i + 1) % 3], nk = n[(i + 2) % 3];
+    const auto at = [&](int u, int v) { return map.face_nodes[f][u * (nk + 1) + v]; };
+    for (int u = 0; u <= nj; ++u) {
+      for (int v = 0; v <= nk; ++v) {
+        std::vector<int>& list = adjacent[at(u, v)];
+        const int steps[4][2] = {{u - 1, v}, {u + 1, v}, {u, v - 1}, {u, v + 1}};
+        for (const auto& [su, sv] : steps) {
+          if (su < 0 || su > nj || sv < 0 || sv > nk) continue;
+          if (std::find(list.begin(), list.end(), at(su, sv)) == list.end()) {
+            list.push_back(at(su, sv));
+          }
+        }
+      }
+    }
+  }
+  map.neighbour_start.push_back(0);
+  for (const std::vector<int>& list : adjacent) {
+    map.neighbours.insert(map.neighbours.end(), list.begin(), list.end());
+    map.neighbour_start.push_back(static_cast<int>(map.neighbours.size()));
+  }
+  map.skin_radius = map.surface_radius;
+  map.skin_normal = map.ray;
   return map;
 }
 
-/// Bilinear interpolation of the map at parametric angles (eta, omega).
-void LookUp(const SkinDistanceMap& map, const Eigen::Vector2d& angles, double& offset,
-            Eigen::Vector3d& normal) {
-  const double fe =
-      std::clamp((angles[0] + kPi / 2) / kPi * map.num_eta, 0.0, static_cast<double>(map.num_eta));
-  const int j = std::min(static_cast<int>(fe), map.num_eta - 1);
-  const double te = fe - j;
-  const double fo = (angles[1] + kPi) / (2 * kPi) * map.num_omega;
-  const int k_floor = static_cast<int>(std::floor(fo));
-  const double to = std::clamp(fo - k_floor, 0.0, 1.0);
-  const int k0 = ((k_floor % map.num_omega) + map.num_omega) % map.num_omega;
-  const int k1 = (k0 + 1) % map.num_omega;
-  const int n00 = NodeIndex(map, j, k0), n01 = NodeIndex(map, j, k1);
-  const int n10 = NodeIndex(map, j + 1, k0), n11 = NodeIndex(map, j + 1, k1);
-  const double w00 = (1 - te) * (1 - to), w01 = (1 - te) * to, w10 = te * (1 - to), w11 = te * to;
-  const auto& o = map.skin_offset;
-  offset = w00 * o[n00] + w01 * o[n01] + w10 * o[n10] + w11 * o[n11];
-  const auto& n = map.skin_normal;
-  normal = w00 * n[n00] + w01 * n[n01] + w10 * n[n10] + w11 * n[n11];
+/// Bilinear read of the map on the ray through `q` (superquadric frame, q ≠ 0): the skin's
+/// radius [m] and its (unnormalised) normal.
+void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
+            const Eigen::Vector3d& q, double& radius, Eigen::Vector3d& normal) {
+  int face = 0;
+  double s = 0.0, t = 0.0;
+  if (!LocateOnBox(q.cwiseProduct(inverse_size), face, s, t)) {
+    LocateOnBox(Eigen::Vector3d::UnitZ(), face, s, t);
+  }
+  const int i = face / 2, nj = map.intervals[(i + 1) % 3], nk = map.intervals[(i + 2) % 3];
+  const double fu = 0.5 * (s + 1.0) * nj, fv = 0.5 * (t + 1.0) * nk;
+  const int u = std::clamp(static_cast<int>(fu), 0, nj - 1);
+  const int v = std::clamp(static_cast<int>(fv), 0, nk - 1);
+  const double wu = fu - u, wv = fv - v;
+  const int* row = map.face_nodes[face].data() + u * (nk + 1) + v;
+  const int n00 = row[0], n01 = row[1], n10 = row[nk + 1], n11 = row[nk + 2];
+  const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
+  const auto& r = map.skin_radius;
+  radius = w00 * r[n00] + w01 * r[n01] + w10 * r[n10] + w11 * r[n11];
+  const auto& m = map.skin_normal;
+  normal = w00 * m[n00] + w01 * m[n01] + w10 * m[n10] + w11 * m[n11];
 }
 
-SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadricFit& fit,
-                                 const std::vector<int>& group,
-                                 const SuperquadricColliderOptions& options, double thickness) {
+/// Draws one skin triangle (corners in the superquadric frame) into the map: every node
+/// whose ray crosses it keeps the farther of its current hit and this one. The triangle's
+/// rays on a face are those of its central projection onto the face's plane, a triangle
+/// whose bounding box gives the candidate nodes; a triangle reaching behind the face's
+/// plane projects to an unbounded region, which stretches the box to the face's edges.
+void DrawTriangle(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
+                  const Eigen::Vector3d (&corner)[3], int triangle, SegmentSkin& skin) {
+  const Eigen::Vector3d normal = (corner[1] - corner[0]).cross(corner[2] - corner[0]);
+  const double plane = normal.dot(corner[0]);  // the triple product of the corners
+  // A triangle whose plane passes through the centre is seen edge on: no ray crosses it
+  // at a single point, and its neighbours on the skin hold the rays around it.
+  if (std::abs(plane) <= 1e-12 * normal.norm() * corner[0].norm()) return;
+  const double orientation = plane > 0.0 ? 1.0 : -1.0;
+  const Eigen::Vector3d edge_planes[3] = {orientation * corner[0].cross(corner[1]),
+                                          orientation * corner[1].cross(corner[2]),
+                                          orientation * corner[2].cross(corner[0])};
+  const Eigen::Vector3d p[3] = {corner[0].cwiseProduct(inverse_size),
+                                corner[1].cwiseProduct(inverse_size),
+                                corner[2].cwiseProduct(inverse_size)};
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < 6; ++f) {
+    const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
+    const double sign = f % 2 == 0 ? 1.0 : -1.0;
+    const double w[3] = {sign * p[0][i], sign * p[1][i], sign * p[2][i]};
+    if (w[0] <= 0.0 && w[1] <= 0.0 && w[2] <= 0.0) continue;
+    double s_lo = kInf, s_hi = -kInf, t_lo = kInf, t_hi = -kInf;
+    for (int c = 0; c < 3; ++c) {
+      if (w[c] > 0.0) {
+        const double s = p[c][j] / w[c], t = p[c][k] / w[c];
+        s_lo = std::min(s_lo, s), s_hi = std::max(s_hi, s);
+        t_lo = std::min(t_lo, t), t_hi = std::max(t_hi, t);
+      }
+      const int d = (c + 1) % 3;
+      if ((w[c] > 0.0) == (w[d] > 0.0)) continue;
+      // The edge crosses the face's plane through the centre: its projection runs off to
+      // infinity in the direction of the crossing point's in-face coordinates.
+      const double lambda = w[c] / (w[c] - w[d]);
+      const Eigen::Vector3d crossing = p[c] + lambda * (p[d] - p[c]);
+      if (crossing[j] > 0.0) s_hi = kInf;
+      if (crossing[j] < 0.0) s_lo = -kInf;
+      if (crossing[k] > 0.0) t_hi = kInf;
+      if (crossing[k] < 0.0) t_lo = -kInf;
+    }
+    if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
+    const int nj = map.intervals[j], nk = map.intervals[k];
+    const int u_lo = std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(s_lo, -1.0) + 1.0) * nj - 1e-9)));
+    const int u_hi = std::min(nj, static_cast<int>(std::floor(0.5 * (std::min(s_hi, 1.0) + 1.0) * nj + 1e-9)));
+    const int v_lo = std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(t_lo, -1.0) + 1.0) * nk - 1e-9)));
+    const int v_hi = std::min(nk, static_cast<int>(std::floor(0.5 * (std::min(t_hi, 1.0) + 1.0) * nk + 1e-9)));
+    const std::vector<int>& table = map.face_nodes[f];
+    for (int u = u_lo; u <= u_hi; ++u) {
+      for (int v = v_lo; v <= v_hi; ++v) {
+        const int node = table[u * (nk + 1) + v];
+        const Eigen::Vector3d& d = map.ray[node];
+        // Inside the triangle's cone of rays: on the inner side of its three edge planes.
+        // Shared edges are tested with opposite signs by their two triangles, so a ray
+        // along an edge is taken by both and none falls between.
+        if (edge_planes[0].dot(d) < 0.0 || edge_planes[1].dot(d) < 0.0 ||
+            edge_planes[2].dot(d) < 0.0) {
+          continue;
+        }
+        const double radius = plane / normal.dot(d);
+        if (radius > skin.hit_radius[node]) {
+          skin.hit_radius[node] = radius;
+          skin.hit_triangle[node] = triangle;
+        }
+      }
+    }
+  }
+}
+
+/// Gives the nodes no triangle reached the superquadric's shape raised by the mean offset
+/// of their reached (or already filled) neighbours, ring by ring outwards (breadth first).
+/// Returns how many nodes were filled.
+int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin) {
+  constexpr char kUnknown = 0, kKnown = 1, kQueued = 2;
+  std::vector<char>& state = skin.state;
+  std::vector<int>& queue = skin.queue;
+  queue.clear();
+  const int num_nodes = map.num_nodes();
+  for (int node = 0; node < num_nodes; ++node) {
+    state[node] = skin.hit_radius[node] > 0.0 ? kKnown : kUnknown;
+  }
+  for (int node = 0; node < num_nodes; ++node) {
+    if (state[node] != kUnknown) continue;
+    for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
+      if (state[map.neighbours[e]] == kKnown) {
+        state[node] = kQueued;
+        queue.push_back(node);  // capacity reserved for every node: no allocation
+        break;
+      }
+    }
+  }
+  if (queue.empty() && num_nodes > 0 && state[0] == kUnknown) {
+    // Nothing reached at all: the superquadric itself.
+    map.skin_radius = map.surface_radius;
+    map.skin_normal = map.ray;
+    return num_nodes;
+  }
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const int node = queue[head];
+    double offset = 0.0;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    int count = 0;
+    for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
+      const int other = map.neighbours[e];
+      if (state[other] == kKnown) {
+        offset += map.skin_offset(other);
+        normal += map.skin_normal[other];
+        ++count;
+      } else if (state[other] == kUnknown) {
+        state[other] = kQueued;
+        queue.push_back(other);
+      }
+    }
+    map.skin_radius[node] = map.surface_radius[node] + offset / count;
+    const double length = normal.norm();
+    map.skin_normal[node] = length > 0.0 ? Eigen::Vector3d(normal / length) : map.ray[node];
+    state[node] = kKnown;
+  }
+  return static_cast<int>(queue.size());
+}
+
+/// Redraws `map` from the skin's corners in the superquadric frame (skin.local). Returns
+/// the largest skin radius [m].
+double DrawMap(SkinDistanceMap& map, const Eigen::Vector3d& inverse_size, SegmentSkin& skin) {
+  std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
+  for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
+    const Eigen::Vector3i& t = skin.triangles[tri];
+    const Eigen::Vector3d corner[3] = {skin.local[t[0]], skin.local[t[1]], skin.local[t[2]]};
+    DrawTriangle(map, inverse_size, corner, static_cast<int>(tri), skin);
+  }
+  double largest = 0.0;
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    if (skin.hit_radius[node] <= 0.0) continue;
+    const Eigen::Vector3i& t = skin.triangles[skin.hit_triangle[node]];
+    const Eigen::Vector3d& a = skin.local[t[0]];
+    const Eigen::Vector3d normal = (skin.local[t[1]] - a).cross(skin.local[t[2]] - a).normalized();
+    // Outward: the side the ray leaves through (winding is not trusted).
+    map.skin_normal[node] = normal.dot(map.ray[node]) >= 0.0 ? normal : Eigen::Vector3d(-normal);
+    map.skin_radius[node] = skin.hit_radius[node];
+  }
+  map.num_filled_nodes = FillMissedNodes(map, skin);
+  for (double r : map.skin_radius) largest = std::max(largest, r);
+  return largest;
+}
+
+/// Per H-Anim joint the index of the segment whose map its vertices are drawn into: its
+/// own when fitted, else its nearest fitted ancestor's (−1: none).
+std::array<int, kNumHAnimJoints> MapOwners(const std::vector<SuperquadricSegment>& segments) {
+  std::array<int, kNumHAnimJoints> owner;
+  owner.fill(-1);
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    owner[static_cast<int>(segments[s].segment)] = static_cast<int>(s);
+  }
+  for (HAnimJoint joint : AllHAnimJoints()) {  // parents first
+    const std::optional<HAnimJoint> parent = HAnimParent(joint);
+    int& own = owner[static_cast<int>(joint)];
+    if (own < 0 && parent) own = owner[static_cast<int>(*parent)];
+  }
+  return owner;
+}
+
+/// A triangle is drawn into the map of every candidate segment whose centre sees its
+/// outside at least this squarely (cosine between its normal and the ray to it) [-], and
+/// always into that of the one that sees it most squarely.
+constexpr double kSharedViewCosine = 0.5;
+
+/// The candidate segments of a triangle: those its corners belong to and their H-Anim
+/// parents and children (segment indices, each once).
+int Candidates(const std::array<int, kNumHAnimJoints>& owner,
+               const std::vector<SuperquadricSegment>& segments, const int (&mine)[3],
+               std::array<int, 3 * kNumHAnimJoints>& out) {
+  int count = 0;
+  const auto add = [&](int s) {
+    if (s >= 0 && std::find(out.begin(), out.begin() + count, s) == out.begin() + count) {
+      out[count++] = s;
+    }
+  };
+  for (int c = 0; c < 3; ++c) {
+    if (mine[c] < 0) continue;
+    add(mine[c]);
+    const HAnimJoint joint = segments[mine[c]].segment;
+    if (const std::optional<HAnimJoint> parent = HAnimParent(joint)) {
+      add(owner[static_cast<int>(*parent)]);
+    }
+    for (HAnimJoint child : AllHAnimJoints()) {
+      if (HAnimParent(child) == joint) add(owner[static_cast<int>(child)]);
+    }
+  }
+  return count;
+}
+
+/// Gives every skin triangle to the maps of the segments that see it from outside in the
+/// rest pose, among those of its corners and their neighbours: the skinning weights alone
+/// would give the underside of the pelvis to the thighs, whose centres below see it from
+/// inside, and leave it out of every shell.
+void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments) {
+  const std::array<int, kNumHAnimJoints> owner = MapOwners(segments);
+  const auto& of = avatar.vertex_segments();
+  const Points& rest = avatar.rest_vertices();
+  std::vector<Eigen::Vector3d> centres;
+  for (const SuperquadricSegment& segment : segments) {
+    centres.push_back(avatar.skeleton().rest_world()[segment.joint] *
+                      segment.superquadric.frame.translation());
+  }
+  std::vector<std::vector<int>> local(segments.size());
+  std::array<int, 3 * kNumHAnimJoints> candidates;
+  for (const Eigen::Vector3i& tri : avatar.triangles()) {
+    int mine[3];
+    for (int c = 0; c < 3; ++c) mine[c] = of[tri[c]] ? owner[static_cast<int>(*of[tri[c]])] : -1;
+    const int count = Candidates(owner, segments, mine, candidates);
+    const Eigen::Vector3d a = rest.row(tri[0]), b = rest.row(tri[1]), c = rest.row(tri[2]);
+    const Eigen::Vector3d normal = (b - a).cross(c - a).normalized();
+    const Eigen::Vector3d centroid = (a + b + c) / 3.0;
+    double cosines[3 * kNumHAnimJoints];
+    double best = -2.0;
+    for (int k = 0; k < count; ++k) {
+      cosines[k] = normal.dot((centroid - centres[candidates[k]]).normalized());
+      best = std::max(best, cosines[k]);
+    }
+    for (int k = 0; k < count; ++k) {
+      if (cosines[k] < best && cosines[k] < kSharedViewCosine) continue;
+      const int s = candidates[k];
+      SegmentSkin& skin = segments[s].skin;
+      if (local[s].empty()) local[s].assign(avatar.num_vertices(), -1);
+      Eigen::Vector3i corners;
+      for (int m = 0; m < 3; ++m) {
+        int& index = local[s][tri[m]];
+        if (index < 0) {
+          index = static_cast<int>(skin.vertices.size());
+          skin.vertices.push_back(tri[m]);
+        }
+        corners[m] = index;
+      }
+      skin.triangles.push_back(corners);
+    }
+  }
+  for (SuperquadricSegment& segment : segments) {
+    SegmentSkin& skin = segment.skin;
+    const int nodes = segment.map.num_nodes();
+    skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+    skin.hit_radius.assign(nodes, -1.0);
+    skin.hit_triangle.assign(nodes, -1);
+    skin.state.assign(nodes, 0);
+    skin.queue.reserve(nodes);
+  }
+}
+
+SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit,
+                                const SuperquadricColliderOptions& options) {
   SuperquadricSegment segment;
   segment.segment = fit.segment;
   segment.joint = fit.joint;
   segment.superquadric = fit.fit.superquadric;
   segment.fit_rms = fit.fit.rms_radial_distance;
   segment.num_vertices = fit.num_vertices;
-  const Eigen::Isometry3d to_local =
-      (avatar.skeleton().rest_world()[fit.joint] * segment.superquadric.frame).inverse();
-  // Skin triangles of the segment: at least two corners in it.
-  const auto& segments = avatar.vertex_segments();
-  std::vector<RayTriangle> triangles;
-  for (const Eigen::Vector3i& tri : avatar.triangles()) {
-    int inside = 0;
-    for (int c = 0; c < 3; ++c) inside += segments[tri[c]] == fit.segment ? 1 : 0;
-    if (inside < 2) continue;
-    const auto corner = [&](int c) {
-      return Eigen::Vector3d(to_local * avatar.rest_vertices().row(tri[c]).transpose());
-    };
-    triangles.push_back(MakeRayTriangle(corner(0), corner(1), corner(2)));
-    triangles.back().vertices = tri;
-  }
-  segment.map = BuildMap(segment.superquadric, triangles, options.map_eta_intervals,
-                         options.map_omega_intervals);
-  // Bounding sphere: the superquadric lies in its box [−a, a]³ (e <= 2), the shell at most
-  // the largest offset plus thickness / smallest cosine beyond it, and every skin vertex.
+  segment.map = MakeMapGrid(segment.superquadric, options.map_spacing);
   const Superquadric& sq = segment.superquadric;
-  const double largest_offset =
-      *std::max_element(segment.map.skin_offset.begin(), segment.map.skin_offset.end());
-  double radius = Eigen::Vector3d(sq.a1, sq.a2, sq.a3).norm() + std::max(0.0, largest_offset) +
-                  thickness / kMinSkinCosine;
-  for (int v : group) {
-    radius = std::max(radius, (to_local * avatar.rest_vertices().row(v).transpose()).norm() +
-                                  thickness / kMinSkinCosine);
-  }
-  segment.bounding_radius = segment.rest_bounding_radius = radius;
-  segment.rest_max_offset = largest_offset;
+  segment.inverse_size = Eigen::Vector3d(1.0 / sq.a1, 1.0 / sq.a2, 1.0 / sq.a3);
   return segment;
 }
 
 /// Position-correction passes per particle in ProjectOut.
 constexpr int kProjectionPasses = 3;
-
-/// Which distance of the skin from a joint centre its sphere takes: low, so the sphere stays
-/// inside the skin where the cross-section is not round (the waist).
-constexpr double kJointSpherePercentile = 0.2;
-
-/// Joint spheres for every fitted segment whose parent segment is fitted too.
-std::vector<JointSphere> MakeJointSpheres(const Avatar& avatar,
-                                          const std::vector<SuperquadricSegment>& segments) {
-  std::vector<JointSphere> spheres;
-  const Skeleton& skeleton = avatar.skeleton();
-  auto fitted = [&](HAnimJoint joint) {
-    return std::any_of(segments.begin(), segments.end(),
-                       [&](const SuperquadricSegment& s) { return s.segment == joint; });
-  };
-  for (const SuperquadricSegment& segment : segments) {
-    const std::optional<HAnimJoint> parent = HAnimParent(segment.segment);
-    if (!parent || !fitted(*parent)) continue;
-    const Eigen::Isometry3d& joint = skeleton.rest_world()[segment.joint];
-    const Eigen::Vector3d centre = joint.translation();
-    const Eigen::Vector3d along =
-        (joint * segment.superquadric.frame.translation() - centre).normalized();
-    std::vector<double> distances;
-    for (int v = 0; v < avatar.num_vertices(); ++v) {
-      const Eigen::Vector3d offset = avatar.rest_vertices().row(v).transpose() - centre;
-      const double axial = offset.dot(along);
-      if (std::abs(axial) > 0.02 || offset.norm() > 0.3) continue;
-      distances.push_back((offset - axial * along).norm());
-    }
-    if (distances.size() < 8) continue;
-    const std::size_t rank = static_cast<std::size_t>(kJointSpherePercentile * distances.size());
-    std::nth_element(distances.begin(), distances.begin() + rank, distances.end());
-    spheres.push_back({segment.joint, distances[rank]});
-  }
-  return spheres;
-}
 
 }  // namespace
 
@@ -307,21 +446,17 @@ std::vector<SegmentSuperquadricFit> FitAvatarSegments(const Avatar& avatar,
 
 void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, double thickness,
                 ShellProbe& probe) {
-  const Superquadric& sq = segment.superquadric;
   const double length = q.norm();
   probe.direction = length > 0.0 ? Eigen::Vector3d(q / length) : Eigen::Vector3d::UnitZ();
-  // On the unit direction F is well scaled; r_s = F(d)^(−e1/2) by homogeneity.
-  const double surface = std::pow(InsideOutside(sq, probe.direction), -0.5 * sq.e1);
-  double offset = 0.0;
+  double radius = 0.0;
   Eigen::Vector3d skin_normal;
-  LookUp(segment.map, ParametricAngles(sq, probe.direction), offset, skin_normal);
+  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal);
   const double norm = skin_normal.norm();
   probe.skin_normal = norm > 0.0 ? Eigen::Vector3d(skin_normal / norm) : probe.direction;
   probe.cosine = std::max(probe.direction.dot(probe.skin_normal), kMinSkinCosine);
-  probe.shell_radius = surface + offset + thickness / probe.cosine;
+  probe.shell_radius = radius + thickness / probe.cosine;
   probe.radial_gap = length - probe.shell_radius;
   probe.normal_gap = probe.radial_gap * probe.cosine;
-  probe.gradient_normal = InsideOutsideGradient(sq, probe.direction).normalized();
 }
 
 // ---- the collider ---------------------------------------------------------------------------
@@ -337,26 +472,25 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   RequireNonNegative(where + ": thickness", settings.thickness, "m");
   RequireNonNegative(where + ": friction", settings.friction, "");
   ValidateOptions(options, where);
-  const SegmentGroups groups = GroupVertices(*avatar_);
-  for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, groups, options)) {
-    if (!fit.fitted) {
+  for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, GroupVertices(*avatar_), options)) {
+    if (fit.fitted) {
+      segments_.push_back(MakeSegment(fit, options));
+    } else {
       skipped_.push_back(fit.segment);
-      continue;
     }
-    segments_.push_back(BuildSegment(*avatar_, fit, groups[static_cast<int>(fit.segment)], options,
-                                     settings.thickness));
   }
+  AssignSkin(*avatar_, segments_);
   const std::size_t n = segments_.size();
   start_.resize(n);
   end_.resize(n);
+  stale_.assign(n, 0);
   motion_.assign(n, Eigen::Isometry3d::Identity());
   sweep_.assign(n, 0.0);
   active_.reserve(n);
-  spheres_ = MakeJointSpheres(*avatar_, segments_);
-  sphere_start_.assign(spheres_.size(), Eigen::Vector3d::Zero());
-  sphere_end_ = sphere_start_;
   SetPose(avatar_->skeleton().rest_world(), end_);
   start_ = end_;
+  MoveSkin(avatar_->rest_vertices());
+  RefreshAllMaps();
 }
 
 void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_world,
@@ -365,33 +499,37 @@ void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_w
     out[s].to_world = joint_world[segments_[s].joint] * segments_[s].superquadric.frame;
     out[s].to_local = out[s].to_world.inverse(Eigen::Isometry);
   }
-  for (std::size_t k = 0; k < spheres_.size(); ++k) {
-    sphere_end_[k] = joint_world[spheres_[k].joint].translation();
+}
+
+void SuperquadricCollider::MoveSkin(const Points& skinned) {
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    SuperquadricSegment& segment = segments_[s];
+    SegmentSkin& skin = segment.skin;
+    const Eigen::Isometry3d& to_local = end_[s].to_local;
+    double largest = 0.0;
+    for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
+      skin.local[k] = to_local * skinned.row(skin.vertices[k]).transpose();
+      largest = std::max(largest, skin.local[k].squaredNorm());
+    }
+    // The map's radii never exceed the farthest corner but where nodes are filled, which
+    // RefreshMap adds when it draws.
+    segment.bounding_radius =
+        std::max(std::sqrt(largest), segment.map_radius) + settings_.thickness / kMinSkinCosine;
+    stale_[s] = 1;
   }
 }
 
-void SuperquadricCollider::TrackSkin(const Points& skinned) {
+void SuperquadricCollider::RefreshMap(int s) {
+  SuperquadricSegment& segment = segments_[s];
+  segment.map_radius = DrawMap(segment.map, segment.inverse_size, segment.skin);
+  segment.bounding_radius = std::max(segment.bounding_radius,
+                                     segment.map_radius + settings_.thickness / kMinSkinCosine);
+  stale_[s] = 0;
+}
+
+void SuperquadricCollider::RefreshAllMaps() {
   for (std::size_t s = 0; s < segments_.size(); ++s) {
-    SuperquadricSegment& segment = segments_[s];
-    SkinDistanceMap& map = segment.map;
-    const Eigen::Isometry3d& to_local = end_[s].to_local;
-    double largest = -std::numeric_limits<double>::infinity();
-    for (std::size_t node = 0; node < map.hit_vertices.size(); ++node) {
-      const Eigen::Vector3i& v = map.hit_vertices[node];
-      if (v[0] < 0) continue;
-      const Eigen::Vector3d& w = map.hit_weights[node];
-      const Eigen::Vector3d a = to_local * skinned.row(v[0]).transpose();
-      const Eigen::Vector3d b = to_local * skinned.row(v[1]).transpose();
-      const Eigen::Vector3d c = to_local * skinned.row(v[2]).transpose();
-      const Eigen::Vector3d& ray = map.ray[node];
-      map.skin_offset[node] = (w[0] * a + w[1] * b + w[2] * c).dot(ray) - map.surface_radius[node];
-      const Eigen::Vector3d normal = (b - a).cross(c - a);
-      const double length = normal.norm();
-      if (length > 0.0) map.skin_normal[node] = (normal.dot(ray) >= 0.0 ? normal : -normal) / length;
-      largest = std::max(largest, map.skin_offset[node]);
-    }
-    segment.bounding_radius =
-        segment.rest_bounding_radius + std::max(0.0, largest - segment.rest_max_offset);
+    if (stale_[s]) RefreshMap(static_cast<int>(s));
   }
 }
 
@@ -401,16 +539,12 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
       joint_world.size() >= static_cast<std::size_t>(avatar_->skeleton().num_joints());
   if (usable) {
     start_ = end_;  // same size: no allocation
-    sphere_start_ = sphere_end_;
     SetPose(joint_world, end_);
-    if (skinned_vertices.rows() == avatar_->num_vertices()) TrackSkin(skinned_vertices);
+    if (skinned_vertices.rows() == avatar_->num_vertices()) MoveSkin(skinned_vertices);
   }
   const bool moving = usable && has_pose_ && std::isfinite(dt) && dt > 0.0;
   if (usable) has_pose_ = true;
-  if (!moving) {
-    start_ = end_;
-    sphere_start_ = sphere_end_;
-  }
+  if (!moving) start_ = end_;
   inverse_dt_ = moving ? 1.0 / dt : 0.0;
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     motion_[s] = end_[s].to_world * start_[s].to_local;
@@ -436,6 +570,7 @@ void SuperquadricCollider::CullSegments(const std::vector<Placement>& placements
     const Eigen::Vector3d centre = placements[s].to_world.translation();
     const Eigen::Vector3d nearest = centre.cwiseMax(lo).cwiseMin(hi);
     if ((centre - nearest).norm() <= segments_[s].bounding_radius + reach + sweep_[s]) {
+      if (stale_[s]) RefreshMap(static_cast<int>(s));
       active_.push_back(static_cast<int>(s));
     }
   }
@@ -455,30 +590,27 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
                                         Eigen::Vector3d& body_velocity) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
   gap = std::numeric_limits<double>::infinity();
+  int deepest = -1;
+  ShellProbe best;
   for (int s : active_) {
     ++stats_.num_tests;
-    const Eigen::Vector3d q = placement[s].to_local * x;
-    if (q.norm() > segments_[s].bounding_radius + reach + sweep_[s]) continue;
+    const double bound = segments_[s].bounding_radius + reach + sweep_[s];
+    if ((x - placement[s].to_world.translation()).squaredNorm() > bound * bound) continue;
     ShellProbe probe;
-    ProbeShell(segments_[s], q, settings_.thickness, probe);
+    ProbeShell(segments_[s], placement[s].to_local * x, settings_.thickness, probe);
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
-    normal = placement[s].to_world.linear() *
-             (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
-    body_velocity = BodyVelocity(s, x, at_end);
+    deepest = s;
+    best = probe;
   }
-  for (std::size_t k = 0; k < spheres_.size(); ++k) {
-    ++stats_.num_tests;
-    const Eigen::Vector3d offset = x - (at_end ? sphere_end_[k] : sphere_start_[k]);
-    const double distance = offset.norm();
-    const double sphere_gap = distance - spheres_[k].radius - settings_.thickness;
-    const double sweep = (sphere_end_[k] - sphere_start_[k]).norm();
-    if (sphere_gap > reach + sweep || sphere_gap >= gap || distance == 0.0) continue;
-    gap = sphere_gap;
-    normal = offset / distance;
-    body_velocity = (sphere_end_[k] - sphere_start_[k]) * inverse_dt_;
-  }
-  return gap < std::numeric_limits<double>::infinity();
+  if (deepest < 0) return false;
+  const Eigen::Vector3d local_normal =
+      skin_normals_ ? best.skin_normal
+                    : InsideOutsideGradient(segments_[deepest].superquadric, best.direction)
+                          .normalized();
+  normal = placement[deepest].to_world.linear() * local_normal;
+  body_velocity = BodyVelocity(deepest, x, at_end);
+  return true;
 }
 
 void SuperquadricCollider::FindContacts(const Points& positions, const Points& velocities, double h,

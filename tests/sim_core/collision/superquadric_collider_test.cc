@@ -304,7 +304,7 @@ TEST(SuperquadricCollider, RefusesBadInput) {
   settings.thickness = -1.0;
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), settings), InputError);
   SuperquadricColliderOptions options;
-  options.map_eta_intervals = 2;
+  options.map_spacing = 0.0;
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), {}, options), InputError);
 }
 
