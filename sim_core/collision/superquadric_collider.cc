@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <numbers>
 
+#include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/surface_geometry.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -84,15 +87,23 @@ bool LocateOnBox(const Eigen::Vector3d& p, int& face, double& s, double& t) {
   return true;
 }
 
+/// A map cell whose nodes' predictions of the skin's radius differ by more than this many
+/// times the node spacing straddles a silhouette.
+constexpr double kSilhouetteSlope = 3.0;
+
 /// The node grid on the bounding box's faces: rays, the superquadric's radius along each,
 /// the faces' node tables and the node adjacency. The skin fields start on the
-/// superquadric itself.
-SkinDistanceMap MakeMapGrid(const Superquadric& sq, double spacing) {
+/// superquadric itself. `extent` [m], the half sizes of the box the skin fills in the
+/// superquadric's frame, sets the node counts, so nodes lie about `spacing` apart on the
+/// skin even where it is far from a small superquadric.
+SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& extent,
+                            double spacing) {
   SkinDistanceMap map;
   const Eigen::Vector3d size(sq.a1, sq.a2, sq.a3);
   const auto& n = map.intervals;
   for (int a = 0; a < 3; ++a) {
-    map.intervals[a] = std::max(2, static_cast<int>(std::ceil(2.0 * size[a] / spacing)));
+    const double side = 2.0 * std::max(size[a], extent[a]);
+    map.intervals[a] = std::max(2, static_cast<int>(std::ceil(side / spacing)));
   }
   // Nodes are the lattice points on the boundary of [0, n0]×[0, n1]×[0, n2], so faces
   // share their edge and corner nodes.
@@ -144,53 +155,107 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, double spacing) {
   }
   map.skin_radius = map.surface_radius;
   map.skin_normal = map.ray;
+  map.skin_plane = map.surface_radius;
+  map.silhouette_jump = kSilhouetteSlope * spacing;
   return map;
 }
 
-/// Bilinear read of the map on the ray through `q` (superquadric frame, q ≠ 0): the skin's
-/// radius [m] and its (unnormalised) normal.
+/// The skin's radius along the unit ray `d` as node `node` predicts it: where `d` meets the
+/// skin's tangent plane at the node (its own radius where that plane nearly contains `d`)
+/// [m].
+double PlaneRadius(const SkinDistanceMap& map, int node, const Eigen::Vector3d& d) {
+  const double cosine = map.skin_normal[node].dot(d);
+  return cosine > kMinSkinCosine ? map.skin_plane[node] / cosine : map.skin_radius[node];
+}
+
+/// The map read on the unit ray `d` (superquadric frame): the skin's radius [m] and its
+/// (unnormalised) normal, bilinear in the four nodes around `d`.
 void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
-            const Eigen::Vector3d& q, double& radius, Eigen::Vector3d& normal) {
+            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal) {
   int face = 0;
   double s = 0.0, t = 0.0;
-  if (!LocateOnBox(q.cwiseProduct(inverse_size), face, s, t)) {
-    LocateOnBox(Eigen::Vector3d::UnitZ(), face, s, t);
-  }
+  LocateOnBox(d.cwiseProduct(inverse_size), face, s, t);
   const int i = face / 2, nj = map.intervals[(i + 1) % 3], nk = map.intervals[(i + 2) % 3];
   const double fu = 0.5 * (s + 1.0) * nj, fv = 0.5 * (t + 1.0) * nk;
   const int u = std::clamp(static_cast<int>(fu), 0, nj - 1);
   const int v = std::clamp(static_cast<int>(fv), 0, nk - 1);
   const double wu = fu - u, wv = fv - v;
   const int* row = map.face_nodes[face].data() + u * (nk + 1) + v;
-  const int n00 = row[0], n01 = row[1], n10 = row[nk + 1], n11 = row[nk + 2];
-  const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
+  const int n[4] = {row[0], row[1], row[nk + 1], row[nk + 2]};
   const auto& r = map.skin_radius;
-  radius = w00 * r[n00] + w01 * r[n01] + w10 * r[n10] + w11 * r[n11];
   const auto& m = map.skin_normal;
-  normal = w00 * m[n00] + w01 * m[n01] + w10 * m[n10] + w11 * m[n11];
+  if (std::max({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) -
+          std::min({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) > map.silhouette_jump) {
+    // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
+    // from the calf's centre), and each node's tangent plane predicts the others' radii, or
+    // the cell straddles a silhouette seen from the centre, some rays leaving the skin near,
+    // others passing it and leaving far beyond. Blending those would raise a shell in the
+    // air between (the crease of a hip over a thigh): the near skin holds. (The radius of
+    // the node nearest the ray instead left the skin as near at the crease but made the
+    // shell a step that snagged cloth: 280 % strain on the walk.)
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    int nearest = n[0];
+    for (int k = 0; k < 4; ++k) {
+      const double predicted = PlaneRadius(map, n[k], d);
+      hi = std::max(hi, predicted);
+      if (predicted < lo) lo = predicted, nearest = n[k];
+    }
+    if (hi - lo > map.silhouette_jump) {
+      radius = lo;
+      normal = m[nearest];
+      return;
+    }
+  }
+  const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
+  radius = w00 * r[n[0]] + w01 * r[n[1]] + w10 * r[n[2]] + w11 * r[n[3]];
+  normal = w00 * m[n[0]] + w01 * m[n[1]] + w10 * m[n[2]] + w11 * m[n[3]];
+}
+
+/// The quadratic (6-node Lagrange) interpolation of a triangle's burial samples at the
+/// barycentric point (l0, l1, l2), l summing to 1.
+double InterpolateBurial(const std::array<double, 6>& b, double l0, double l1, double l2) {
+  return b[0] * l0 * (2 * l0 - 1) + b[1] * l1 * (2 * l1 - 1) + b[2] * l2 * (2 * l2 - 1) +
+         4 * (b[3] * l1 * l2 + b[4] * l2 * l0 + b[5] * l0 * l1);
 }
 
 /// Draws one skin triangle (corners in the superquadric frame) into the map: every node
-/// whose ray crosses it keeps the farther of its current hit and this one. The triangle's
-/// rays on a face are those of its central projection onto the face's plane, a triangle
-/// whose bounding box gives the candidate nodes; a triangle reaching behind the face's
-/// plane projects to an unbounded region, which stretches the box to the face's edges.
-void DrawTriangle(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
-                  const Eigen::Vector3d (&corner)[3], int triangle, SegmentSkin& skin) {
+/// whose ray leaves the skin through it keeps the nearer of its current hit and this one
+/// (the ray's first exit). The triangle's rays on a face are those of its central
+/// projection onto the face's plane, a triangle whose bounding box gives the candidate
+/// nodes; a triangle reaching behind the face's plane projects to an unbounded region,
+/// which stretches the box to the face's edges. `burial` (the triangle's samples of Burial,
+/// null when none is buried) clips off the part inside another piece.
+void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, SegmentSkin& skin) {
+  const Eigen::Vector3i& corners = skin.triangles[triangle];
+  // Every point of the triangle is at least its nearest corner's distance less its longest
+  // edge from the centre: beyond the reach, all its rays stop at the reach anyway.
+  const double nearest = std::min({skin.distance[corners[0]], skin.distance[corners[1]],
+                                   skin.distance[corners[2]]});
+  if (nearest - skin.edge[triangle] >= reach) return;
+  const Eigen::Vector3d corner[3] = {skin.local[corners[0]], skin.local[corners[1]],
+                                     skin.local[corners[2]]};
   const Eigen::Vector3d normal = (corner[1] - corner[0]).cross(corner[2] - corner[0]);
-  const double plane = normal.dot(corner[0]);  // the triple product of the corners
-  // A triangle whose plane passes through the centre is seen edge on: no ray crosses it
-  // at a single point, and its neighbours on the skin hold the rays around it.
-  if (std::abs(plane) <= 1e-12 * normal.norm() * corner[0].norm()) return;
-  const double orientation = plane > 0.0 ? 1.0 : -1.0;
-  const Eigen::Vector3d edge_planes[3] = {orientation * corner[0].cross(corner[1]),
-                                          orientation * corner[1].cross(corner[2]),
-                                          orientation * corner[2].cross(corner[0])};
-  const Eigen::Vector3d p[3] = {corner[0].cwiseProduct(inverse_size),
-                                corner[1].cwiseProduct(inverse_size),
-                                corner[2].cwiseProduct(inverse_size)};
+  // The triple product of the corners: > 0 when the centre sees the triangle's outside
+  // (counter-clockwise from outside), so a ray through it leaves the skin. Rays entering
+  // the skin, and a triangle seen edge on, stop nothing; nor does one whose plane lies
+  // beyond the reach, where every ray stops anyway.
+  const double plane = normal.dot(corner[0]);
+  const double length = normal.norm();
+  if (plane <= 1e-12 * length * corner[0].norm() || plane >= reach * length) return;
+  skin.triangle_normal[triangle] = normal / length;
+  // Inside the triangle's cone of rays: on the inner side of its three edge planes, whose
+  // values are also the barycentric weights of the opposite corners (unnormalised).
+  const Eigen::Vector3d edge_planes[3] = {corner[1].cross(corner[2]), corner[2].cross(corner[0]),
+                                          corner[0].cross(corner[1])};
+  const std::array<double, 6>* burial = skin.partly_buried[triangle] ? &skin.burial[triangle] : nullptr;
+  const Eigen::Vector3d p[3] = {skin.scaled[corners[0]], skin.scaled[corners[1]],
+                                skin.scaled[corners[2]]};
+  // The faces' cones are convex: a triangle whose corners all lie in one lies in it.
+  const char* face = skin.face.data();
+  const int only = face[corners[0]] == face[corners[1]] && face[corners[0]] == face[corners[2]]
+                       ? face[corners[0]] : -1;
   constexpr double kInf = std::numeric_limits<double>::infinity();
-  for (int f = 0; f < 6; ++f) {
+  for (int f = only < 0 ? 0 : only; f < (only < 0 ? 6 : only + 1); ++f) {
     const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
     const double sign = f % 2 == 0 ? 1.0 : -1.0;
     const double w[3] = {sign * p[0][i], sign * p[1][i], sign * p[2][i]};
@@ -215,25 +280,33 @@ void DrawTriangle(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_siz
     }
     if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
     const int nj = map.intervals[j], nk = map.intervals[k];
-    const int u_lo = std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(s_lo, -1.0) + 1.0) * nj - 1e-9)));
-    const int u_hi = std::min(nj, static_cast<int>(std::floor(0.5 * (std::min(s_hi, 1.0) + 1.0) * nj + 1e-9)));
-    const int v_lo = std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(t_lo, -1.0) + 1.0) * nk - 1e-9)));
-    const int v_hi = std::min(nk, static_cast<int>(std::floor(0.5 * (std::min(t_hi, 1.0) + 1.0) * nk + 1e-9)));
+    const auto first = [](double x, int n) {
+      return std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9)));
+    };
+    const auto last = [](double x, int n) {
+      return std::min(n, static_cast<int>(std::floor(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9)));
+    };
+    const int u_hi = last(s_hi, nj), v_lo = first(t_lo, nk), v_hi = last(t_hi, nk);
     const std::vector<int>& table = map.face_nodes[f];
-    for (int u = u_lo; u <= u_hi; ++u) {
+    for (int u = first(s_lo, nj); u <= u_hi; ++u) {
       for (int v = v_lo; v <= v_hi; ++v) {
         const int node = table[u * (nk + 1) + v];
         const Eigen::Vector3d& d = map.ray[node];
-        // Inside the triangle's cone of rays: on the inner side of its three edge planes.
         // Shared edges are tested with opposite signs by their two triangles, so a ray
         // along an edge is taken by both and none falls between.
-        if (edge_planes[0].dot(d) < 0.0 || edge_planes[1].dot(d) < 0.0 ||
-            edge_planes[2].dot(d) < 0.0) {
-          continue;
+        const double b0 = edge_planes[0].dot(d), b1 = edge_planes[1].dot(d),
+                     b2 = edge_planes[2].dot(d);
+        if (b0 < 0.0 || b1 < 0.0 || b2 < 0.0) continue;
+        if (burial) {
+          const double sum = b0 + b1 + b2;
+          if (!(sum > 0.0) || InterpolateBurial(*burial, b0 / sum, b1 / sum, b2 / sum) < 0.0) {
+            continue;
+          }
         }
         const double radius = plane / normal.dot(d);
-        if (radius > skin.hit_radius[node]) {
-          skin.hit_radius[node] = radius;
+        double& hit = skin.hit_radius[node];
+        if (hit < 0.0 || radius < hit) {
+          hit = radius;
           skin.hit_triangle[node] = triangle;
         }
       }
@@ -241,10 +314,11 @@ void DrawTriangle(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_siz
   }
 }
 
-/// Gives the nodes no triangle reached the superquadric's shape raised by the mean offset
-/// of their reached (or already filled) neighbours, ring by ring outwards (breadth first).
-/// Returns how many nodes were filled.
-int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin) {
+/// Gives the nodes no triangle reached (rays leaving through skin that is not in the map:
+/// the open ends of a segment's skin) the smallest skin radius of their reached (or already
+/// filled) neighbours, ring by ring outwards (breadth first), with the ray as the normal: a
+/// cap that never reaches beyond the skin around it. Returns how many nodes were filled.
+int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
   constexpr char kUnknown = 0, kKnown = 1, kQueued = 2;
   std::vector<char>& state = skin.state;
   std::vector<int>& queue = skin.queue;
@@ -265,56 +339,73 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin) {
   }
   if (queue.empty() && num_nodes > 0 && state[0] == kUnknown) {
     // Nothing reached at all: the superquadric itself.
-    map.skin_radius = map.surface_radius;
+    for (int node = 0; node < num_nodes; ++node) {
+      map.skin_radius[node] = std::min(map.surface_radius[node], reach);
+    }
     map.skin_normal = map.ray;
     return num_nodes;
   }
   for (std::size_t head = 0; head < queue.size(); ++head) {
     const int node = queue[head];
-    double offset = 0.0;
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-    int count = 0;
+    double smallest = std::numeric_limits<double>::infinity();
     for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
       const int other = map.neighbours[e];
       if (state[other] == kKnown) {
-        offset += map.skin_offset(other);
-        normal += map.skin_normal[other];
-        ++count;
+        smallest = std::min(smallest, map.skin_radius[other]);
       } else if (state[other] == kUnknown) {
         state[other] = kQueued;
         queue.push_back(other);
       }
     }
-    map.skin_radius[node] = map.surface_radius[node] + offset / count;
-    const double length = normal.norm();
-    map.skin_normal[node] = length > 0.0 ? Eigen::Vector3d(normal / length) : map.ray[node];
+    map.skin_radius[node] = std::min(smallest, reach);
+    map.skin_normal[node] = map.ray[node];
     state[node] = kKnown;
   }
   return static_cast<int>(queue.size());
 }
 
-/// Redraws `map` from the skin's corners in the superquadric frame (skin.local). Returns
-/// the largest skin radius [m].
-double DrawMap(SkinDistanceMap& map, const Eigen::Vector3d& inverse_size, SegmentSkin& skin) {
+/// Redraws the map of `segment` from its skin's corners in the superquadric frame
+/// (skin.local): rays stop at their first exit from the skin, or at the segment's reach.
+/// Then sets the shell's box and bounding radius for `thickness` [m].
+void DrawMap(SuperquadricSegment& segment, double thickness) {
+  SkinDistanceMap& map = segment.map;
+  SegmentSkin& skin = segment.skin;
+  for (std::size_t v = 0; v < skin.local.size(); ++v) {
+    skin.distance[v] = skin.local[v].norm();
+    skin.scaled[v] = skin.local[v].cwiseProduct(segment.inverse_size);
+    const Eigen::Vector3d a = skin.scaled[v].cwiseAbs();
+    const int i = a.x() >= a.y() ? (a.x() >= a.z() ? 0 : 2) : (a.y() >= a.z() ? 1 : 2);
+    skin.face[v] = static_cast<char>(2 * i + (skin.scaled[v][i] < 0.0 ? 1 : 0));
+  }
   std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
-    const Eigen::Vector3i& t = skin.triangles[tri];
-    const Eigen::Vector3d corner[3] = {skin.local[t[0]], skin.local[t[1]], skin.local[t[2]]};
-    DrawTriangle(map, inverse_size, corner, static_cast<int>(tri), skin);
+    DrawTriangle(map, segment.reach, static_cast<int>(tri), skin);
   }
-  double largest = 0.0;
   for (int node = 0; node < map.num_nodes(); ++node) {
     if (skin.hit_radius[node] <= 0.0) continue;
-    const Eigen::Vector3i& t = skin.triangles[skin.hit_triangle[node]];
-    const Eigen::Vector3d& a = skin.local[t[0]];
-    const Eigen::Vector3d normal = (skin.local[t[1]] - a).cross(skin.local[t[2]] - a).normalized();
-    // Outward: the side the ray leaves through (winding is not trusted).
-    map.skin_normal[node] = normal.dot(map.ray[node]) >= 0.0 ? normal : Eigen::Vector3d(-normal);
-    map.skin_radius[node] = skin.hit_radius[node];
+    if (skin.hit_radius[node] >= segment.reach) {
+      // The ray runs on inside the body beyond the segment's reach: the shell stops there.
+      map.skin_radius[node] = segment.reach;
+      map.skin_normal[node] = map.ray[node];
+    } else {
+      map.skin_radius[node] = skin.hit_radius[node];
+      map.skin_normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
+    }
   }
-  map.num_filled_nodes = FillMissedNodes(map, skin);
-  for (double r : map.skin_radius) largest = std::max(largest, r);
-  return largest;
+  map.num_filled_nodes = FillMissedNodes(map, skin, segment.reach);
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    map.skin_plane[node] = map.skin_radius[node] * map.skin_normal[node].dot(map.ray[node]);
+  }
+  // The shell lies within thickness over the least cosine of the skin points.
+  Eigen::AlignedBox3d box(Eigen::Vector3d::Zero());
+  double farthest = 0.0;
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    box.extend(map.skin_radius[node] * map.ray[node]);
+    farthest = std::max(farthest, map.skin_radius[node]);
+  }
+  const double shell = thickness / kMinSkinCosine;
+  segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
+  segment.bounding_radius = farthest + shell;
 }
 
 /// Per H-Anim joint the index of the segment whose map its vertices are drawn into: its
@@ -333,67 +424,137 @@ std::array<int, kNumHAnimJoints> MapOwners(const std::vector<SuperquadricSegment
   return owner;
 }
 
-/// A triangle is drawn into the map of every candidate segment whose centre sees its
-/// outside at least this squarely (cosine between its normal and the ray to it) [-], and
-/// always into that of the one that sees it most squarely.
-constexpr double kSharedViewCosine = 0.5;
+/// A point of the skin more than this deep inside another closed piece of the body [m] is
+/// not skin. Not zero: where two pieces meet along a shared surface (the pelvis's top on
+/// the torso's bottom), their facets cross each other by about their chord sag (1 mm for
+/// 3 cm facets on a 10 cm radius), and both must stay.
+constexpr double kBuriedDepth = 0.0015;
 
-/// The candidate segments of a triangle: those its corners belong to and their H-Anim
-/// parents and children (segment indices, each once).
-int Candidates(const std::array<int, kNumHAnimJoints>& owner,
-               const std::vector<SuperquadricSegment>& segments, const int (&mine)[3],
-               std::array<int, 3 * kNumHAnimJoints>& out) {
-  int count = 0;
-  const auto add = [&](int s) {
-    if (s >= 0 && std::find(out.begin(), out.begin() + count, s) == out.begin() + count) {
-      out[count++] = s;
-    }
+/// Per triangle, in the rest pose, the signed distance [m] of its corners and edge midpoints
+/// (0, 1, 2, then the midpoints of edges 12, 20, 01) from the body's other closed pieces,
+/// plus kBuriedDepth (< 0: buried; +inf: no other piece within reach). A body made of
+/// overlapping closed pieces, as the built-in humanoid, has surfaces inside other pieces
+/// where they meet; a ray from a segment's centre must not stop at them. All +inf for a
+/// body of one piece or a mesh that is not closed (inside is undefined).
+std::vector<std::array<double, 6>> Burial(const Avatar& avatar) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const auto& triangles = avatar.triangles();
+  std::vector<std::array<double, 6>> burial(triangles.size());
+  for (auto& b : burial) b.fill(kInf);
+  const SurfacePseudonormals topology(avatar.num_vertices(), triangles);
+  if (topology.num_pieces() <= 1 || topology.num_open_edges() > 0) return burial;
+  std::vector<std::vector<Eigen::Vector3i>> pieces(topology.num_pieces());
+  for (int t = 0; t < topology.num_triangles(); ++t) pieces[topology.piece_of(t)].push_back(triangles[t]);
+  const Points& rest = avatar.rest_vertices();
+  const auto sample = [&](const Eigen::Vector3i& tri, int k) -> Eigen::Vector3d {
+    if (k < 3) return rest.row(tri[k]).transpose();
+    return 0.5 * (rest.row(tri[(k - 2) % 3]) + rest.row(tri[k % 3])).transpose();
   };
-  for (int c = 0; c < 3; ++c) {
-    if (mine[c] < 0) continue;
-    add(mine[c]);
-    const HAnimJoint joint = segments[mine[c]].segment;
-    if (const std::optional<HAnimJoint> parent = HAnimParent(joint)) {
-      add(owner[static_cast<int>(*parent)]);
+  constexpr double kReach = 0.5;  // deeper than any part of a body is thick
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3i& tri : pieces[p]) {
+      for (int c = 0; c < 3; ++c) box.extend(Eigen::Vector3d(rest.row(tri[c]).transpose()));
     }
-    for (HAnimJoint child : AllHAnimJoints()) {
-      if (HAnimParent(child) == joint) add(owner[static_cast<int>(child)]);
+    const MeshDistance distance("piece " + std::to_string(p), rest, pieces[p]);
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+      if (topology.piece_of(static_cast<int>(t)) == static_cast<int>(p)) continue;
+      for (int k = 0; k < 6; ++k) {
+        const Eigen::Vector3d x = sample(triangles[t], k);
+        if (box.exteriorDistance(x) > 0.0) continue;  // outside the piece's box
+        burial[t][k] = std::min(burial[t][k], distance.SignedDistance(x, kReach) + kBuriedDepth);
+      }
     }
   }
-  return count;
+  return burial;
 }
 
-/// Gives every skin triangle to the maps of the segments that see it from outside in the
-/// rest pose, among those of its corners and their neighbours: the skinning weights alone
-/// would give the underside of the pelvis to the thighs, whose centres below see it from
-/// inside, and leave it out of every shell.
+/// Per segment, the segments next to it in the H-Anim hierarchy as far as it is fitted: the
+/// nearest fitted ancestor, the segments whose nearest fitted ancestor it is, and, for
+/// segments without a fitted ancestor (the pelvis and the torso under an unfitted root),
+/// each other.
+std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>& segments) {
+  std::array<int, kNumHAnimJoints> index;
+  index.fill(-1);
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    index[static_cast<int>(segments[s].segment)] = static_cast<int>(s);
+  }
+  const auto fitted_ancestor = [&](HAnimJoint joint) {
+    for (std::optional<HAnimJoint> up = HAnimParent(joint); up; up = HAnimParent(*up)) {
+      if (index[static_cast<int>(*up)] >= 0) return index[static_cast<int>(*up)];
+    }
+    return -1;
+  };
+  std::vector<std::vector<int>> neighbours(segments.size());
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    const int up = fitted_ancestor(segments[s].segment);
+    for (std::size_t o = 0; o < segments.size(); ++o) {
+      if (o == s) continue;
+      const int other_up = fitted_ancestor(segments[o].segment);
+      if (static_cast<int>(o) == up || other_up == static_cast<int>(s) || (up < 0 && other_up < 0)) {
+        neighbours[s].push_back(static_cast<int>(o));
+      }
+    }
+  }
+  return neighbours;
+}
+
+/// A segment's centre sees a triangle's outside well enough to hold it when the cosine
+/// between the triangle's normal and the ray to it reaches this [-].
+constexpr double kViewerCosine = 0.3;
+
+/// Gives every skin triangle to the maps of the segments of its corners and of their
+/// neighbours (Neighbours). A map's ray stops where it first leaves the skin, so a
+/// segment's map must hold the skin around it, not only its own: the skinning weights
+/// alone give the underside of the pelvis to the thighs, whose centres below see it from
+/// inside. Triangles wholly inside other pieces of the body (by their burial samples) are
+/// left out.
 void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments) {
   const std::array<int, kNumHAnimJoints> owner = MapOwners(segments);
+  const std::vector<std::vector<int>> neighbours = Neighbours(segments);
   const auto& of = avatar.vertex_segments();
+  const std::vector<std::array<double, 6>> burial = Burial(avatar);
+  std::vector<std::vector<int>> local(segments.size());
+  std::vector<char> chosen(segments.size(), 0);
   const Points& rest = avatar.rest_vertices();
   std::vector<Eigen::Vector3d> centres;
   for (const SuperquadricSegment& segment : segments) {
     centres.push_back(avatar.skeleton().rest_world()[segment.joint] *
                       segment.superquadric.frame.translation());
   }
-  std::vector<std::vector<int>> local(segments.size());
-  std::array<int, 3 * kNumHAnimJoints> candidates;
-  for (const Eigen::Vector3i& tri : avatar.triangles()) {
-    int mine[3];
-    for (int c = 0; c < 3; ++c) mine[c] = of[tri[c]] ? owner[static_cast<int>(*of[tri[c]])] : -1;
-    const int count = Candidates(owner, segments, mine, candidates);
-    const Eigen::Vector3d a = rest.row(tri[0]), b = rest.row(tri[1]), c = rest.row(tri[2]);
-    const Eigen::Vector3d normal = (b - a).cross(c - a).normalized();
-    const Eigen::Vector3d centroid = (a + b + c) / 3.0;
-    double cosines[3 * kNumHAnimJoints];
-    double best = -2.0;
-    for (int k = 0; k < count; ++k) {
-      cosines[k] = normal.dot((centroid - centres[candidates[k]]).normalized());
-      best = std::max(best, cosines[k]);
+  for (std::size_t t = 0; t < avatar.triangles().size(); ++t) {
+    const Eigen::Vector3i& tri = avatar.triangles()[t];
+    const std::array<double, 6>& b = burial[t];
+    if (*std::max_element(b.begin(), b.end()) < 0.0) continue;
+    std::fill(chosen.begin(), chosen.end(), 0);
+    for (int c = 0; c < 3; ++c) {
+      const int mine = of[tri[c]] ? owner[static_cast<int>(*of[tri[c]])] : -1;
+      if (mine < 0) continue;
+      chosen[mine] = 1;
+      for (int n : neighbours[mine]) chosen[n] = 1;
     }
-    for (int k = 0; k < count; ++k) {
-      if (cosines[k] < best && cosines[k] < kSharedViewCosine) continue;
-      const int s = candidates[k];
+    // The nearest centre that sees the triangle's outside (else the one that sees it most
+    // squarely) is the one whose shell is to hold it: its reach must get there.
+    const Eigen::Vector3d a = rest.row(tri[0]), bv = rest.row(tri[1]), c = rest.row(tri[2]);
+    const Eigen::Vector3d normal = (bv - a).cross(c - a).normalized();
+    const Eigen::Vector3d centroid = (a + bv + c) / 3.0;
+    int viewer = -1, squarest = -1;
+    double nearest = std::numeric_limits<double>::infinity(), best = -2.0;
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      if (!chosen[s]) continue;
+      const Eigen::Vector3d ray = centroid - centres[s];
+      const double cosine = normal.dot(ray.normalized());
+      if (cosine > best) best = cosine, squarest = static_cast<int>(s);
+      if (cosine >= kViewerCosine && ray.norm() < nearest) {
+        nearest = ray.norm(), viewer = static_cast<int>(s);
+      }
+    }
+    if (viewer < 0) viewer = squarest;
+    if (viewer >= 0) {
+      for (int k = 0; k < 3; ++k) segments[viewer].viewed.push_back(tri[k]);
+    }
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      if (!chosen[s]) continue;
       SegmentSkin& skin = segments[s].skin;
       if (local[s].empty()) local[s].assign(avatar.num_vertices(), -1);
       Eigen::Vector3i corners;
@@ -406,35 +567,85 @@ void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments
         corners[m] = index;
       }
       skin.triangles.push_back(corners);
+      skin.burial.push_back(b);
+      skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
     }
-  }
-  for (SuperquadricSegment& segment : segments) {
-    SegmentSkin& skin = segment.skin;
-    const int nodes = segment.map.num_nodes();
-    skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
-    skin.hit_radius.assign(nodes, -1.0);
-    skin.hit_triangle.assign(nodes, -1);
-    skin.state.assign(nodes, 0);
-    skin.queue.reserve(nodes);
   }
 }
 
-SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit,
-                                const SuperquadricColliderOptions& options) {
+/// Bound on how much skinning lengthens a triangle's edges [-].
+constexpr double kEdgeStretch = 1.5;
+
+/// How far beyond its own skin's farthest rest vertex a segment's shell may reach [m]:
+/// beyond, the neighbours' shells hold the skin, and a thigh's shell need not follow its
+/// rays down the calf.
+constexpr double kReachMargin = 0.06;
+
+/// Sizes a segment's map and scratch: the grid spans the box of the skin it holds (its own
+/// vertices, `own`, and the triangles it sees most squarely, segment.viewed) in the
+/// superquadric's frame, and the shell reaches that skin's farthest vertex plus
+/// kReachMargin (in the rest pose here; MoveSkin follows the pose).
+void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_spacing,
+                SuperquadricSegment& segment) {
+  const Eigen::Isometry3d to_local =
+      (avatar.skeleton().rest_world()[segment.joint] * segment.superquadric.frame).inverse();
+  Eigen::Vector3d extent = Eigen::Vector3d::Zero();
+  double farthest = 0.0;
+  std::vector<int> held = own;
+  held.insert(held.end(), segment.viewed.begin(), segment.viewed.end());
+  segment.viewed.clear();
+  segment.viewed.shrink_to_fit();
+  SegmentSkin& skin = segment.skin;
+  std::vector<int> local(avatar.num_vertices(), -1);
+  for (std::size_t k = 0; k < skin.vertices.size(); ++k) local[skin.vertices[k]] = static_cast<int>(k);
+  for (int v : held) {
+    const Eigen::Vector3d q = to_local * avatar.rest_vertices().row(v).transpose();
+    extent = extent.cwiseMax(q.cwiseAbs());
+    farthest = std::max(farthest, q.norm());
+    if (local[v] >= 0) skin.held.push_back(local[v]);
+  }
+  std::sort(skin.held.begin(), skin.held.end());
+  skin.held.erase(std::unique(skin.held.begin(), skin.held.end()), skin.held.end());
+  segment.map = MakeMapGrid(segment.superquadric, extent, map_spacing);
+  segment.reach = farthest + kReachMargin;
+  const int nodes = segment.map.num_nodes();
+  skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.scaled.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.face.assign(skin.vertices.size(), 0);
+  skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
+  skin.distance.assign(skin.vertices.size(), 0.0);
+  skin.edge.resize(skin.triangles.size());
+  for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = skin.triangles[t];
+    double longest = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      longest = std::max(longest, (avatar.rest_vertices().row(skin.vertices[tri[c]]) -
+                                   avatar.rest_vertices().row(skin.vertices[tri[(c + 1) % 3]]))
+                                      .norm());
+    }
+    // Skinning stretches the skin a little: a margin on the rest length.
+    skin.edge[t] = kEdgeStretch * longest;
+  }
+  skin.hit_radius.assign(nodes, -1.0);
+  skin.hit_triangle.assign(nodes, -1);
+  skin.state.assign(nodes, 0);
+  skin.queue.reserve(nodes);
+}
+
+SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
   SuperquadricSegment segment;
   segment.segment = fit.segment;
   segment.joint = fit.joint;
   segment.superquadric = fit.fit.superquadric;
   segment.fit_rms = fit.fit.rms_radial_distance;
   segment.num_vertices = fit.num_vertices;
-  segment.map = MakeMapGrid(segment.superquadric, options.map_spacing);
   const Superquadric& sq = segment.superquadric;
   segment.inverse_size = Eigen::Vector3d(1.0 / sq.a1, 1.0 / sq.a2, 1.0 / sq.a3);
   return segment;
 }
 
 /// Position-correction passes per particle in ProjectOut.
-constexpr int kProjectionPasses = 3;
+constexpr int kProjectionPasses = 8;
 
 }  // namespace
 
@@ -474,12 +685,16 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   ValidateOptions(options, where);
   for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, GroupVertices(*avatar_), options)) {
     if (fit.fitted) {
-      segments_.push_back(MakeSegment(fit, options));
+      segments_.push_back(MakeSegment(fit));
     } else {
       skipped_.push_back(fit.segment);
     }
   }
   AssignSkin(*avatar_, segments_);
+  const SegmentGroups groups = GroupVertices(*avatar_);
+  for (SuperquadricSegment& segment : segments_) {
+    PrepareMap(*avatar_, groups[static_cast<int>(segment.segment)], options.map_spacing, segment);
+  }
   const std::size_t n = segments_.size();
   start_.resize(n);
   end_.resize(n);
@@ -506,24 +721,24 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
     SuperquadricSegment& segment = segments_[s];
     SegmentSkin& skin = segment.skin;
     const Eigen::Isometry3d& to_local = end_[s].to_local;
-    double largest = 0.0;
     for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
       skin.local[k] = to_local * skinned.row(skin.vertices[k]).transpose();
-      largest = std::max(largest, skin.local[k].squaredNorm());
     }
-    // The map's radii never exceed the farthest corner but where nodes are filled, which
-    // RefreshMap adds when it draws.
-    segment.bounding_radius =
-        std::max(std::sqrt(largest), segment.map_radius) + settings_.thickness / kMinSkinCosine;
+    // The reach follows the skin the segment holds: bending a knee carries the skin at its
+    // front away from both the thigh's and the calf's centres.
+    double farthest = 0.0;
+    for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
+    segment.reach = std::sqrt(farthest) + kReachMargin;
+    // Until the map is redrawn, all that is known is that no ray reaches farther.
+    segment.bounding_radius = segment.reach + settings_.thickness / kMinSkinCosine;
+    segment.shell_box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-segment.bounding_radius),
+                                            Eigen::Vector3d::Constant(segment.bounding_radius));
     stale_[s] = 1;
   }
 }
 
 void SuperquadricCollider::RefreshMap(int s) {
-  SuperquadricSegment& segment = segments_[s];
-  segment.map_radius = DrawMap(segment.map, segment.inverse_size, segment.skin);
-  segment.bounding_radius = std::max(segment.bounding_radius,
-                                     segment.map_radius + settings_.thickness / kMinSkinCosine);
+  DrawMap(segments_[s], settings_.thickness);
   stale_[s] = 0;
 }
 
@@ -549,8 +764,10 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     motion_[s] = end_[s].to_world * start_[s].to_local;
     const double angle = Eigen::AngleAxisd(motion_[s].linear()).angle();
+    // The largest shell the segment can have, as its map may not be drawn yet.
+    const double radius = segments_[s].reach + settings_.thickness / kMinSkinCosine;
     sweep_[s] = (end_[s].to_world.translation() - start_[s].to_world.translation()).norm() +
-                segments_[s].bounding_radius * std::abs(angle);
+                radius * std::abs(angle);
   }
 }
 
@@ -570,7 +787,6 @@ void SuperquadricCollider::CullSegments(const std::vector<Placement>& placements
     const Eigen::Vector3d centre = placements[s].to_world.translation();
     const Eigen::Vector3d nearest = centre.cwiseMax(lo).cwiseMin(hi);
     if ((centre - nearest).norm() <= segments_[s].bounding_radius + reach + sweep_[s]) {
-      if (stale_[s]) RefreshMap(static_cast<int>(s));
       active_.push_back(static_cast<int>(s));
     }
   }
@@ -594,10 +810,19 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
   ShellProbe best;
   for (int s : active_) {
     ++stats_.num_tests;
-    const double bound = segments_[s].bounding_radius + reach + sweep_[s];
+    const SuperquadricSegment& segment = segments_[s];
+    const double grow = reach + sweep_[s];
+    const double bound = segment.bounding_radius + grow;
     if ((x - placement[s].to_world.translation()).squaredNorm() > bound * bound) continue;
+    // The first particle near a segment since the last Update redraws its map.
+    if (stale_[s]) RefreshMap(s);
+    const Eigen::Vector3d q = placement[s].to_local * x;
+    if ((q.array() < segment.shell_box.min().array() - grow).any() ||
+        (q.array() > segment.shell_box.max().array() + grow).any()) {
+      continue;
+    }
     ShellProbe probe;
-    ProbeShell(segments_[s], placement[s].to_local * x, settings_.thickness, probe);
+    ProbeShell(segment, q, settings_.thickness, probe);
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
     deepest = s;

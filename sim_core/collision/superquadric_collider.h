@@ -100,6 +100,12 @@ struct SkinDistanceMap {
   /// paper's mapped distance) and the skin's outward unit normal there [-].
   std::vector<double> skin_radius;
   std::vector<Eigen::Vector3d> skin_normal;
+  /// Per node: the distance of the skin's tangent plane there from the centre [m].
+  std::vector<double> skin_plane;
+  /// A cell whose nodes' radii, and their tangent planes' predictions on the ray, differ by
+  /// more than this [m] straddles a silhouette seen from the centre and is read as its
+  /// nearest skin, not blended.
+  double silhouette_jump = 0.03;
   /// Nodes whose ray met none of the segment's triangles at the last refresh (the open ends
   /// of a segment's skin), filled from their neighbours [-].
   int num_filled_nodes = 0;
@@ -119,9 +125,27 @@ struct SegmentSkin {
   /// Avatar vertex indices of the triangles' corners, and the triangles as indices into it.
   std::vector<int> vertices;
   std::vector<Eigen::Vector3i> triangles;
-  /// Scratch of the last refresh: corners in the superquadric frame, per node the distance
-  /// of the outermost hit (< 0: none) and the triangle that gave it.
+  /// The corners (indices into `vertices`) of the skin the segment's shell is to hold: its
+  /// own vertices and the triangles its centre sees best. Their farthest sets the reach.
+  std::vector<int> held;
+  /// Per triangle: the signed distances of its corners and edge midpoints from the body's
+  /// other closed pieces in the rest pose, plus a tolerance [m] (< 0: inside one), and
+  /// whether any is negative (where their quadratic interpolation is negative, the
+  /// triangle is not skin).
+  std::vector<std::array<double, 6>> burial;
+  std::vector<char> partly_buried;
+  /// Scratch of the last refresh: corners in the superquadric frame, scaled by 1/a, and the
+  /// face of the map's box each lies towards; per node the distance of the first exit
+  /// (< 0: none) and the triangle that gave it.
   std::vector<Eigen::Vector3d> local;
+  std::vector<Eigen::Vector3d> scaled;
+  std::vector<char> face;
+  /// Per triangle its outward unit normal at the last refresh (front-facing ones only).
+  std::vector<Eigen::Vector3d> triangle_normal;
+  /// Per corner its distance from the centre at the last refresh [m]; per triangle a bound
+  /// on its longest edge [m] (the rest length with a margin for skinning's stretch).
+  std::vector<double> distance;
+  std::vector<double> edge;
   std::vector<double> hit_radius;
   std::vector<int> hit_triangle;
   /// Scratch of the filling: per node unknown / known / queued, and the queue.
@@ -138,12 +162,17 @@ struct SuperquadricSegment {
   Eigen::Vector3d inverse_size = Eigen::Vector3d::Ones();
   SkinDistanceMap map;
   SegmentSkin skin;
-  /// Radius of a sphere about the superquadric's centre holding the segment's shell (skin
-  /// + the collider's thickness) [m]: the farthest skin corner of the last Update and the
-  /// farthest map node of the last drawing, plus thickness over the least cosine.
+  /// How far from the centre the map's rays may reach [m]: the farthest vertex of the skin
+  /// the segment holds (SegmentSkin::held) in the last pose, and a margin; beyond, the
+  /// neighbours' shells hold the skin.
+  double reach = 0.0;
+  /// Construction scratch: corners of the triangles this segment sees most squarely.
+  std::vector<int> viewed;
+  /// Radius of a sphere about the superquadric's centre and a box in its frame holding the
+  /// segment's shell (skin + the collider's thickness) at the last drawing of the map [m];
+  /// while the map is stale, those of the largest shell the reach allows.
   double bounding_radius = 0.0;
-  /// The largest skin radius of the map's last drawing [m].
-  double map_radius = 0.0;
+  Eigen::AlignedBox3d shell_box;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
   int num_vertices = 0;
