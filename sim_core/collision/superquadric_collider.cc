@@ -2,9 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
-#include <numbers>
 
 #include "sim_core/collision/mesh_distance.h"
 #include "sim_core/collision/surface_geometry.h"
@@ -13,7 +11,6 @@
 namespace costume::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 /// Floor of the ray/skin-normal cosine: a ray grazing the skin would otherwise turn a
 /// millimetre of thickness into metres of radial shell.
 constexpr double kMinSkinCosine = 0.1;
@@ -124,6 +121,7 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
           Eigen::Vector3d box;
           for (int a = 0; a < 3; ++a) box[a] = size[a] * (-1.0 + 2.0 * g[a] / n[a]);
           map.ray.push_back(box.normalized());
+          map.box_length.push_back(box.norm());
           map.surface_radius.push_back(box.norm() *
                                        std::pow(InsideOutside(sq, box), -0.5 * sq.e1));
         }
@@ -157,6 +155,8 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
   map.skin_normal = map.ray;
   map.skin_plane = map.surface_radius;
   map.silhouette_jump = kSilhouetteSlope * spacing;
+  map.spacing = spacing;
+  map.size = size;
   return map;
 }
 
@@ -257,45 +257,73 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
   constexpr double kInf = std::numeric_limits<double>::infinity();
   for (int f = only < 0 ? 0 : only; f < (only < 0 ? 6 : only + 1); ++f) {
     const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
-    const double sign = f % 2 == 0 ? 1.0 : -1.0;
-    const double w[3] = {sign * p[0][i], sign * p[1][i], sign * p[2][i]};
-    if (w[0] <= 0.0 && w[1] <= 0.0 && w[2] <= 0.0) continue;
     double s_lo = kInf, s_hi = -kInf, t_lo = kInf, t_hi = -kInf;
-    for (int c = 0; c < 3; ++c) {
-      if (w[c] > 0.0) {
-        const double s = p[c][j] / w[c], t = p[c][k] / w[c];
-        s_lo = std::min(s_lo, s), s_hi = std::max(s_hi, s);
-        t_lo = std::min(t_lo, t), t_hi = std::max(t_hi, t);
+    if (only >= 0) {
+      // All corners on this face: their in-face coordinates were found once per vertex.
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector2d& st = skin.face_point[corners[c]];
+        s_lo = std::min(s_lo, st.x()), s_hi = std::max(s_hi, st.x());
+        t_lo = std::min(t_lo, st.y()), t_hi = std::max(t_hi, st.y());
       }
-      const int d = (c + 1) % 3;
-      if ((w[c] > 0.0) == (w[d] > 0.0)) continue;
-      // The edge crosses the face's plane through the centre: its projection runs off to
-      // infinity in the direction of the crossing point's in-face coordinates.
-      const double lambda = w[c] / (w[c] - w[d]);
-      const Eigen::Vector3d crossing = p[c] + lambda * (p[d] - p[c]);
-      if (crossing[j] > 0.0) s_hi = kInf;
-      if (crossing[j] < 0.0) s_lo = -kInf;
-      if (crossing[k] > 0.0) t_hi = kInf;
-      if (crossing[k] < 0.0) t_lo = -kInf;
+    } else {
+      const double sign = f % 2 == 0 ? 1.0 : -1.0;
+      const double w[3] = {sign * p[0][i], sign * p[1][i], sign * p[2][i]};
+      if (w[0] <= 0.0 && w[1] <= 0.0 && w[2] <= 0.0) continue;
+      for (int c = 0; c < 3; ++c) {
+        if (w[c] > 0.0) {
+          const double s = p[c][j] / w[c], t = p[c][k] / w[c];
+          s_lo = std::min(s_lo, s), s_hi = std::max(s_hi, s);
+          t_lo = std::min(t_lo, t), t_hi = std::max(t_hi, t);
+        }
+        const int d = (c + 1) % 3;
+        if ((w[c] > 0.0) == (w[d] > 0.0)) continue;
+        // The edge crosses the face's plane through the centre: its projection runs off
+        // to infinity in the direction of the crossing point's in-face coordinates.
+        const double lambda = w[c] / (w[c] - w[d]);
+        const Eigen::Vector3d crossing = p[c] + lambda * (p[d] - p[c]);
+        if (crossing[j] > 0.0) s_hi = kInf;
+        if (crossing[j] < 0.0) s_lo = -kInf;
+        if (crossing[k] > 0.0) t_hi = kInf;
+        if (crossing[k] < 0.0) t_lo = -kInf;
+      }
+      if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
     }
-    if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
     const int nj = map.intervals[j], nk = map.intervals[k];
+    // Grid positions are >= 0 once clamped, so truncation is floor (std::ceil and floor
+    // are library calls on the baseline x86-64 this builds for).
     const auto first = [](double x, int n) {
-      return std::max(0, static_cast<int>(std::ceil(0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9)));
+      const double g = 0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9;
+      const int floor = static_cast<int>(std::max(g, 0.0));
+      return floor + (floor < g ? 1 : 0);
     };
     const auto last = [](double x, int n) {
-      return std::min(n, static_cast<int>(std::floor(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9)));
+      return std::min(n, static_cast<int>(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9));
     };
     const int u_hi = last(s_hi, nj), v_lo = first(t_lo, nk), v_hi = last(t_hi, nk);
-    const std::vector<int>& table = map.face_nodes[f];
-    for (int u = first(s_lo, nj); u <= u_hi; ++u) {
-      for (int v = v_lo; v <= v_hi; ++v) {
-        const int node = table[u * (nk + 1) + v];
-        const Eigen::Vector3d& d = map.ray[node];
+    // The node (u, v)'s ray runs through its point on the box, B = σ·a_i·e_i +
+    // a_j·(2u/nj − 1)·e_j + a_k·(2v/nk − 1)·e_k: computed, not loaded. The inside tests
+    // hold for B as for the unit ray, and the hit lies at plane / (normal·B) times |B|.
+    const Eigen::Vector3d& size = map.size;
+    const double sign = f % 2 == 0 ? 1.0 : -1.0;
+    Eigen::Vector3d step_u = Eigen::Vector3d::Zero(), step_v = Eigen::Vector3d::Zero();
+    step_u[j] = 2.0 * size[j] / nj;
+    step_v[k] = 2.0 * size[k] / nk;
+    Eigen::Vector3d base = Eigen::Vector3d::Zero();
+    base[i] = sign * size[i];
+    base[j] = -size[j];
+    base[k] = -size[k];
+    const double e0v = edge_planes[0].dot(step_v), e1v = edge_planes[1].dot(step_v),
+                 e2v = edge_planes[2].dot(step_v), nv = normal.dot(step_v);
+    double* hit = skin.face_hit[f].data();
+    int* hit_triangle = skin.face_triangle[f].data();
+    const int u_lo = first(s_lo, nj);
+    for (int u = u_lo; u <= u_hi; ++u) {
+      const Eigen::Vector3d row = base + u * step_u + v_lo * step_v;
+      double b0 = edge_planes[0].dot(row), b1 = edge_planes[1].dot(row),
+             b2 = edge_planes[2].dot(row), along = normal.dot(row);
+      for (int v = v_lo; v <= v_hi; ++v, b0 += e0v, b1 += e1v, b2 += e2v, along += nv) {
         // Shared edges are tested with opposite signs by their two triangles, so a ray
         // along an edge is taken by both and none falls between.
-        const double b0 = edge_planes[0].dot(d), b1 = edge_planes[1].dot(d),
-                     b2 = edge_planes[2].dot(d);
         if (b0 < 0.0 || b1 < 0.0 || b2 < 0.0) continue;
         if (burial) {
           const double sum = b0 + b1 + b2;
@@ -303,11 +331,11 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
             continue;
           }
         }
-        const double radius = plane / normal.dot(d);
-        double& hit = skin.hit_radius[node];
-        if (hit < 0.0 || radius < hit) {
-          hit = radius;
-          skin.hit_triangle[node] = triangle;
+        const double lambda = plane / along;  // the hit in units of |B|
+        const int index = u * (nk + 1) + v;
+        if (hit[index] < 0.0 || lambda < hit[index]) {
+          hit[index] = lambda;
+          hit_triangle[index] = triangle;
         }
       }
     }
@@ -376,10 +404,28 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     const Eigen::Vector3d a = skin.scaled[v].cwiseAbs();
     const int i = a.x() >= a.y() ? (a.x() >= a.z() ? 0 : 2) : (a.y() >= a.z() ? 1 : 2);
     skin.face[v] = static_cast<char>(2 * i + (skin.scaled[v][i] < 0.0 ? 1 : 0));
+    const double w = a[i];
+    skin.face_point[v] = w > 0.0 ? Eigen::Vector2d(skin.scaled[v][(i + 1) % 3] / w,
+                                                   skin.scaled[v][(i + 2) % 3] / w)
+                                 : Eigen::Vector2d::Zero();
   }
-  std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
+  for (int f = 0; f < 6; ++f) std::fill(skin.face_hit[f].begin(), skin.face_hit[f].end(), -1.0);
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
     DrawTriangle(map, segment.reach, static_cast<int>(tri), skin);
+  }
+  // The faces' grids share their edge nodes: the nearest hit of each holds.
+  std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
+  for (int f = 0; f < 6; ++f) {
+    const std::vector<int>& table = map.face_nodes[f];
+    for (std::size_t index = 0; index < table.size(); ++index) {
+      if (skin.face_hit[f][index] < 0.0) continue;
+      const int node = table[index];
+      const double radius = skin.face_hit[f][index] * map.box_length[node];
+      if (skin.hit_radius[node] < 0.0 || radius < skin.hit_radius[node]) {
+        skin.hit_radius[node] = radius;
+        skin.hit_triangle[node] = skin.face_triangle[f][index];
+      }
+    }
   }
   for (int node = 0; node < map.num_nodes(); ++node) {
     if (skin.hit_radius[node] <= 0.0) continue;
@@ -573,6 +619,10 @@ void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments
   }
 }
 
+/// How far beyond a segment's rest reach a triangle may lie and still be drawn into its
+/// map [m]: bending a joint carries skin farther out by this much at most.
+constexpr double kReachSlack = 0.1;
+
 /// Bound on how much skinning lengthens a triangle's edges [-].
 constexpr double kEdgeStretch = 1.5;
 
@@ -608,10 +658,36 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.held.erase(std::unique(skin.held.begin(), skin.held.end()), skin.held.end());
   segment.map = MakeMapGrid(segment.superquadric, extent, map_spacing);
   segment.reach = farthest + kReachMargin;
+  // Triangles that lie well beyond the reach in the rest pose never stop a ray short of it
+  // (bending a joint moves skin by centimetres, not decimetres): they are not drawn.
+  {
+    const double keep = segment.reach + kReachSlack;
+    std::vector<Eigen::Vector3i> triangles;
+    std::vector<std::array<double, 6>> burial;
+    std::vector<char> partly;
+    for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+      const Eigen::Vector3i& tri = skin.triangles[t];
+      Eigen::Vector3d c[3];
+      double longest = 0.0, nearest = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < 3; ++k) {
+        c[k] = to_local * avatar.rest_vertices().row(skin.vertices[tri[k]]).transpose();
+        nearest = std::min(nearest, c[k].norm());
+      }
+      for (int k = 0; k < 3; ++k) longest = std::max(longest, (c[k] - c[(k + 1) % 3]).norm());
+      if (nearest - longest > keep) continue;
+      triangles.push_back(tri);
+      burial.push_back(skin.burial[t]);
+      partly.push_back(skin.partly_buried[t]);
+    }
+    skin.triangles.swap(triangles);
+    skin.burial.swap(burial);
+    skin.partly_buried.swap(partly);
+  }
   const int nodes = segment.map.num_nodes();
   skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
   skin.scaled.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
   skin.face.assign(skin.vertices.size(), 0);
+  skin.face_point.assign(skin.vertices.size(), Eigen::Vector2d::Zero());
   skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
   skin.distance.assign(skin.vertices.size(), 0.0);
   skin.edge.resize(skin.triangles.size());
@@ -625,9 +701,14 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
     }
     // Skinning stretches the skin a little: a margin on the rest length.
     skin.edge[t] = kEdgeStretch * longest;
+    skin.longest_edge = std::max(skin.longest_edge, skin.edge[t]);
   }
   skin.hit_radius.assign(nodes, -1.0);
   skin.hit_triangle.assign(nodes, -1);
+  for (int f = 0; f < 6; ++f) {
+    skin.face_hit[f].assign(segment.map.face_nodes[f].size(), -1.0);
+    skin.face_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
+  }
   skin.state.assign(nodes, 0);
   skin.queue.reserve(nodes);
 }
@@ -729,10 +810,22 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
     double farthest = 0.0;
     for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
     segment.reach = std::sqrt(farthest) + kReachMargin;
-    // Until the map is redrawn, all that is known is that no ray reaches farther.
-    segment.bounding_radius = segment.reach + settings_.thickness / kMinSkinCosine;
-    segment.shell_box = Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-segment.bounding_radius),
-                                            Eigen::Vector3d::Constant(segment.bounding_radius));
+    // Until the map is redrawn, the shell is known to lie within the reach and within the
+    // box of the skin the rays can stop at (corners within the reach and an edge), grown by
+    // the thickness term and a node spacing for the caps filled at open ends.
+    const double grow = settings_.thickness / kMinSkinCosine + segment.map.spacing;
+    const double near = segment.reach + skin.longest_edge;
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3d& q : skin.local) {
+      if (q.squaredNorm() <= near * near) box.extend(q);
+    }
+    const Eigen::Vector3d cube = Eigen::Vector3d::Constant(segment.reach);
+    segment.shell_box = box.isEmpty()
+                            ? Eigen::AlignedBox3d(-cube, cube)
+                            : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
+    segment.shell_box.min().array() -= grow;
+    segment.shell_box.max().array() += grow;
+    segment.bounding_radius = segment.reach + grow;
     stale_[s] = 1;
   }
 }
@@ -786,9 +879,8 @@ void SuperquadricCollider::CullSegments(const std::vector<Placement>& placements
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     const Eigen::Vector3d centre = placements[s].to_world.translation();
     const Eigen::Vector3d nearest = centre.cwiseMax(lo).cwiseMin(hi);
-    if ((centre - nearest).norm() <= segments_[s].bounding_radius + reach + sweep_[s]) {
-      active_.push_back(static_cast<int>(s));
-    }
+    const double bound = segments_[s].bounding_radius + reach + sweep_[s];
+    if ((centre - nearest).squaredNorm() <= bound * bound) active_.push_back(static_cast<int>(s));
   }
 }
 
@@ -814,12 +906,17 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
     const double grow = reach + sweep_[s];
     const double bound = segment.bounding_radius + grow;
     if ((x - placement[s].to_world.translation()).squaredNorm() > bound * bound) continue;
-    // The first particle near a segment since the last Update redraws its map.
-    if (stale_[s]) RefreshMap(s);
     const Eigen::Vector3d q = placement[s].to_local * x;
-    if ((q.array() < segment.shell_box.min().array() - grow).any() ||
-        (q.array() > segment.shell_box.max().array() + grow).any()) {
-      continue;
+    const auto outside = [&] {
+      return (q.array() < segment.shell_box.min().array() - grow).any() ||
+             (q.array() > segment.shell_box.max().array() + grow).any();
+    };
+    if (outside()) continue;
+    if (stale_[s]) {
+      // The first particle near a segment since the last Update redraws its map, which
+      // tightens its box.
+      RefreshMap(s);
+      if (outside()) continue;
     }
     ShellProbe probe;
     ProbeShell(segment, q, settings_.thickness, probe);

@@ -4,21 +4,27 @@
 /// per H-Anim body segment, fitted to that segment's skin (Solina & Bajcsy 1990), with the
 /// skin's distance from the superquadric stored as a map over the superquadric's surface.
 ///
-/// The skin's distance from each superquadric is a map over the superquadric's surface,
-/// redrawn every frame from the skinned vertices (Update), so it follows linear blend
-/// skinning where it bends the skin away from the rigid segments (hips, knees, elbows).
+/// The map is redrawn every frame from the skinned triangles (lazily, when cloth first comes
+/// near the segment), so it follows linear blend skinning where it bends the skin away from
+/// the rigid segments (hips, knees, elbows). docs/collision.md has the measurements.
 ///
 /// Approximations, all deliberate:
 /// - Each segment's shell is star-shaped from its superquadric's centre: along every ray it
-///   reaches the outermost skin triangle of the segment. Every skin triangle belongs to the
-///   segments of its corners, so the shells together hold all of the skin; where a segment's
-///   skin is not star-shaped from its centre (a thigh's triangles seen across the crotch) its
-///   shell also holds the air in between.
+///   reaches the first place where the ray leaves the skin, among the triangles of the
+///   segment and of its H-Anim neighbours, and at most the segment's reach (the farthest
+///   skin it holds plus 6 cm); the neighbours' shells hold the skin beyond. Skin hidden from
+///   every centre behind other skin (the bottom of a deep crease) is held by no shell.
+/// - A body made of overlapping closed pieces (the built-in humanoid) has surfaces inside
+///   other pieces; the parts of them more than 1.5 mm inside another piece in the rest pose
+///   are not skin. The pieces' overlap is taken from the rest pose.
 /// - Distances are radial: measured along the ray from the superquadric's centre, as the
 ///   paper's map stores them. The thickness, a normal distance, becomes radial through the
 ///   cosine between the ray and the skin's normal stored in the map, and so does a radial
 ///   gap become the normal gap the solver's contact needs (exact for a locally flat skin).
-/// - Between map nodes the skin's radius and normal are interpolated bilinearly.
+/// - Between map nodes the skin's radius and normal are interpolated bilinearly; a cell that
+///   straddles a silhouette seen from the centre is read as its nearest skin, which leaves
+///   a band of up to a cell's width of the farther skin (a crease's far side) out of that
+///   shell.
 /// - The contact normal is, by default, the superquadric's normalised gradient at the
 ///   particle's ray (the paper's choice), not the skin's normal; they differ where the skin
 ///   departs from the superquadric (measured on a capsule: 23° on its hemispherical cap,
@@ -27,7 +33,7 @@
 /// - The body's velocity at a particle is that of the point rigidly attached to the segment
 ///   at the particle's position, from the change of the joint frame between Update calls;
 ///   the skin's own motion relative to the segment (skinning) enters as the change of the
-///   map, which contacts see at the end of the step.
+///   map: contacts test the start-of-step placement carrying the end-of-step map.
 
 #include <Eigen/Geometry>
 #include <array>
@@ -46,9 +52,9 @@ namespace costume::sim {
 struct SuperquadricColliderOptions {
   /// A segment with fewer skin vertices than this gets no superquadric [-] >= 11.
   int min_vertices_per_segment = 20;
-  /// Spacing of the distance map's nodes on the faces of each superquadric's bounding box
-  /// [m] > 0 (each face gets at least 2 intervals per side): 1 cm resolves the built-in
-  /// humanoid's 3 cm facets to a fraction of a millimetre.
+  /// Spacing of the distance map's nodes [m] in [0.002, 0.2], on the box the segment's skin
+  /// fills in the superquadric's frame (each side gets at least 2 intervals). 1 cm kept a
+  /// skirt on the built-in humanoid's walk within 2 mm of the skin; 1.5 cm did not (2.3 mm).
   double map_spacing = 0.01;
   SuperquadricFitOptions fit;
   /// Where contact normals come from (see the file comment).
@@ -85,8 +91,10 @@ std::vector<SegmentSuperquadricFit> FitAvatarSegments(
 /// paper's (eta, omega) grid crowds them onto the edges of the box-like shapes fitted to
 /// limbs: with e1 = 0.1, three of its 33 rows span 80 % of a thigh).
 struct SkinDistanceMap {
-  /// Intervals along the box's x, y and z edges.
+  /// Intervals along the box's x, y and z edges, and the nodes' spacing on the skin the
+  /// grid was sized for [m].
   std::array<int, 3> intervals{2, 2, 2};
+  double spacing = 0.01;
   /// Per face f (0 +x, 1 −x, 2 +y, 3 −y, 4 +z, 5 −z; face axis i = f/2 and the in-face axes
   /// j = (i+1)%3, k = (i+2)%3): the node at grid point (u, v), u along j, v along k, is
   /// face_nodes[f][u·(intervals[k] + 1) + v].
@@ -95,6 +103,10 @@ struct SkinDistanceMap {
   /// (constant: superquadric frame).
   std::vector<Eigen::Vector3d> ray;
   std::vector<double> surface_radius;
+  /// Per node: the distance of its point on the box from the centre [m].
+  std::vector<double> box_length;
+  /// The box's half sizes: the superquadric's a1, a2, a3 [m].
+  Eigen::Vector3d size = Eigen::Vector3d::Ones();
   /// Per node: the distance from the centre to the skin along the ray [m] (the outermost
   /// skin triangle of the segment the ray crosses; skin_radius − surface_radius is the
   /// paper's mapped distance) and the skin's outward unit normal there [-].
@@ -134,20 +146,26 @@ struct SegmentSkin {
   /// triangle is not skin).
   std::vector<std::array<double, 6>> burial;
   std::vector<char> partly_buried;
-  /// Scratch of the last refresh: corners in the superquadric frame, scaled by 1/a, and the
-  /// face of the map's box each lies towards; per node the distance of the first exit
+  /// Scratch of the last refresh: corners in the superquadric frame, scaled by 1/a, the
+  /// face of the map's box each lies towards and its coordinates on it; per node the distance of the first exit
   /// (< 0: none) and the triangle that gave it.
   std::vector<Eigen::Vector3d> local;
   std::vector<Eigen::Vector3d> scaled;
   std::vector<char> face;
+  std::vector<Eigen::Vector2d> face_point;
   /// Per triangle its outward unit normal at the last refresh (front-facing ones only).
   std::vector<Eigen::Vector3d> triangle_normal;
   /// Per corner its distance from the centre at the last refresh [m]; per triangle a bound
   /// on its longest edge [m] (the rest length with a margin for skinning's stretch).
   std::vector<double> distance;
   std::vector<double> edge;
+  double longest_edge = 0.0;
   std::vector<double> hit_radius;
   std::vector<int> hit_triangle;
+  /// Per face grid point (duplicating shared nodes): the nearest hit in units of the
+  /// point's distance from the centre (< 0: none) and its triangle.
+  std::array<std::vector<double>, 6> face_hit;
+  std::array<std::vector<int>, 6> face_triangle;
   /// Scratch of the filling: per node unknown / known / queued, and the queue.
   std::vector<char> state;
   std::vector<int> queue;
