@@ -247,7 +247,8 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
   // values are also the barycentric weights of the opposite corners (unnormalised).
   const Eigen::Vector3d edge_planes[3] = {corner[1].cross(corner[2]), corner[2].cross(corner[0]),
                                           corner[0].cross(corner[1])};
-  const std::array<double, 6>* burial = skin.partly_buried[triangle] ? &skin.burial[triangle] : nullptr;
+  const std::array<double, 6>* burial =
+      skin.partly_buried[triangle] ? &skin.burial[triangle] : nullptr;
   const Eigen::Vector3d p[3] = {skin.scaled[corners[0]], skin.scaled[corners[1]],
                                 skin.scaled[corners[2]]};
   // The faces' cones are convex: a triangle whose corners all lie in one lies in it.
@@ -490,7 +491,9 @@ std::vector<std::array<double, 6>> Burial(const Avatar& avatar) {
   const SurfacePseudonormals topology(avatar.num_vertices(), triangles);
   if (topology.num_pieces() <= 1 || topology.num_open_edges() > 0) return burial;
   std::vector<std::vector<Eigen::Vector3i>> pieces(topology.num_pieces());
-  for (int t = 0; t < topology.num_triangles(); ++t) pieces[topology.piece_of(t)].push_back(triangles[t]);
+  for (int t = 0; t < topology.num_triangles(); ++t) {
+    pieces[topology.piece_of(t)].push_back(triangles[t]);
+  }
   const Points& rest = avatar.rest_vertices();
   const auto sample = [&](const Eigen::Vector3i& tri, int k) -> Eigen::Vector3d {
     if (k < 3) return rest.row(tri[k]).transpose();
@@ -537,7 +540,8 @@ std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>&
     for (std::size_t o = 0; o < segments.size(); ++o) {
       if (o == s) continue;
       const int other_up = fitted_ancestor(segments[o].segment);
-      if (static_cast<int>(o) == up || other_up == static_cast<int>(s) || (up < 0 && other_up < 0)) {
+      const bool parent = static_cast<int>(o) == up, child = other_up == static_cast<int>(s);
+      if (parent || child || (up < 0 && other_up < 0)) {
         neighbours[s].push_back(static_cast<int>(o));
       }
     }
@@ -647,7 +651,9 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   segment.viewed.shrink_to_fit();
   SegmentSkin& skin = segment.skin;
   std::vector<int> local(avatar.num_vertices(), -1);
-  for (std::size_t k = 0; k < skin.vertices.size(); ++k) local[skin.vertices[k]] = static_cast<int>(k);
+  for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
+    local[skin.vertices[k]] = static_cast<int>(k);
+  }
   for (int v : held) {
     const Eigen::Vector3d q = to_local * avatar.rest_vertices().row(v).transpose();
     extent = extent.cwiseMax(q.cwiseAbs());
@@ -820,9 +826,9 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
       if (q.squaredNorm() <= near * near) box.extend(q);
     }
     const Eigen::Vector3d cube = Eigen::Vector3d::Constant(segment.reach);
-    segment.shell_box = box.isEmpty()
-                            ? Eigen::AlignedBox3d(-cube, cube)
-                            : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
+    segment.shell_box =
+        box.isEmpty() ? Eigen::AlignedBox3d(-cube, cube)
+                      : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
     segment.shell_box.min().array() -= grow;
     segment.shell_box.max().array() += grow;
     segment.bounding_radius = segment.reach + grow;

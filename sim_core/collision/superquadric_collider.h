@@ -107,9 +107,10 @@ struct SkinDistanceMap {
   std::vector<double> box_length;
   /// The box's half sizes: the superquadric's a1, a2, a3 [m].
   Eigen::Vector3d size = Eigen::Vector3d::Ones();
-  /// Per node: the distance from the centre to the skin along the ray [m] (the outermost
-  /// skin triangle of the segment the ray crosses; skin_radius − surface_radius is the
-  /// paper's mapped distance) and the skin's outward unit normal there [-].
+  /// Per node: the distance from the centre to the skin along the ray [m] (where the ray
+  /// first leaves the skin the map holds, at most the segment's reach; skin_radius −
+  /// surface_radius is the paper's mapped distance) and the skin's outward unit normal
+  /// there (the ray at filled nodes) [-].
   std::vector<double> skin_radius;
   std::vector<Eigen::Vector3d> skin_normal;
   /// Per node: the distance of the skin's tangent plane there from the centre [m].
@@ -131,14 +132,16 @@ struct SkinDistanceMap {
   double skin_offset(int node) const { return skin_radius[node] - surface_radius[node]; }
 };
 
-/// The skin a segment's map is drawn from: the skin triangles having a corner in the
-/// segment, and scratch for redrawing it without allocating.
+/// The skin a segment's map is drawn from: the triangles having a corner in the segment or
+/// in one of its neighbours (SuperquadricCollider), and scratch for redrawing it without
+/// allocating.
 struct SegmentSkin {
   /// Avatar vertex indices of the triangles' corners, and the triangles as indices into it.
   std::vector<int> vertices;
   std::vector<Eigen::Vector3i> triangles;
   /// The corners (indices into `vertices`) of the skin the segment's shell is to hold: its
-  /// own vertices and the triangles its centre sees best. Their farthest sets the reach.
+  /// own vertices and the triangles whose nearest centre seeing their outside is its own.
+  /// Their farthest sets the reach.
   std::vector<int> held;
   /// Per triangle: the signed distances of its corners and edge midpoints from the body's
   /// other closed pieces in the rest pose, plus a tolerance [m] (< 0: inside one), and
@@ -147,8 +150,8 @@ struct SegmentSkin {
   std::vector<std::array<double, 6>> burial;
   std::vector<char> partly_buried;
   /// Scratch of the last refresh: corners in the superquadric frame, scaled by 1/a, the
-  /// face of the map's box each lies towards and its coordinates on it; per node the distance of the first exit
-  /// (< 0: none) and the triangle that gave it.
+  /// face of the map's box each lies towards and its coordinates on it; per node the
+  /// distance of the first exit (< 0: none) and the triangle that gave it.
   std::vector<Eigen::Vector3d> local;
   std::vector<Eigen::Vector3d> scaled;
   std::vector<char> face;
@@ -184,11 +187,12 @@ struct SuperquadricSegment {
   /// the segment holds (SegmentSkin::held) in the last pose, and a margin; beyond, the
   /// neighbours' shells hold the skin.
   double reach = 0.0;
-  /// Construction scratch: corners of the triangles this segment sees most squarely.
+  /// Construction scratch: corners of the triangles whose nearest centre seeing their
+  /// outside is this segment's.
   std::vector<int> viewed;
   /// Radius of a sphere about the superquadric's centre and a box in its frame holding the
   /// segment's shell (skin + the collider's thickness) at the last drawing of the map [m];
-  /// while the map is stale, those of the largest shell the reach allows.
+  /// while the map is stale, the reach and the box of the skin corners within it.
   double bounding_radius = 0.0;
   Eigen::AlignedBox3d shell_box;
   /// RMS radial distance of the skin vertices from the superquadric [m].

@@ -223,7 +223,8 @@ TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
     const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
     const Eigen::Vector3d radial = p - Eigen::Vector3d(0, s, 0);
     if (radial.norm() < 1e-9) {  // a pole: push it out along the axis
-      skinned.row(v) = (arm * (local + kSwell * Eigen::Vector3d(0, p.y() > 0 ? 1 : -1, 0))).transpose();
+      const Eigen::Vector3d along(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0);
+      skinned.row(v) = (arm * (local + kSwell * along)).transpose();
     } else {
       skinned.row(v) = (arm * (local + kSwell * radial.normalized())).transpose();
     }
