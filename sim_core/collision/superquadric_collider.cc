@@ -3,14 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numbers>
 
+#include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/surface_geometry.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 /// Floor of the ray/skin-normal cosine: a ray grazing the skin would otherwise turn a
 /// millimetre of thickness into metres of radial shell.
 constexpr double kMinSkinCosine = 0.1;
@@ -41,11 +41,8 @@ void ValidateOptions(const SuperquadricColliderOptions& options, const std::stri
     throw InputError(where + ": min_vertices_per_segment " +
                      std::to_string(options.min_vertices_per_segment) + " (allowed: >= 11)");
   }
-  if (options.map_eta_intervals < 4 || options.map_omega_intervals < 4) {
-    throw InputError(where + ": distance map intervals " +
-                     std::to_string(options.map_eta_intervals) + "×" +
-                     std::to_string(options.map_omega_intervals) + " (allowed: >= 4 each)");
-  }
+  // Below 2 mm a torso's map would hold hundreds of thousands of nodes.
+  RequireInRange(where + ": map_spacing", options.map_spacing, 0.002, 0.2, "m");
 }
 
 std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const SegmentGroups& groups,
@@ -70,232 +67,672 @@ std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const Segmen
   return fits;
 }
 
-// ---- distance map ---------------------------------------------------------------------------
+// ---- distance map: a cube map of rays ------------------------------------------------------
 
-/// A skin triangle in superquadric coordinates with the cone of ray directions it can meet.
-struct RayTriangle {
-  Eigen::Vector3d v0, e1, e2;
-  Eigen::Vector3i vertices{-1, -1, -1};  // the avatar's vertex indices
-  Eigen::Vector3d axis;  // unit centroid direction
-  double cone_cos = -1;  // rays with direction·axis below this miss the triangle
-};
-
-RayTriangle MakeRayTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                            const Eigen::Vector3d& c) {
-  RayTriangle t{a, b - a, c - a, Eigen::Vector3i::Constant(-1), (a + b + c).normalized(), -1.0};
-  if (a.norm() > 0 && b.norm() > 0 && c.norm() > 0 && (a + b + c).norm() > 0) {
-    // The triangle's directions lie in the spherical hull of its corners' directions, which
-    // the cap about the centroid direction through the farthest corner contains when that
-    // cap is smaller than a hemisphere.
-    const double cone = std::min(
-        {t.axis.dot(a.normalized()), t.axis.dot(b.normalized()), t.axis.dot(c.normalized())});
-    t.cone_cos = cone > 0.0 ? cone - 1e-9 : -1.0;
-  }
-  return t;
+/// The face of the box [−1, 1]³ through which the ray from the origin through the scaled
+/// point `p` = (x/a1, y/a2, z/a3) leaves, and the in-face coordinates s = p_j/|p_i|,
+/// t = p_k/|p_i| ∈ [−1, 1] (i the face's axis, j = (i+1)%3, k = (i+2)%3). False at the
+/// origin, which has no ray.
+bool LocateOnBox(const Eigen::Vector3d& p, int& face, double& s, double& t) {
+  const double ax = std::abs(p.x()), ay = std::abs(p.y()), az = std::abs(p.z());
+  const int i = ax >= ay ? (ax >= az ? 0 : 2) : (ay >= az ? 1 : 2);
+  const double w = i == 0 ? ax : (i == 1 ? ay : az);
+  if (!(w > 0.0)) return false;
+  face = 2 * i + (p[i] < 0.0 ? 1 : 0);
+  s = p[(i + 1) % 3] / w;
+  t = p[(i + 2) % 3] / w;
+  return true;
 }
 
-/// Möller–Trumbore from the origin along `d`: distance t > 0 of the hit, or −1; the hit's
-/// barycentric coordinates (u, v) of e1 and e2 in `uv`.
-double RayHit(const RayTriangle& tri, const Eigen::Vector3d& d, Eigen::Vector2d* uv = nullptr) {
-  const Eigen::Vector3d p = d.cross(tri.e2);
-  const double det = tri.e1.dot(p);
-  if (std::abs(det) < 1e-300) return -1.0;
-  const Eigen::Vector3d s = -tri.v0;
-  const double u = s.dot(p) / det;
-  if (u < 0.0 || u > 1.0) return -1.0;
-  const Eigen::Vector3d q = s.cross(tri.e1);
-  const double v = d.dot(q) / det;
-  if (v < 0.0 || u + v > 1.0) return -1.0;
-  const double t = tri.e2.dot(q) / det;
-  if (uv) *uv = Eigen::Vector2d(u, v);
-  return t > 0.0 ? t : -1.0;
-}
+/// A map cell whose nodes' predictions of the skin's radius differ by more than this many
+/// times the node spacing straddles a silhouette.
+constexpr double kSilhouetteSlope = 3.0;
 
-int NodeIndex(const SkinDistanceMap& map, int j, int k) { return j * map.num_omega + k; }
-
-/// Gives nodes whose ray missed the skin the mean of their filled neighbours, ring by ring.
-void FillMissedNodes(SkinDistanceMap& map, std::vector<char>& known) {
-  const int rows = map.num_eta + 1;
-  for (bool changed = true; changed;) {
-    changed = false;
-    std::vector<char> next = known;
-    for (int j = 0; j < rows; ++j) {
-      for (int k = 0; k < map.num_omega; ++k) {
-        const int node = NodeIndex(map, j, k);
-        if (known[node]) continue;
-        double offset = 0.0;
-        Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-        int count = 0;
-        const int neighbours[4][2] = {{j - 1, k}, {j + 1, k}, {j, k - 1}, {j, k + 1}};
-        for (const auto& [nj, nk] : neighbours) {
-          if (nj < 0 || nj >= rows) continue;
-          const int other = NodeIndex(map, nj, (nk + map.num_omega) % map.num_omega);
-          if (!known[other]) continue;
-          offset += map.skin_offset[other];
-          normal += map.skin_normal[other];
-          ++count;
-        }
-        if (count == 0) continue;
-        map.skin_offset[node] = offset / count;
-        map.skin_normal[node] = normal.norm() > 0 ? normal.normalized() : Eigen::Vector3d::UnitZ();
-        next[node] = 1;
-        changed = true;
-      }
-    }
-    known.swap(next);
-  }
-}
-
-/// Casts every node's ray against `triangles` (superquadric frame); the outermost hit is the
-/// skin, so the shell holds everything the ray crosses.
-SkinDistanceMap BuildMap(const Superquadric& sq, const std::vector<RayTriangle>& triangles,
-                         int num_eta, int num_omega) {
+/// The node grid on the bounding box's faces: rays, the superquadric's radius along each,
+/// the faces' node tables and the node adjacency. The skin fields start on the
+/// superquadric itself. `extent` [m], the half sizes of the box the skin fills in the
+/// superquadric's frame, sets the node counts, so nodes lie about `spacing` apart on the
+/// skin even where it is far from a small superquadric.
+SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& extent,
+                            double spacing) {
   SkinDistanceMap map;
-  map.num_eta = num_eta;
-  map.num_omega = num_omega;
-  const int num_nodes = (num_eta + 1) * num_omega;
-  map.skin_offset.assign(num_nodes, 0.0);
-  map.skin_normal.assign(num_nodes, Eigen::Vector3d::UnitZ());
-  map.hit_vertices.assign(num_nodes, Eigen::Vector3i::Constant(-1));
-  map.hit_weights.assign(num_nodes, Eigen::Vector3d::Zero());
-  map.ray.assign(num_nodes, Eigen::Vector3d::UnitZ());
-  map.surface_radius.assign(num_nodes, 0.0);
-  std::vector<char> known(num_nodes, 0);
-  for (int j = 0; j <= num_eta; ++j) {
-    for (int k = 0; k < num_omega; ++k) {
-      const Eigen::Vector3d surface =
-          ParametricSurfacePoint(sq, -kPi / 2 + j * kPi / num_eta, -kPi + k * 2 * kPi / num_omega);
-      const Eigen::Vector3d d = surface.normalized();
-      const int node = NodeIndex(map, j, k);
-      map.ray[node] = d;
-      map.surface_radius[node] = surface.norm();
-      double farthest = -1.0;
-      const RayTriangle* hit = nullptr;
-      Eigen::Vector2d uv, hit_uv;
-      for (const RayTriangle& tri : triangles) {
-        if (d.dot(tri.axis) < tri.cone_cos) continue;
-        const double t = RayHit(tri, d, &uv);
-        if (t > farthest) {
-          farthest = t;
-          hit = &tri;
-          hit_uv = uv;
+  const Eigen::Vector3d size(sq.a1, sq.a2, sq.a3);
+  const auto& n = map.intervals;
+  for (int a = 0; a < 3; ++a) {
+    const double side = 2.0 * std::max(size[a], extent[a]);
+    map.intervals[a] = std::max(2, static_cast<int>(std::ceil(side / spacing)));
+  }
+  // Nodes are the lattice points on the boundary of [0, n0]×[0, n1]×[0, n2], so faces
+  // share their edge and corner nodes.
+  std::vector<int> lattice((n[0] + 1) * (n[1] + 1) * (n[2] + 1), -1);
+  for (int f = 0; f < 6; ++f) {
+    const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
+    std::vector<int>& table = map.face_nodes[f];
+    table.resize((n[j] + 1) * (n[k] + 1));
+    for (int u = 0; u <= n[j]; ++u) {
+      for (int v = 0; v <= n[k]; ++v) {
+        std::array<int, 3> g{};
+        g[i] = f % 2 == 0 ? n[i] : 0;
+        g[j] = u;
+        g[k] = v;
+        int& node = lattice[(g[0] * (n[1] + 1) + g[1]) * (n[2] + 1) + g[2]];
+        if (node < 0) {
+          node = map.num_nodes();
+          Eigen::Vector3d box;
+          for (int a = 0; a < 3; ++a) box[a] = size[a] * (-1.0 + 2.0 * g[a] / n[a]);
+          map.ray.push_back(box.normalized());
+          map.box_length.push_back(box.norm());
+          map.surface_radius.push_back(box.norm() *
+                                       std::pow(InsideOutside(sq, box), -0.5 * sq.e1));
         }
+        table[u * (n[k] + 1) + v] = node;
       }
-      if (!hit) continue;
-      map.hit_vertices[node] = hit->vertices;
-      map.hit_weights[node] = Eigen::Vector3d(1.0 - hit_uv.x() - hit_uv.y(), hit_uv.x(), hit_uv.y());
-      map.skin_offset[node] = farthest - surface.norm();
-      // Outward: the side the ray leaves through (winding is not trusted).
-      const Eigen::Vector3d normal = hit->e1.cross(hit->e2).normalized();
-      map.skin_normal[node] = normal.dot(d) >= 0.0 ? normal : Eigen::Vector3d(-normal);
-      known[node] = 1;
     }
   }
-  map.num_filled_nodes = num_nodes - static_cast<int>(std::count(known.begin(), known.end(), 1));
-  if (map.num_filled_nodes < num_nodes) FillMissedNodes(map, known);
+  std::vector<std::vector<int>> adjacent(map.num_nodes());
+  for (int f = 0; f < 6; ++f) {
+    const int i = f / 2, nj = n[(i + 1) % 3], nk = n[(i + 2) % 3];
+    const auto at = [&](int u, int v) { return map.face_nodes[f][u * (nk + 1) + v]; };
+    for (int u = 0; u <= nj; ++u) {
+      for (int v = 0; v <= nk; ++v) {
+        std::vector<int>& list = adjacent[at(u, v)];
+        const int steps[4][2] = {{u - 1, v}, {u + 1, v}, {u, v - 1}, {u, v + 1}};
+        for (const auto& [su, sv] : steps) {
+          if (su < 0 || su > nj || sv < 0 || sv > nk) continue;
+          if (std::find(list.begin(), list.end(), at(su, sv)) == list.end()) {
+            list.push_back(at(su, sv));
+          }
+        }
+      }
+    }
+  }
+  map.neighbour_start.push_back(0);
+  for (const std::vector<int>& list : adjacent) {
+    map.neighbours.insert(map.neighbours.end(), list.begin(), list.end());
+    map.neighbour_start.push_back(static_cast<int>(map.neighbours.size()));
+  }
+  map.skin_radius = map.surface_radius;
+  map.skin_normal = map.ray;
+  map.skin_plane = map.surface_radius;
+  map.silhouette_jump = kSilhouetteSlope * spacing;
+  map.spacing = spacing;
+  map.size = size;
   return map;
 }
 
-/// Bilinear interpolation of the map at parametric angles (eta, omega).
-void LookUp(const SkinDistanceMap& map, const Eigen::Vector2d& angles, double& offset,
-            Eigen::Vector3d& normal) {
-  const double fe =
-      std::clamp((angles[0] + kPi / 2) / kPi * map.num_eta, 0.0, static_cast<double>(map.num_eta));
-  const int j = std::min(static_cast<int>(fe), map.num_eta - 1);
-  const double te = fe - j;
-  const double fo = (angles[1] + kPi) / (2 * kPi) * map.num_omega;
-  const int k_floor = static_cast<int>(std::floor(fo));
-  const double to = std::clamp(fo - k_floor, 0.0, 1.0);
-  const int k0 = ((k_floor % map.num_omega) + map.num_omega) % map.num_omega;
-  const int k1 = (k0 + 1) % map.num_omega;
-  const int n00 = NodeIndex(map, j, k0), n01 = NodeIndex(map, j, k1);
-  const int n10 = NodeIndex(map, j + 1, k0), n11 = NodeIndex(map, j + 1, k1);
-  const double w00 = (1 - te) * (1 - to), w01 = (1 - te) * to, w10 = te * (1 - to), w11 = te * to;
-  const auto& o = map.skin_offset;
-  offset = w00 * o[n00] + w01 * o[n01] + w10 * o[n10] + w11 * o[n11];
-  const auto& n = map.skin_normal;
-  normal = w00 * n[n00] + w01 * n[n01] + w10 * n[n10] + w11 * n[n11];
+/// The skin's radius along the unit ray `d` as node `node` predicts it: where `d` meets the
+/// skin's tangent plane at the node (its own radius where that plane nearly contains `d`)
+/// [m].
+double PlaneRadius(const SkinDistanceMap& map, int node, const Eigen::Vector3d& d) {
+  const double cosine = map.skin_normal[node].dot(d);
+  return cosine > kMinSkinCosine ? map.skin_plane[node] / cosine : map.skin_radius[node];
 }
 
-SuperquadricSegment BuildSegment(const Avatar& avatar, const SegmentSuperquadricFit& fit,
-                                 const std::vector<int>& group,
-                                 const SuperquadricColliderOptions& options, double thickness) {
+/// The map read on the unit ray `d` (superquadric frame): the skin's radius [m] and its
+/// (unnormalised) normal, bilinear in the four nodes around `d`.
+void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
+            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal) {
+  int face = 0;
+  double s = 0.0, t = 0.0;
+  LocateOnBox(d.cwiseProduct(inverse_size), face, s, t);
+  const int i = face / 2, nj = map.intervals[(i + 1) % 3], nk = map.intervals[(i + 2) % 3];
+  const double fu = 0.5 * (s + 1.0) * nj, fv = 0.5 * (t + 1.0) * nk;
+  const int u = std::clamp(static_cast<int>(fu), 0, nj - 1);
+  const int v = std::clamp(static_cast<int>(fv), 0, nk - 1);
+  const double wu = fu - u, wv = fv - v;
+  const int* row = map.face_nodes[face].data() + u * (nk + 1) + v;
+  const int n[4] = {row[0], row[1], row[nk + 1], row[nk + 2]};
+  const auto& r = map.skin_radius;
+  const auto& m = map.skin_normal;
+  if (std::max({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) -
+          std::min({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) > map.silhouette_jump) {
+    // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
+    // from the calf's centre), and each node's tangent plane predicts the others' radii, or
+    // the cell straddles a silhouette seen from the centre, some rays leaving the skin near,
+    // others passing it and leaving far beyond. Blending those would raise a shell in the
+    // air between (the crease of a hip over a thigh): the near skin holds. (The radius of
+    // the node nearest the ray instead left the skin as near at the crease but made the
+    // shell a step that snagged cloth: 280 % strain on the walk.)
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    int nearest = n[0];
+    for (int k = 0; k < 4; ++k) {
+      const double predicted = PlaneRadius(map, n[k], d);
+      hi = std::max(hi, predicted);
+      if (predicted < lo) lo = predicted, nearest = n[k];
+    }
+    if (hi - lo > map.silhouette_jump) {
+      radius = lo;
+      normal = m[nearest];
+      return;
+    }
+  }
+  const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
+  radius = w00 * r[n[0]] + w01 * r[n[1]] + w10 * r[n[2]] + w11 * r[n[3]];
+  normal = w00 * m[n[0]] + w01 * m[n[1]] + w10 * m[n[2]] + w11 * m[n[3]];
+}
+
+/// The quadratic (6-node Lagrange) interpolation of a triangle's burial samples at the
+/// barycentric point (l0, l1, l2), l summing to 1.
+double InterpolateBurial(const std::array<double, 6>& b, double l0, double l1, double l2) {
+  return b[0] * l0 * (2 * l0 - 1) + b[1] * l1 * (2 * l1 - 1) + b[2] * l2 * (2 * l2 - 1) +
+         4 * (b[3] * l1 * l2 + b[4] * l2 * l0 + b[5] * l0 * l1);
+}
+
+/// Draws one skin triangle (corners in the superquadric frame) into the map: every node
+/// whose ray leaves the skin through it keeps the nearer of its current hit and this one
+/// (the ray's first exit). The triangle's rays on a face are those of its central
+/// projection onto the face's plane, a triangle whose bounding box gives the candidate
+/// nodes; a triangle reaching behind the face's plane projects to an unbounded region,
+/// which stretches the box to the face's edges. `burial` (the triangle's samples of Burial,
+/// null when none is buried) clips off the part inside another piece.
+void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, SegmentSkin& skin) {
+  const Eigen::Vector3i& corners = skin.triangles[triangle];
+  // Every point of the triangle is at least its nearest corner's distance less its longest
+  // edge from the centre: beyond the reach, all its rays stop at the reach anyway.
+  const double nearest = std::min({skin.distance[corners[0]], skin.distance[corners[1]],
+                                   skin.distance[corners[2]]});
+  if (nearest - skin.edge[triangle] >= reach) return;
+  const Eigen::Vector3d corner[3] = {skin.local[corners[0]], skin.local[corners[1]],
+                                     skin.local[corners[2]]};
+  const Eigen::Vector3d normal = (corner[1] - corner[0]).cross(corner[2] - corner[0]);
+  // The triple product of the corners: > 0 when the centre sees the triangle's outside
+  // (counter-clockwise from outside), so a ray through it leaves the skin. Rays entering
+  // the skin, and a triangle seen edge on, stop nothing; nor does one whose plane lies
+  // beyond the reach, where every ray stops anyway.
+  const double plane = normal.dot(corner[0]);
+  const double length = normal.norm();
+  if (plane <= 1e-12 * length * corner[0].norm() || plane >= reach * length) return;
+  skin.triangle_normal[triangle] = normal / length;
+  // Inside the triangle's cone of rays: on the inner side of its three edge planes, whose
+  // values are also the barycentric weights of the opposite corners (unnormalised).
+  const Eigen::Vector3d edge_planes[3] = {corner[1].cross(corner[2]), corner[2].cross(corner[0]),
+                                          corner[0].cross(corner[1])};
+  const std::array<double, 6>* burial =
+      skin.partly_buried[triangle] ? &skin.burial[triangle] : nullptr;
+  const Eigen::Vector3d p[3] = {skin.scaled[corners[0]], skin.scaled[corners[1]],
+                                skin.scaled[corners[2]]};
+  // The faces' cones are convex: a triangle whose corners all lie in one lies in it.
+  const char* face = skin.face.data();
+  const int only = face[corners[0]] == face[corners[1]] && face[corners[0]] == face[corners[2]]
+                       ? face[corners[0]] : -1;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  for (int f = only < 0 ? 0 : only; f < (only < 0 ? 6 : only + 1); ++f) {
+    const int i = f / 2, j = (i + 1) % 3, k = (i + 2) % 3;
+    double s_lo = kInf, s_hi = -kInf, t_lo = kInf, t_hi = -kInf;
+    if (only >= 0) {
+      // All corners on this face: their in-face coordinates were found once per vertex.
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector2d& st = skin.face_point[corners[c]];
+        s_lo = std::min(s_lo, st.x()), s_hi = std::max(s_hi, st.x());
+        t_lo = std::min(t_lo, st.y()), t_hi = std::max(t_hi, st.y());
+      }
+    } else {
+      const double sign = f % 2 == 0 ? 1.0 : -1.0;
+      const double w[3] = {sign * p[0][i], sign * p[1][i], sign * p[2][i]};
+      if (w[0] <= 0.0 && w[1] <= 0.0 && w[2] <= 0.0) continue;
+      for (int c = 0; c < 3; ++c) {
+        if (w[c] > 0.0) {
+          const double s = p[c][j] / w[c], t = p[c][k] / w[c];
+          s_lo = std::min(s_lo, s), s_hi = std::max(s_hi, s);
+          t_lo = std::min(t_lo, t), t_hi = std::max(t_hi, t);
+        }
+        const int d = (c + 1) % 3;
+        if ((w[c] > 0.0) == (w[d] > 0.0)) continue;
+        // The edge crosses the face's plane through the centre: its projection runs off
+        // to infinity in the direction of the crossing point's in-face coordinates.
+        const double lambda = w[c] / (w[c] - w[d]);
+        const Eigen::Vector3d crossing = p[c] + lambda * (p[d] - p[c]);
+        if (crossing[j] > 0.0) s_hi = kInf;
+        if (crossing[j] < 0.0) s_lo = -kInf;
+        if (crossing[k] > 0.0) t_hi = kInf;
+        if (crossing[k] < 0.0) t_lo = -kInf;
+      }
+      if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
+    }
+    const int nj = map.intervals[j], nk = map.intervals[k];
+    // Grid positions are >= 0 once clamped, so truncation is floor (std::ceil and floor
+    // are library calls on the baseline x86-64 this builds for).
+    const auto first = [](double x, int n) {
+      const double g = 0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9;
+      const int floor = static_cast<int>(std::max(g, 0.0));
+      return floor + (floor < g ? 1 : 0);
+    };
+    const auto last = [](double x, int n) {
+      return std::min(n, static_cast<int>(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9));
+    };
+    const int u_hi = last(s_hi, nj), v_lo = first(t_lo, nk), v_hi = last(t_hi, nk);
+    // The node (u, v)'s ray runs through its point on the box, B = σ·a_i·e_i +
+    // a_j·(2u/nj − 1)·e_j + a_k·(2v/nk − 1)·e_k: computed, not loaded. The inside tests
+    // hold for B as for the unit ray, and the hit lies at plane / (normal·B) times |B|.
+    const Eigen::Vector3d& size = map.size;
+    const double sign = f % 2 == 0 ? 1.0 : -1.0;
+    Eigen::Vector3d step_u = Eigen::Vector3d::Zero(), step_v = Eigen::Vector3d::Zero();
+    step_u[j] = 2.0 * size[j] / nj;
+    step_v[k] = 2.0 * size[k] / nk;
+    Eigen::Vector3d base = Eigen::Vector3d::Zero();
+    base[i] = sign * size[i];
+    base[j] = -size[j];
+    base[k] = -size[k];
+    const double e0v = edge_planes[0].dot(step_v), e1v = edge_planes[1].dot(step_v),
+                 e2v = edge_planes[2].dot(step_v), nv = normal.dot(step_v);
+    double* hit = skin.face_hit[f].data();
+    int* hit_triangle = skin.face_triangle[f].data();
+    const int u_lo = first(s_lo, nj);
+    for (int u = u_lo; u <= u_hi; ++u) {
+      const Eigen::Vector3d row = base + u * step_u + v_lo * step_v;
+      double b0 = edge_planes[0].dot(row), b1 = edge_planes[1].dot(row),
+             b2 = edge_planes[2].dot(row), along = normal.dot(row);
+      for (int v = v_lo; v <= v_hi; ++v, b0 += e0v, b1 += e1v, b2 += e2v, along += nv) {
+        // Shared edges are tested with opposite signs by their two triangles, so a ray
+        // along an edge is taken by both and none falls between.
+        if (b0 < 0.0 || b1 < 0.0 || b2 < 0.0) continue;
+        if (burial) {
+          const double sum = b0 + b1 + b2;
+          if (!(sum > 0.0) || InterpolateBurial(*burial, b0 / sum, b1 / sum, b2 / sum) < 0.0) {
+            continue;
+          }
+        }
+        const double lambda = plane / along;  // the hit in units of |B|
+        const int index = u * (nk + 1) + v;
+        if (hit[index] < 0.0 || lambda < hit[index]) {
+          hit[index] = lambda;
+          hit_triangle[index] = triangle;
+        }
+      }
+    }
+  }
+}
+
+/// Gives the nodes no triangle reached (rays leaving through skin that is not in the map:
+/// the open ends of a segment's skin) the smallest skin radius of their reached (or already
+/// filled) neighbours, ring by ring outwards (breadth first), with the ray as the normal: a
+/// cap that never reaches beyond the skin around it. Returns how many nodes were filled.
+int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
+  constexpr char kUnknown = 0, kKnown = 1, kQueued = 2;
+  std::vector<char>& state = skin.state;
+  std::vector<int>& queue = skin.queue;
+  queue.clear();
+  const int num_nodes = map.num_nodes();
+  for (int node = 0; node < num_nodes; ++node) {
+    state[node] = skin.hit_radius[node] > 0.0 ? kKnown : kUnknown;
+  }
+  for (int node = 0; node < num_nodes; ++node) {
+    if (state[node] != kUnknown) continue;
+    for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
+      if (state[map.neighbours[e]] == kKnown) {
+        state[node] = kQueued;
+        queue.push_back(node);  // capacity reserved for every node: no allocation
+        break;
+      }
+    }
+  }
+  if (queue.empty() && num_nodes > 0 && state[0] == kUnknown) {
+    // Nothing reached at all: the superquadric itself.
+    for (int node = 0; node < num_nodes; ++node) {
+      map.skin_radius[node] = std::min(map.surface_radius[node], reach);
+    }
+    map.skin_normal = map.ray;
+    return num_nodes;
+  }
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const int node = queue[head];
+    double smallest = std::numeric_limits<double>::infinity();
+    for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
+      const int other = map.neighbours[e];
+      if (state[other] == kKnown) {
+        smallest = std::min(smallest, map.skin_radius[other]);
+      } else if (state[other] == kUnknown) {
+        state[other] = kQueued;
+        queue.push_back(other);
+      }
+    }
+    map.skin_radius[node] = std::min(smallest, reach);
+    map.skin_normal[node] = map.ray[node];
+    state[node] = kKnown;
+  }
+  return static_cast<int>(queue.size());
+}
+
+/// Redraws the map of `segment` from its skin's corners in the superquadric frame
+/// (skin.local): rays stop at their first exit from the skin, or at the segment's reach.
+/// Then sets the shell's box and bounding radius for `thickness` [m].
+void DrawMap(SuperquadricSegment& segment, double thickness) {
+  SkinDistanceMap& map = segment.map;
+  SegmentSkin& skin = segment.skin;
+  for (std::size_t v = 0; v < skin.local.size(); ++v) {
+    skin.distance[v] = skin.local[v].norm();
+    skin.scaled[v] = skin.local[v].cwiseProduct(segment.inverse_size);
+    const Eigen::Vector3d a = skin.scaled[v].cwiseAbs();
+    const int i = a.x() >= a.y() ? (a.x() >= a.z() ? 0 : 2) : (a.y() >= a.z() ? 1 : 2);
+    skin.face[v] = static_cast<char>(2 * i + (skin.scaled[v][i] < 0.0 ? 1 : 0));
+    const double w = a[i];
+    skin.face_point[v] = w > 0.0 ? Eigen::Vector2d(skin.scaled[v][(i + 1) % 3] / w,
+                                                   skin.scaled[v][(i + 2) % 3] / w)
+                                 : Eigen::Vector2d::Zero();
+  }
+  for (int f = 0; f < 6; ++f) std::fill(skin.face_hit[f].begin(), skin.face_hit[f].end(), -1.0);
+  for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
+    DrawTriangle(map, segment.reach, static_cast<int>(tri), skin);
+  }
+  // The faces' grids share their edge nodes: the nearest hit of each holds.
+  std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
+  for (int f = 0; f < 6; ++f) {
+    const std::vector<int>& table = map.face_nodes[f];
+    for (std::size_t index = 0; index < table.size(); ++index) {
+      if (skin.face_hit[f][index] < 0.0) continue;
+      const int node = table[index];
+      const double radius = skin.face_hit[f][index] * map.box_length[node];
+      if (skin.hit_radius[node] < 0.0 || radius < skin.hit_radius[node]) {
+        skin.hit_radius[node] = radius;
+        skin.hit_triangle[node] = skin.face_triangle[f][index];
+      }
+    }
+  }
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    if (skin.hit_radius[node] <= 0.0) continue;
+    if (skin.hit_radius[node] >= segment.reach) {
+      // The ray runs on inside the body beyond the segment's reach: the shell stops there.
+      map.skin_radius[node] = segment.reach;
+      map.skin_normal[node] = map.ray[node];
+    } else {
+      map.skin_radius[node] = skin.hit_radius[node];
+      map.skin_normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
+    }
+  }
+  map.num_filled_nodes = FillMissedNodes(map, skin, segment.reach);
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    map.skin_plane[node] = map.skin_radius[node] * map.skin_normal[node].dot(map.ray[node]);
+  }
+  // The shell lies within thickness over the least cosine of the skin points.
+  Eigen::AlignedBox3d box(Eigen::Vector3d::Zero());
+  double farthest = 0.0;
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    box.extend(map.skin_radius[node] * map.ray[node]);
+    farthest = std::max(farthest, map.skin_radius[node]);
+  }
+  const double shell = thickness / kMinSkinCosine;
+  segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
+  segment.bounding_radius = farthest + shell;
+}
+
+/// Per H-Anim joint the index of the segment whose map its vertices are drawn into: its
+/// own when fitted, else its nearest fitted ancestor's (−1: none).
+std::array<int, kNumHAnimJoints> MapOwners(const std::vector<SuperquadricSegment>& segments) {
+  std::array<int, kNumHAnimJoints> owner;
+  owner.fill(-1);
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    owner[static_cast<int>(segments[s].segment)] = static_cast<int>(s);
+  }
+  for (HAnimJoint joint : AllHAnimJoints()) {  // parents first
+    const std::optional<HAnimJoint> parent = HAnimParent(joint);
+    int& own = owner[static_cast<int>(joint)];
+    if (own < 0 && parent) own = owner[static_cast<int>(*parent)];
+  }
+  return owner;
+}
+
+/// A point of the skin more than this deep inside another closed piece of the body [m] is
+/// not skin. Not zero: where two pieces meet along a shared surface (the pelvis's top on
+/// the torso's bottom), their facets cross each other by about their chord sag (1 mm for
+/// 3 cm facets on a 10 cm radius), and both must stay.
+constexpr double kBuriedDepth = 0.0015;
+
+/// Per triangle, in the rest pose, the signed distance [m] of its corners and edge midpoints
+/// (0, 1, 2, then the midpoints of edges 12, 20, 01) from the body's other closed pieces,
+/// plus kBuriedDepth (< 0: buried; +inf: no other piece within reach). A body made of
+/// overlapping closed pieces, as the built-in humanoid, has surfaces inside other pieces
+/// where they meet; a ray from a segment's centre must not stop at them. All +inf for a
+/// body of one piece or a mesh that is not closed (inside is undefined).
+std::vector<std::array<double, 6>> Burial(const Avatar& avatar) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const auto& triangles = avatar.triangles();
+  std::vector<std::array<double, 6>> burial(triangles.size());
+  for (auto& b : burial) b.fill(kInf);
+  const SurfacePseudonormals topology(avatar.num_vertices(), triangles);
+  if (topology.num_pieces() <= 1 || topology.num_open_edges() > 0) return burial;
+  std::vector<std::vector<Eigen::Vector3i>> pieces(topology.num_pieces());
+  for (int t = 0; t < topology.num_triangles(); ++t) {
+    pieces[topology.piece_of(t)].push_back(triangles[t]);
+  }
+  const Points& rest = avatar.rest_vertices();
+  const auto sample = [&](const Eigen::Vector3i& tri, int k) -> Eigen::Vector3d {
+    if (k < 3) return rest.row(tri[k]).transpose();
+    return 0.5 * (rest.row(tri[(k - 2) % 3]) + rest.row(tri[k % 3])).transpose();
+  };
+  constexpr double kReach = 0.5;  // deeper than any part of a body is thick
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3i& tri : pieces[p]) {
+      for (int c = 0; c < 3; ++c) box.extend(Eigen::Vector3d(rest.row(tri[c]).transpose()));
+    }
+    const MeshDistance distance("piece " + std::to_string(p), rest, pieces[p]);
+    for (std::size_t t = 0; t < triangles.size(); ++t) {
+      if (topology.piece_of(static_cast<int>(t)) == static_cast<int>(p)) continue;
+      for (int k = 0; k < 6; ++k) {
+        const Eigen::Vector3d x = sample(triangles[t], k);
+        if (box.exteriorDistance(x) > 0.0) continue;  // outside the piece's box
+        burial[t][k] = std::min(burial[t][k], distance.SignedDistance(x, kReach) + kBuriedDepth);
+      }
+    }
+  }
+  return burial;
+}
+
+/// Per segment, the segments next to it in the H-Anim hierarchy as far as it is fitted: the
+/// nearest fitted ancestor, the segments whose nearest fitted ancestor it is, and, for
+/// segments without a fitted ancestor (the pelvis and the torso under an unfitted root),
+/// each other.
+std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>& segments) {
+  std::array<int, kNumHAnimJoints> index;
+  index.fill(-1);
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    index[static_cast<int>(segments[s].segment)] = static_cast<int>(s);
+  }
+  const auto fitted_ancestor = [&](HAnimJoint joint) {
+    for (std::optional<HAnimJoint> up = HAnimParent(joint); up; up = HAnimParent(*up)) {
+      if (index[static_cast<int>(*up)] >= 0) return index[static_cast<int>(*up)];
+    }
+    return -1;
+  };
+  std::vector<std::vector<int>> neighbours(segments.size());
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    const int up = fitted_ancestor(segments[s].segment);
+    for (std::size_t o = 0; o < segments.size(); ++o) {
+      if (o == s) continue;
+      const int other_up = fitted_ancestor(segments[o].segment);
+      const bool parent = static_cast<int>(o) == up, child = other_up == static_cast<int>(s);
+      if (parent || child || (up < 0 && other_up < 0)) {
+        neighbours[s].push_back(static_cast<int>(o));
+      }
+    }
+  }
+  return neighbours;
+}
+
+/// A segment's centre sees a triangle's outside well enough to hold it when the cosine
+/// between the triangle's normal and the ray to it reaches this [-].
+constexpr double kViewerCosine = 0.3;
+
+/// Gives every skin triangle to the maps of the segments of its corners and of their
+/// neighbours (Neighbours). A map's ray stops where it first leaves the skin, so a
+/// segment's map must hold the skin around it, not only its own: the skinning weights
+/// alone give the underside of the pelvis to the thighs, whose centres below see it from
+/// inside. Triangles wholly inside other pieces of the body (by their burial samples) are
+/// left out.
+void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments) {
+  const std::array<int, kNumHAnimJoints> owner = MapOwners(segments);
+  const std::vector<std::vector<int>> neighbours = Neighbours(segments);
+  const auto& of = avatar.vertex_segments();
+  const std::vector<std::array<double, 6>> burial = Burial(avatar);
+  std::vector<std::vector<int>> local(segments.size());
+  std::vector<char> chosen(segments.size(), 0);
+  const Points& rest = avatar.rest_vertices();
+  std::vector<Eigen::Vector3d> centres;
+  for (const SuperquadricSegment& segment : segments) {
+    centres.push_back(avatar.skeleton().rest_world()[segment.joint] *
+                      segment.superquadric.frame.translation());
+  }
+  for (std::size_t t = 0; t < avatar.triangles().size(); ++t) {
+    const Eigen::Vector3i& tri = avatar.triangles()[t];
+    const std::array<double, 6>& b = burial[t];
+    if (*std::max_element(b.begin(), b.end()) < 0.0) continue;
+    std::fill(chosen.begin(), chosen.end(), 0);
+    for (int c = 0; c < 3; ++c) {
+      const int mine = of[tri[c]] ? owner[static_cast<int>(*of[tri[c]])] : -1;
+      if (mine < 0) continue;
+      chosen[mine] = 1;
+      for (int n : neighbours[mine]) chosen[n] = 1;
+    }
+    // The nearest centre that sees the triangle's outside (else the one that sees it most
+    // squarely) is the one whose shell is to hold it: its reach must get there.
+    const Eigen::Vector3d a = rest.row(tri[0]), bv = rest.row(tri[1]), c = rest.row(tri[2]);
+    const Eigen::Vector3d normal = (bv - a).cross(c - a).normalized();
+    const Eigen::Vector3d centroid = (a + bv + c) / 3.0;
+    int viewer = -1, squarest = -1;
+    double nearest = std::numeric_limits<double>::infinity(), best = -2.0;
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      if (!chosen[s]) continue;
+      const Eigen::Vector3d ray = centroid - centres[s];
+      const double cosine = normal.dot(ray.normalized());
+      if (cosine > best) best = cosine, squarest = static_cast<int>(s);
+      if (cosine >= kViewerCosine && ray.norm() < nearest) {
+        nearest = ray.norm(), viewer = static_cast<int>(s);
+      }
+    }
+    if (viewer < 0) viewer = squarest;
+    if (viewer >= 0) {
+      for (int k = 0; k < 3; ++k) segments[viewer].viewed.push_back(tri[k]);
+    }
+    for (std::size_t s = 0; s < segments.size(); ++s) {
+      if (!chosen[s]) continue;
+      SegmentSkin& skin = segments[s].skin;
+      if (local[s].empty()) local[s].assign(avatar.num_vertices(), -1);
+      Eigen::Vector3i corners;
+      for (int m = 0; m < 3; ++m) {
+        int& index = local[s][tri[m]];
+        if (index < 0) {
+          index = static_cast<int>(skin.vertices.size());
+          skin.vertices.push_back(tri[m]);
+        }
+        corners[m] = index;
+      }
+      skin.triangles.push_back(corners);
+      skin.burial.push_back(b);
+      skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
+    }
+  }
+}
+
+/// How far beyond a segment's rest reach a triangle may lie and still be drawn into its
+/// map [m]: bending a joint carries skin farther out by this much at most.
+constexpr double kReachSlack = 0.1;
+
+/// Bound on how much skinning lengthens a triangle's edges [-].
+constexpr double kEdgeStretch = 1.5;
+
+/// How far beyond its own skin's farthest rest vertex a segment's shell may reach [m]:
+/// beyond, the neighbours' shells hold the skin, and a thigh's shell need not follow its
+/// rays down the calf.
+constexpr double kReachMargin = 0.06;
+
+/// Sizes a segment's map and scratch: the grid spans the box of the skin it holds (its own
+/// vertices, `own`, and the triangles it sees most squarely, segment.viewed) in the
+/// superquadric's frame, and the shell reaches that skin's farthest vertex plus
+/// kReachMargin (in the rest pose here; MoveSkin follows the pose).
+void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_spacing,
+                SuperquadricSegment& segment) {
+  const Eigen::Isometry3d to_local =
+      (avatar.skeleton().rest_world()[segment.joint] * segment.superquadric.frame).inverse();
+  Eigen::Vector3d extent = Eigen::Vector3d::Zero();
+  double farthest = 0.0;
+  std::vector<int> held = own;
+  held.insert(held.end(), segment.viewed.begin(), segment.viewed.end());
+  segment.viewed.clear();
+  segment.viewed.shrink_to_fit();
+  SegmentSkin& skin = segment.skin;
+  std::vector<int> local(avatar.num_vertices(), -1);
+  for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
+    local[skin.vertices[k]] = static_cast<int>(k);
+  }
+  for (int v : held) {
+    const Eigen::Vector3d q = to_local * avatar.rest_vertices().row(v).transpose();
+    extent = extent.cwiseMax(q.cwiseAbs());
+    farthest = std::max(farthest, q.norm());
+    if (local[v] >= 0) skin.held.push_back(local[v]);
+  }
+  std::sort(skin.held.begin(), skin.held.end());
+  skin.held.erase(std::unique(skin.held.begin(), skin.held.end()), skin.held.end());
+  segment.map = MakeMapGrid(segment.superquadric, extent, map_spacing);
+  segment.reach = farthest + kReachMargin;
+  // Triangles that lie well beyond the reach in the rest pose never stop a ray short of it
+  // (bending a joint moves skin by centimetres, not decimetres): they are not drawn.
+  {
+    const double keep = segment.reach + kReachSlack;
+    std::vector<Eigen::Vector3i> triangles;
+    std::vector<std::array<double, 6>> burial;
+    std::vector<char> partly;
+    for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+      const Eigen::Vector3i& tri = skin.triangles[t];
+      Eigen::Vector3d c[3];
+      double longest = 0.0, nearest = std::numeric_limits<double>::infinity();
+      for (int k = 0; k < 3; ++k) {
+        c[k] = to_local * avatar.rest_vertices().row(skin.vertices[tri[k]]).transpose();
+        nearest = std::min(nearest, c[k].norm());
+      }
+      for (int k = 0; k < 3; ++k) longest = std::max(longest, (c[k] - c[(k + 1) % 3]).norm());
+      if (nearest - longest > keep) continue;
+      triangles.push_back(tri);
+      burial.push_back(skin.burial[t]);
+      partly.push_back(skin.partly_buried[t]);
+    }
+    skin.triangles.swap(triangles);
+    skin.burial.swap(burial);
+    skin.partly_buried.swap(partly);
+  }
+  const int nodes = segment.map.num_nodes();
+  skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.scaled.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.face.assign(skin.vertices.size(), 0);
+  skin.face_point.assign(skin.vertices.size(), Eigen::Vector2d::Zero());
+  skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
+  skin.distance.assign(skin.vertices.size(), 0.0);
+  skin.edge.resize(skin.triangles.size());
+  for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = skin.triangles[t];
+    double longest = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      longest = std::max(longest, (avatar.rest_vertices().row(skin.vertices[tri[c]]) -
+                                   avatar.rest_vertices().row(skin.vertices[tri[(c + 1) % 3]]))
+                                      .norm());
+    }
+    // Skinning stretches the skin a little: a margin on the rest length.
+    skin.edge[t] = kEdgeStretch * longest;
+    skin.longest_edge = std::max(skin.longest_edge, skin.edge[t]);
+  }
+  skin.hit_radius.assign(nodes, -1.0);
+  skin.hit_triangle.assign(nodes, -1);
+  for (int f = 0; f < 6; ++f) {
+    skin.face_hit[f].assign(segment.map.face_nodes[f].size(), -1.0);
+    skin.face_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
+  }
+  skin.state.assign(nodes, 0);
+  skin.queue.reserve(nodes);
+}
+
+SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
   SuperquadricSegment segment;
   segment.segment = fit.segment;
   segment.joint = fit.joint;
   segment.superquadric = fit.fit.superquadric;
   segment.fit_rms = fit.fit.rms_radial_distance;
   segment.num_vertices = fit.num_vertices;
-  const Eigen::Isometry3d to_local =
-      (avatar.skeleton().rest_world()[fit.joint] * segment.superquadric.frame).inverse();
-  // Skin triangles of the segment: at least two corners in it.
-  const auto& segments = avatar.vertex_segments();
-  std::vector<RayTriangle> triangles;
-  for (const Eigen::Vector3i& tri : avatar.triangles()) {
-    int inside = 0;
-    for (int c = 0; c < 3; ++c) inside += segments[tri[c]] == fit.segment ? 1 : 0;
-    if (inside < 2) continue;
-    const auto corner = [&](int c) {
-      return Eigen::Vector3d(to_local * avatar.rest_vertices().row(tri[c]).transpose());
-    };
-    triangles.push_back(MakeRayTriangle(corner(0), corner(1), corner(2)));
-    triangles.back().vertices = tri;
-  }
-  segment.map = BuildMap(segment.superquadric, triangles, options.map_eta_intervals,
-                         options.map_omega_intervals);
-  // Bounding sphere: the superquadric lies in its box [−a, a]³ (e <= 2), the shell at most
-  // the largest offset plus thickness / smallest cosine beyond it, and every skin vertex.
   const Superquadric& sq = segment.superquadric;
-  const double largest_offset =
-      *std::max_element(segment.map.skin_offset.begin(), segment.map.skin_offset.end());
-  double radius = Eigen::Vector3d(sq.a1, sq.a2, sq.a3).norm() + std::max(0.0, largest_offset) +
-                  thickness / kMinSkinCosine;
-  for (int v : group) {
-    radius = std::max(radius, (to_local * avatar.rest_vertices().row(v).transpose()).norm() +
-                                  thickness / kMinSkinCosine);
-  }
-  segment.bounding_radius = segment.rest_bounding_radius = radius;
-  segment.rest_max_offset = largest_offset;
+  segment.inverse_size = Eigen::Vector3d(1.0 / sq.a1, 1.0 / sq.a2, 1.0 / sq.a3);
   return segment;
 }
 
 /// Position-correction passes per particle in ProjectOut.
-constexpr int kProjectionPasses = 3;
-
-/// Which distance of the skin from a joint centre its sphere takes: low, so the sphere stays
-/// inside the skin where the cross-section is not round (the waist).
-constexpr double kJointSpherePercentile = 0.2;
-
-/// Joint spheres for every fitted segment whose parent segment is fitted too.
-std::vector<JointSphere> MakeJointSpheres(const Avatar& avatar,
-                                          const std::vector<SuperquadricSegment>& segments) {
-  std::vector<JointSphere> spheres;
-  const Skeleton& skeleton = avatar.skeleton();
-  auto fitted = [&](HAnimJoint joint) {
-    return std::any_of(segments.begin(), segments.end(),
-                       [&](const SuperquadricSegment& s) { return s.segment == joint; });
-  };
-  for (const SuperquadricSegment& segment : segments) {
-    const std::optional<HAnimJoint> parent = HAnimParent(segment.segment);
-    if (!parent || !fitted(*parent)) continue;
-    const Eigen::Isometry3d& joint = skeleton.rest_world()[segment.joint];
-    const Eigen::Vector3d centre = joint.translation();
-    const Eigen::Vector3d along =
-        (joint * segment.superquadric.frame.translation() - centre).normalized();
-    std::vector<double> distances;
-    for (int v = 0; v < avatar.num_vertices(); ++v) {
-      const Eigen::Vector3d offset = avatar.rest_vertices().row(v).transpose() - centre;
-      const double axial = offset.dot(along);
-      if (std::abs(axial) > 0.02 || offset.norm() > 0.3) continue;
-      distances.push_back((offset - axial * along).norm());
-    }
-    if (distances.size() < 8) continue;
-    const std::size_t rank = static_cast<std::size_t>(kJointSpherePercentile * distances.size());
-    std::nth_element(distances.begin(), distances.begin() + rank, distances.end());
-    spheres.push_back({segment.joint, distances[rank]});
-  }
-  return spheres;
-}
+constexpr int kProjectionPasses = 8;
 
 }  // namespace
 
@@ -307,21 +744,17 @@ std::vector<SegmentSuperquadricFit> FitAvatarSegments(const Avatar& avatar,
 
 void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, double thickness,
                 ShellProbe& probe) {
-  const Superquadric& sq = segment.superquadric;
   const double length = q.norm();
   probe.direction = length > 0.0 ? Eigen::Vector3d(q / length) : Eigen::Vector3d::UnitZ();
-  // On the unit direction F is well scaled; r_s = F(d)^(−e1/2) by homogeneity.
-  const double surface = std::pow(InsideOutside(sq, probe.direction), -0.5 * sq.e1);
-  double offset = 0.0;
+  double radius = 0.0;
   Eigen::Vector3d skin_normal;
-  LookUp(segment.map, ParametricAngles(sq, probe.direction), offset, skin_normal);
+  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal);
   const double norm = skin_normal.norm();
   probe.skin_normal = norm > 0.0 ? Eigen::Vector3d(skin_normal / norm) : probe.direction;
   probe.cosine = std::max(probe.direction.dot(probe.skin_normal), kMinSkinCosine);
-  probe.shell_radius = surface + offset + thickness / probe.cosine;
+  probe.shell_radius = radius + thickness / probe.cosine;
   probe.radial_gap = length - probe.shell_radius;
   probe.normal_gap = probe.radial_gap * probe.cosine;
-  probe.gradient_normal = InsideOutsideGradient(sq, probe.direction).normalized();
 }
 
 // ---- the collider ---------------------------------------------------------------------------
@@ -337,26 +770,29 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   RequireNonNegative(where + ": thickness", settings.thickness, "m");
   RequireNonNegative(where + ": friction", settings.friction, "");
   ValidateOptions(options, where);
-  const SegmentGroups groups = GroupVertices(*avatar_);
-  for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, groups, options)) {
-    if (!fit.fitted) {
+  for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, GroupVertices(*avatar_), options)) {
+    if (fit.fitted) {
+      segments_.push_back(MakeSegment(fit));
+    } else {
       skipped_.push_back(fit.segment);
-      continue;
     }
-    segments_.push_back(BuildSegment(*avatar_, fit, groups[static_cast<int>(fit.segment)], options,
-                                     settings.thickness));
+  }
+  AssignSkin(*avatar_, segments_);
+  const SegmentGroups groups = GroupVertices(*avatar_);
+  for (SuperquadricSegment& segment : segments_) {
+    PrepareMap(*avatar_, groups[static_cast<int>(segment.segment)], options.map_spacing, segment);
   }
   const std::size_t n = segments_.size();
   start_.resize(n);
   end_.resize(n);
+  stale_.assign(n, 0);
   motion_.assign(n, Eigen::Isometry3d::Identity());
   sweep_.assign(n, 0.0);
   active_.reserve(n);
-  spheres_ = MakeJointSpheres(*avatar_, segments_);
-  sphere_start_.assign(spheres_.size(), Eigen::Vector3d::Zero());
-  sphere_end_ = sphere_start_;
   SetPose(avatar_->skeleton().rest_world(), end_);
   start_ = end_;
+  MoveSkin(avatar_->rest_vertices());
+  RefreshAllMaps();
 }
 
 void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_world,
@@ -365,33 +801,49 @@ void SuperquadricCollider::SetPose(const std::vector<Eigen::Isometry3d>& joint_w
     out[s].to_world = joint_world[segments_[s].joint] * segments_[s].superquadric.frame;
     out[s].to_local = out[s].to_world.inverse(Eigen::Isometry);
   }
-  for (std::size_t k = 0; k < spheres_.size(); ++k) {
-    sphere_end_[k] = joint_world[spheres_[k].joint].translation();
+}
+
+void SuperquadricCollider::MoveSkin(const Points& skinned) {
+  for (std::size_t s = 0; s < segments_.size(); ++s) {
+    SuperquadricSegment& segment = segments_[s];
+    SegmentSkin& skin = segment.skin;
+    const Eigen::Isometry3d& to_local = end_[s].to_local;
+    for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
+      skin.local[k] = to_local * skinned.row(skin.vertices[k]).transpose();
+    }
+    // The reach follows the skin the segment holds: bending a knee carries the skin at its
+    // front away from both the thigh's and the calf's centres.
+    double farthest = 0.0;
+    for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
+    segment.reach = std::sqrt(farthest) + kReachMargin;
+    // Until the map is redrawn, the shell is known to lie within the reach and within the
+    // box of the skin the rays can stop at (corners within the reach and an edge), grown by
+    // the thickness term and a node spacing for the caps filled at open ends.
+    const double grow = settings_.thickness / kMinSkinCosine + segment.map.spacing;
+    const double near = segment.reach + skin.longest_edge;
+    Eigen::AlignedBox3d box;
+    for (const Eigen::Vector3d& q : skin.local) {
+      if (q.squaredNorm() <= near * near) box.extend(q);
+    }
+    const Eigen::Vector3d cube = Eigen::Vector3d::Constant(segment.reach);
+    segment.shell_box =
+        box.isEmpty() ? Eigen::AlignedBox3d(-cube, cube)
+                      : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
+    segment.shell_box.min().array() -= grow;
+    segment.shell_box.max().array() += grow;
+    segment.bounding_radius = segment.reach + grow;
+    stale_[s] = 1;
   }
 }
 
-void SuperquadricCollider::TrackSkin(const Points& skinned) {
+void SuperquadricCollider::RefreshMap(int s) {
+  DrawMap(segments_[s], settings_.thickness);
+  stale_[s] = 0;
+}
+
+void SuperquadricCollider::RefreshAllMaps() {
   for (std::size_t s = 0; s < segments_.size(); ++s) {
-    SuperquadricSegment& segment = segments_[s];
-    SkinDistanceMap& map = segment.map;
-    const Eigen::Isometry3d& to_local = end_[s].to_local;
-    double largest = -std::numeric_limits<double>::infinity();
-    for (std::size_t node = 0; node < map.hit_vertices.size(); ++node) {
-      const Eigen::Vector3i& v = map.hit_vertices[node];
-      if (v[0] < 0) continue;
-      const Eigen::Vector3d& w = map.hit_weights[node];
-      const Eigen::Vector3d a = to_local * skinned.row(v[0]).transpose();
-      const Eigen::Vector3d b = to_local * skinned.row(v[1]).transpose();
-      const Eigen::Vector3d c = to_local * skinned.row(v[2]).transpose();
-      const Eigen::Vector3d& ray = map.ray[node];
-      map.skin_offset[node] = (w[0] * a + w[1] * b + w[2] * c).dot(ray) - map.surface_radius[node];
-      const Eigen::Vector3d normal = (b - a).cross(c - a);
-      const double length = normal.norm();
-      if (length > 0.0) map.skin_normal[node] = (normal.dot(ray) >= 0.0 ? normal : -normal) / length;
-      largest = std::max(largest, map.skin_offset[node]);
-    }
-    segment.bounding_radius =
-        segment.rest_bounding_radius + std::max(0.0, largest - segment.rest_max_offset);
+    if (stale_[s]) RefreshMap(static_cast<int>(s));
   }
 }
 
@@ -401,22 +853,20 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
       joint_world.size() >= static_cast<std::size_t>(avatar_->skeleton().num_joints());
   if (usable) {
     start_ = end_;  // same size: no allocation
-    sphere_start_ = sphere_end_;
     SetPose(joint_world, end_);
-    if (skinned_vertices.rows() == avatar_->num_vertices()) TrackSkin(skinned_vertices);
+    if (skinned_vertices.rows() == avatar_->num_vertices()) MoveSkin(skinned_vertices);
   }
   const bool moving = usable && has_pose_ && std::isfinite(dt) && dt > 0.0;
   if (usable) has_pose_ = true;
-  if (!moving) {
-    start_ = end_;
-    sphere_start_ = sphere_end_;
-  }
+  if (!moving) start_ = end_;
   inverse_dt_ = moving ? 1.0 / dt : 0.0;
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     motion_[s] = end_[s].to_world * start_[s].to_local;
     const double angle = Eigen::AngleAxisd(motion_[s].linear()).angle();
+    // The largest shell the segment can have, as its map may not be drawn yet.
+    const double radius = segments_[s].reach + settings_.thickness / kMinSkinCosine;
     sweep_[s] = (end_[s].to_world.translation() - start_[s].to_world.translation()).norm() +
-                segments_[s].bounding_radius * std::abs(angle);
+                radius * std::abs(angle);
   }
 }
 
@@ -435,9 +885,8 @@ void SuperquadricCollider::CullSegments(const std::vector<Placement>& placements
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     const Eigen::Vector3d centre = placements[s].to_world.translation();
     const Eigen::Vector3d nearest = centre.cwiseMax(lo).cwiseMin(hi);
-    if ((centre - nearest).norm() <= segments_[s].bounding_radius + reach + sweep_[s]) {
-      active_.push_back(static_cast<int>(s));
-    }
+    const double bound = segments_[s].bounding_radius + reach + sweep_[s];
+    if ((centre - nearest).squaredNorm() <= bound * bound) active_.push_back(static_cast<int>(s));
   }
 }
 
@@ -455,30 +904,41 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
                                         Eigen::Vector3d& body_velocity) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
   gap = std::numeric_limits<double>::infinity();
+  int deepest = -1;
+  ShellProbe best;
   for (int s : active_) {
     ++stats_.num_tests;
+    const SuperquadricSegment& segment = segments_[s];
+    const double grow = reach + sweep_[s];
+    const double bound = segment.bounding_radius + grow;
+    if ((x - placement[s].to_world.translation()).squaredNorm() > bound * bound) continue;
     const Eigen::Vector3d q = placement[s].to_local * x;
-    if (q.norm() > segments_[s].bounding_radius + reach + sweep_[s]) continue;
+    const auto outside = [&] {
+      return (q.array() < segment.shell_box.min().array() - grow).any() ||
+             (q.array() > segment.shell_box.max().array() + grow).any();
+    };
+    if (outside()) continue;
+    if (stale_[s]) {
+      // The first particle near a segment since the last Update redraws its map, which
+      // tightens its box.
+      RefreshMap(s);
+      if (outside()) continue;
+    }
     ShellProbe probe;
-    ProbeShell(segments_[s], q, settings_.thickness, probe);
+    ProbeShell(segment, q, settings_.thickness, probe);
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
-    normal = placement[s].to_world.linear() *
-             (skin_normals_ ? probe.skin_normal : probe.gradient_normal);
-    body_velocity = BodyVelocity(s, x, at_end);
+    deepest = s;
+    best = probe;
   }
-  for (std::size_t k = 0; k < spheres_.size(); ++k) {
-    ++stats_.num_tests;
-    const Eigen::Vector3d offset = x - (at_end ? sphere_end_[k] : sphere_start_[k]);
-    const double distance = offset.norm();
-    const double sphere_gap = distance - spheres_[k].radius - settings_.thickness;
-    const double sweep = (sphere_end_[k] - sphere_start_[k]).norm();
-    if (sphere_gap > reach + sweep || sphere_gap >= gap || distance == 0.0) continue;
-    gap = sphere_gap;
-    normal = offset / distance;
-    body_velocity = (sphere_end_[k] - sphere_start_[k]) * inverse_dt_;
-  }
-  return gap < std::numeric_limits<double>::infinity();
+  if (deepest < 0) return false;
+  const Eigen::Vector3d local_normal =
+      skin_normals_ ? best.skin_normal
+                    : InsideOutsideGradient(segments_[deepest].superquadric, best.direction)
+                          .normalized();
+  normal = placement[deepest].to_world.linear() * local_normal;
+  body_velocity = BodyVelocity(deepest, x, at_end);
+  return true;
 }
 
 void SuperquadricCollider::FindContacts(const Points& positions, const Points& velocities, double h,

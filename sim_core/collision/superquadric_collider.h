@@ -4,22 +4,36 @@
 /// per H-Anim body segment, fitted to that segment's skin (Solina & Bajcsy 1990), with the
 /// skin's distance from the superquadric stored as a map over the superquadric's surface.
 ///
+/// The map is redrawn every frame from the skinned triangles (lazily, when cloth first comes
+/// near the segment), so it follows linear blend skinning where it bends the skin away from
+/// the rigid segments (hips, knees, elbows). docs/collision.md has the measurements.
+///
 /// Approximations, all deliberate:
-/// - Each segment moves rigidly with its H-Anim joint. Linear blend skinning bends the skin
-///   near the joints (elbows, knees, shoulders) in ways no rigid transform follows; there the
-///   shell is off by up to the skin's blend displacement (centimetres at a bent elbow). The
-///   skinned vertices passed to Update are not used.
+/// - Each segment's shell is star-shaped from its superquadric's centre: along every ray it
+///   reaches the first place where the ray leaves the skin, among the triangles of the
+///   segment and of its H-Anim neighbours, and at most the segment's reach (the farthest
+///   skin it holds plus 6 cm); the neighbours' shells hold the skin beyond. Skin hidden from
+///   every centre behind other skin (the bottom of a deep crease) is held by no shell.
+/// - A body made of overlapping closed pieces (the built-in humanoid) has surfaces inside
+///   other pieces; the parts of them more than 1.5 mm inside another piece in the rest pose
+///   are not skin. The pieces' overlap is taken from the rest pose.
 /// - Distances are radial: measured along the ray from the superquadric's centre, as the
 ///   paper's map stores them. The thickness, a normal distance, becomes radial through the
 ///   cosine between the ray and the skin's normal stored in the map, and so does a radial
 ///   gap become the normal gap the solver's contact needs (exact for a locally flat skin).
+/// - Between map nodes the skin's radius and normal are interpolated bilinearly; a cell that
+///   straddles a silhouette seen from the centre is read as its nearest skin, which leaves
+///   a band of up to a cell's width of the farther skin (a crease's far side) out of that
+///   shell.
 /// - The contact normal is, by default, the superquadric's normalised gradient at the
 ///   particle's ray (the paper's choice), not the skin's normal; they differ where the skin
 ///   departs from the superquadric (measured on a capsule: 23° on its hemispherical cap,
 ///   0.4° mid-cylinder; docs/collision.md). ContactNormal::kSkin takes the map's
 ///   interpolated skin normal instead.
 /// - The body's velocity at a particle is that of the point rigidly attached to the segment
-///   at the particle's position, from the change of the joint frame between Update calls.
+///   at the particle's position, from the change of the joint frame between Update calls;
+///   the skin's own motion relative to the segment (skinning) enters as the change of the
+///   map: contacts test the start-of-step placement carrying the end-of-step map.
 
 #include <Eigen/Geometry>
 #include <array>
@@ -38,10 +52,10 @@ namespace costume::sim {
 struct SuperquadricColliderOptions {
   /// A segment with fewer skin vertices than this gets no superquadric [-] >= 11.
   int min_vertices_per_segment = 20;
-  /// Distance map resolution: intervals over eta ∈ [−π/2, π/2] and over omega ∈ [−π, π) [-]
-  /// >= 4.
-  int map_eta_intervals = 32;
-  int map_omega_intervals = 64;
+  /// Spacing of the distance map's nodes [m] in [0.002, 0.2], on the box the segment's skin
+  /// fills in the superquadric's frame (each side gets at least 2 intervals). 1 cm kept a
+  /// skirt on the built-in humanoid's walk within 2 mm of the skin; 1.5 cm did not (2.3 mm).
+  double map_spacing = 0.01;
   SuperquadricFitOptions fit;
   /// Where contact normals come from (see the file comment).
   enum class ContactNormal { kSuperquadricGradient, kSkin };
@@ -68,30 +82,96 @@ struct SegmentSuperquadricFit {
 std::vector<SegmentSuperquadricFit> FitAvatarSegments(
     const Avatar& avatar, const SuperquadricColliderOptions& options = {});
 
-/// The skin around one superquadric, sampled on a regular (eta, omega) grid of its surface:
-/// node (j, k) is the ray from the centre through ParametricSurfacePoint(eta_j, omega_k),
-/// eta_j = −π/2 + j·π/num_eta, omega_k = −π + k·2π/num_omega (periodic in k).
+/// The skin around one superquadric, sampled along rays from its centre. A ray is named by
+/// the point where it leaves the superquadric's bounding box [−a1, a1]×[−a2, a2]×[−a3, a3]
+/// (a cube map in the superquadric's frame scaled by 1/a): each of the six faces carries a
+/// regular grid, about `map_spacing` apart, and nodes on shared edges and corners are shared.
+/// Finding a point's place on the map costs three multiplications and two divisions, and
+/// the nodes are spread evenly over the superquadric's sides whatever its exponents (the
+/// paper's (eta, omega) grid crowds them onto the edges of the box-like shapes fitted to
+/// limbs: with e1 = 0.1, three of its 33 rows span 80 % of a thigh).
 struct SkinDistanceMap {
-  int num_eta = 0;    ///< intervals along eta; nodes 0..num_eta
-  int num_omega = 0;  ///< intervals (= nodes) along omega
-  /// Per node, row-major (num_eta + 1)×num_omega: the skin's signed radial distance from the
-  /// superquadric surface along the node's ray [m] (> 0: skin outside the superquadric).
-  std::vector<double> skin_offset;
-  /// Per node: the skin's outward unit normal where the ray leaves the skin, superquadric
-  /// frame [-].
-  std::vector<Eigen::Vector3d> skin_normal;
-  /// Nodes whose ray missed the skin (open ends of a segment's skin), filled from their
-  /// neighbours [-].
-  int num_filled_nodes = 0;
-  /// Per node: the skin triangle its ray hit (avatar vertex indices, −1 for filled nodes)
-  /// and the hit's barycentric weights. Through them the map follows the skinned surface
-  /// every frame (TrackSkin), so linear blend skinning's bending near joints, which a rigid
-  /// superquadric cannot follow, is still collided with.
-  std::vector<Eigen::Vector3i> hit_vertices;
-  std::vector<Eigen::Vector3d> hit_weights;
-  /// Per node: the ray's unit direction and the superquadric's radius along it [m].
+  /// Intervals along the box's x, y and z edges, and the nodes' spacing on the skin the
+  /// grid was sized for [m].
+  std::array<int, 3> intervals{2, 2, 2};
+  double spacing = 0.01;
+  /// Per face f (0 +x, 1 −x, 2 +y, 3 −y, 4 +z, 5 −z; face axis i = f/2 and the in-face axes
+  /// j = (i+1)%3, k = (i+2)%3): the node at grid point (u, v), u along j, v along k, is
+  /// face_nodes[f][u·(intervals[k] + 1) + v].
+  std::array<std::vector<int>, 6> face_nodes;
+  /// Per node: the ray's unit direction and the superquadric's radius along it [m]
+  /// (constant: superquadric frame).
   std::vector<Eigen::Vector3d> ray;
   std::vector<double> surface_radius;
+  /// Per node: the distance of its point on the box from the centre [m].
+  std::vector<double> box_length;
+  /// The box's half sizes: the superquadric's a1, a2, a3 [m].
+  Eigen::Vector3d size = Eigen::Vector3d::Ones();
+  /// Per node: the distance from the centre to the skin along the ray [m] (where the ray
+  /// first leaves the skin the map holds, at most the segment's reach; skin_radius −
+  /// surface_radius is the paper's mapped distance) and the skin's outward unit normal
+  /// there (the ray at filled nodes) [-].
+  std::vector<double> skin_radius;
+  std::vector<Eigen::Vector3d> skin_normal;
+  /// Per node: the distance of the skin's tangent plane there from the centre [m].
+  std::vector<double> skin_plane;
+  /// A cell whose nodes' radii, and their tangent planes' predictions on the ray, differ by
+  /// more than this [m] straddles a silhouette seen from the centre and is read as its
+  /// nearest skin, not blended.
+  double silhouette_jump = 0.03;
+  /// Nodes whose ray met none of the segment's triangles at the last refresh (the open ends
+  /// of a segment's skin), filled from their neighbours [-].
+  int num_filled_nodes = 0;
+  /// Node adjacency over the box's surface (compressed rows: the neighbours of node n are
+  /// neighbours[neighbour_start[n] .. neighbour_start[n + 1])), for the filling.
+  std::vector<int> neighbour_start;
+  std::vector<int> neighbours;
+
+  int num_nodes() const { return static_cast<int>(ray.size()); }
+  /// The skin's signed radial distance from the superquadric at `node` [m] (> 0: outside).
+  double skin_offset(int node) const { return skin_radius[node] - surface_radius[node]; }
+};
+
+/// The skin a segment's map is drawn from: the triangles having a corner in the segment or
+/// in one of its neighbours (SuperquadricCollider), and scratch for redrawing it without
+/// allocating.
+struct SegmentSkin {
+  /// Avatar vertex indices of the triangles' corners, and the triangles as indices into it.
+  std::vector<int> vertices;
+  std::vector<Eigen::Vector3i> triangles;
+  /// The corners (indices into `vertices`) of the skin the segment's shell is to hold: its
+  /// own vertices and the triangles whose nearest centre seeing their outside is its own.
+  /// Their farthest sets the reach.
+  std::vector<int> held;
+  /// Per triangle: the signed distances of its corners and edge midpoints from the body's
+  /// other closed pieces in the rest pose, plus a tolerance [m] (< 0: inside one), and
+  /// whether any is negative (where their quadratic interpolation is negative, the
+  /// triangle is not skin).
+  std::vector<std::array<double, 6>> burial;
+  std::vector<char> partly_buried;
+  /// Scratch of the last refresh: corners in the superquadric frame, scaled by 1/a, the
+  /// face of the map's box each lies towards and its coordinates on it; per node the
+  /// distance of the first exit (< 0: none) and the triangle that gave it.
+  std::vector<Eigen::Vector3d> local;
+  std::vector<Eigen::Vector3d> scaled;
+  std::vector<char> face;
+  std::vector<Eigen::Vector2d> face_point;
+  /// Per triangle its outward unit normal at the last refresh (front-facing ones only).
+  std::vector<Eigen::Vector3d> triangle_normal;
+  /// Per corner its distance from the centre at the last refresh [m]; per triangle a bound
+  /// on its longest edge [m] (the rest length with a margin for skinning's stretch).
+  std::vector<double> distance;
+  std::vector<double> edge;
+  double longest_edge = 0.0;
+  std::vector<double> hit_radius;
+  std::vector<int> hit_triangle;
+  /// Per face grid point (duplicating shared nodes): the nearest hit in units of the
+  /// point's distance from the centre (< 0: none) and its triangle.
+  std::array<std::vector<double>, 6> face_hit;
+  std::array<std::vector<int>, 6> face_triangle;
+  /// Scratch of the filling: per node unknown / known / queued, and the queue.
+  std::vector<char> state;
+  std::vector<int> queue;
 };
 
 /// One segment as the collider sees it.
@@ -99,26 +179,25 @@ struct SuperquadricSegment {
   HAnimJoint segment = HAnimJoint::kHumanoidRoot;
   int joint = -1;
   Superquadric superquadric;  ///< frame relative to the joint's frame
+  /// 1/a1, 1/a2, 1/a3 [1/m]: the map's scaling.
+  Eigen::Vector3d inverse_size = Eigen::Vector3d::Ones();
   SkinDistanceMap map;
-  /// Radius of a sphere about the superquadric's centre holding the segment's skin and its
-  /// shell (skin + the collider's thickness) [m]; grows when the tracked skin moves out.
+  SegmentSkin skin;
+  /// How far from the centre the map's rays may reach [m]: the farthest vertex of the skin
+  /// the segment holds (SegmentSkin::held) in the last pose, and a margin; beyond, the
+  /// neighbours' shells hold the skin.
+  double reach = 0.0;
+  /// Construction scratch: corners of the triangles whose nearest centre seeing their
+  /// outside is this segment's.
+  std::vector<int> viewed;
+  /// Radius of a sphere about the superquadric's centre and a box in its frame holding the
+  /// segment's shell (skin + the collider's thickness) at the last drawing of the map [m];
+  /// while the map is stale, the reach and the box of the skin corners within it.
   double bounding_radius = 0.0;
-  /// The bounding radius in the rest pose and the largest skin offset then [m].
-  double rest_bounding_radius = 0.0;
-  double rest_max_offset = 0.0;
+  Eigen::AlignedBox3d shell_box;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
   int num_vertices = 0;
-};
-
-/// A sphere centred on a joint between two fitted segments: the skin that linear blend
-/// skinning bends around a joint (the front of a bent knee) moves beyond both rigid
-/// superquadrics' maps, so the joint itself carries a sphere of the skin's radius there.
-struct JointSphere {
-  int joint = -1;
-  /// The skin's distance from the joint centre across the bone (20th percentile of the
-  /// vertices within 2 cm of the joint's cross-section plane, so it stays inside the skin) [m].
-  double radius = 0.0;
 };
 
 /// Where a point is relative to one segment's skin shell (skin + thickness).
@@ -133,9 +212,7 @@ struct ShellProbe {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
   /// Shell radius along the ray [m].
   double shell_radius = 0.0;
-  /// Outward unit normal of the superquadric (its normalised gradient) and the skin's
-  /// (bilinear in the map, normalised), superquadric frame [-].
-  Eigen::Vector3d gradient_normal = Eigen::Vector3d::UnitZ();
+  /// The skin's outward unit normal (bilinear in the map, normalised), superquadric frame [-].
   Eigen::Vector3d skin_normal = Eigen::Vector3d::UnitZ();
 };
 
@@ -145,46 +222,50 @@ void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, do
 
 class SuperquadricCollider : public BodyCollider {
  public:
-  /// Fits the segments of `avatar` and builds their distance maps by casting each map node's
-  /// ray against the segment's skin triangles (those with at least two vertices in the
-  /// segment). The body starts in the rest pose. Throws InputError for a null avatar, bad
-  /// settings or options.
+  /// Fits the segments of `avatar` and draws their distance maps on the rest pose. The body
+  /// starts in the rest pose. Throws InputError for a null avatar, bad settings or options.
   SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
                        const BodyCollisionSettings& settings = {},
                        const SuperquadricColliderOptions& options = {});
 
   /// See BodyCollider. `joint_world` has one frame per skeleton joint; a call with fewer
   /// frames, or a non-positive or non-finite dt after the first call, keeps the previous pose
-  /// and sets the body's velocity to zero. Never throws or allocates.
+  /// and sets the body's velocity to zero. `skinned_vertices` (one row per avatar vertex)
+  /// are the skin the maps are redrawn from; with any other row count (none) the maps keep
+  /// their last drawing and move rigidly with their segments. The maps are redrawn when a
+  /// segment is first needed in the step (FindContacts or ProjectOut), so segments far from
+  /// the cloth cost nothing. Never throws; allocates only on the first call with skin.
   void Update(const std::vector<Eigen::Isometry3d>& joint_world, const Points& skinned_vertices,
               double dt) override;
 
-  /// See BodyCollider. The test is against the body at the start of the step (the pose
-  /// before the last Update), the particle's predicted normal gap being
-  /// gap + h·(v − v_body)·n; the target normal velocity is v_body·n − gap/h, the body surface's
-  /// normal velocity plus the correction that brings the particle onto the shell within the
-  /// step (as sphere_contacts.cc, for a moving surface). One contact per particle: its most
-  /// penetrating segment. Segments whose bounding sphere (grown by the motion of the step)
-  /// misses the particles' bounding box are skipped; stats().num_tests counts the
-  /// particle-segment pairs examined. Preconditions: h > 0, velocities the size of
-  /// positions. Never throws; allocates only when `contacts` grows.
+  /// See BodyCollider. The test is against the body's shell at the start of the step (the
+  /// pose before the last Update) carrying the map of its end, the particle's predicted
+  /// normal gap being gap + h·(v − v_body)·n; the target normal velocity is
+  /// v_body·n − gap/h, the body surface's normal velocity plus the correction that brings the
+  /// particle onto the shell within the step (as sphere_contacts.cc, for a moving surface).
+  /// One contact per particle: its most penetrating segment. Segments whose bounding sphere
+  /// (grown by the motion of the step) misses the particles' bounding box are skipped;
+  /// stats().num_tests counts the particle-segment pairs examined. Preconditions: h > 0,
+  /// velocities the size of positions. Never throws; allocates only when `contacts` grows.
   void FindContacts(const Points& positions, const Points& velocities, double h, double margin,
                     std::vector<Contact>& contacts) override;
 
   /// See BodyCollider. Against the body at the end of the step (the last Update): a particle
-  /// inside a segment's shell moves along that segment's ray onto the shell, and its velocity
+  /// inside a segment's shell moves along that shell's normal onto it, and its velocity
   /// into the body (relative to the body's surface velocity) is removed. Returns the deepest
-  /// radial penetration [m]. Never throws or allocates.
+  /// normal penetration [m]. Never throws or allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
 
-  /// The segments that got a superquadric.
+  /// The segments that got a superquadric. Their maps are those of the last refresh (a
+  /// segment not needed since the last Update keeps an older one).
   const std::vector<SuperquadricSegment>& segments() const { return segments_; }
-  /// The spheres on joints between two fitted segments.
-  const std::vector<JointSphere>& joint_spheres() const { return spheres_; }
+  /// Redraws every segment's map that the last Update left stale (what FindContacts and
+  /// ProjectOut do for the segments they need). Never throws or allocates.
+  void RefreshAllMaps();
   /// The segments that had skin vertices but fewer than the minimum, so no superquadric:
-  /// their skin is not collided with.
+  /// their vertices count as their nearest fitted H-Anim ancestor's.
   const std::vector<HAnimJoint>& skipped_segments() const { return skipped_; }
   /// A segment's superquadric frame in the world at the start / end of the coming step.
   const Eigen::Isometry3d& start_frame(int segment) const { return start_[segment].to_world; }
@@ -197,18 +278,20 @@ class SuperquadricCollider : public BodyCollider {
     Eigen::Isometry3d to_local = Eigen::Isometry3d::Identity();
   };
   void SetPose(const std::vector<Eigen::Isometry3d>& joint_world, std::vector<Placement>& out);
-  /// Segments whose bounding sphere grown by `reach` [m] meets the box [lo, hi].
+  /// Segments whose bounding sphere grown by `reach` [m] meets the box [lo, hi]; their
+  /// maps are redrawn if stale.
   void CullSegments(const std::vector<Placement>& placements, const Eigen::Vector3d& lo,
                     const Eigen::Vector3d& hi, double reach);
-  /// The deepest shell among the segments and joint spheres at `x` (world), at the start or
-  /// the end of the step: its normal gap [m], outward normal and surface velocity there.
-  /// Shells farther than `reach` [m] plus their own motion over the step are skipped;
-  /// returns false when every shell was.
+  /// Moves every segment's skin corners into its end-of-step frame and marks its map stale.
+  void MoveSkin(const Points& skinned);
+  /// Redraws the map of segment `s` from its skin corners.
+  void RefreshMap(int s);
+  /// The deepest shell among the active segments at `x` (world), at the start or the end of
+  /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
+  /// than `reach` [m] plus their own motion over the step are skipped; returns false when
+  /// every shell was.
   bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach, double& gap,
                     Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
-  /// Moves every map node's skin point to where skinning put it: `skinned` (n×3) in the
-  /// segment's end-of-step frame. Never allocates.
-  void TrackSkin(const Points& skinned);
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;
@@ -217,12 +300,11 @@ class SuperquadricCollider : public BodyCollider {
   BodyCollisionSettings settings_;
   bool skin_normals_ = false;
   std::vector<SuperquadricSegment> segments_;
-  std::vector<JointSphere> spheres_;
-  /// Joint-sphere centres at the start and end of the step [m].
-  std::vector<Eigen::Vector3d> sphere_start_, sphere_end_;
   std::vector<HAnimJoint> skipped_;
   std::vector<Placement> start_;
   std::vector<Placement> end_;
+  /// Per segment: its map was not drawn from the skin of the last Update.
+  std::vector<char> stale_;
   /// start → end motion of each segment and its speed bound (translation of the centre plus
   /// bounding radius times rotation angle) [m].
   std::vector<Eigen::Isometry3d> motion_;

@@ -210,6 +210,53 @@ TEST_F(Fixture, SkinNormalsFromTheMapFollowTheTrueSkin) {
   ExpectInsideParticlesResolved(skin_collider, *avatar, 0.99);
 }
 
+// The map is redrawn from the skinned vertices Update is given, not kept from the rest
+// pose: a skin inflated by 1 cm about the capsule's axis (as skinning swells a bent joint)
+// moves the shell out by 1 cm, which the inflated capsule's closed form checks.
+TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
+  constexpr double kSwell = 0.01;
+  Points skinned = avatar->rest_vertices();
+  const Eigen::Isometry3d to_arm = arm.inverse();
+  for (Eigen::Index v = 0; v < skinned.rows(); ++v) {
+    const Eigen::Vector3d local = to_arm * skinned.row(v).transpose();
+    const Eigen::Vector3d p = local - kCentre;
+    const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
+    const Eigen::Vector3d radial = p - Eigen::Vector3d(0, s, 0);
+    if (radial.norm() < 1e-9) {  // a pole: push it out along the axis
+      const Eigen::Vector3d along(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0);
+      skinned.row(v) = (arm * (local + kSwell * along)).transpose();
+    } else {
+      skinned.row(v) = (arm * (local + kSwell * radial.normalized())).transpose();
+    }
+  }
+  collider.Update(avatar->skeleton().rest_world(), skinned, 0.01);
+  // 5 mm outside the rest skin is 5 mm inside the swollen one: a contact whose target
+  // closes 5 mm + thickness in the step, and a projection onto the swollen shell.
+  Points positions = At({SidePoint(0.02, 0.9, 0.005), SidePoint(-0.05, -2.0, 0.005)}, arm);
+  Points velocities = Points::Zero(2, 3);
+  std::vector<Contact> contacts;
+  const double h = 0.01;
+  collider.FindContacts(positions, velocities, h, 0.001, contacts);
+  ASSERT_EQ(contacts.size(), 2u);
+  for (const Contact& c : contacts) {
+    EXPECT_NEAR(c.target_normal_velocity, (kSwell - 0.005 + kThickness) / h, 0.05) << c.particle;
+  }
+  collider.ProjectOut(positions, velocities);
+  for (int i = 0; i < 2; ++i) {
+    const Eigen::Vector3d moved = to_arm * positions.row(i).transpose();
+    EXPECT_NEAR(CapsuleDistance(moved), kSwell + kThickness, 0.001) << i;
+  }
+  // Back to the rest skin: the same points are outside its shell again.
+  collider.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+  positions = At({SidePoint(0.02, 0.9, 0.005), SidePoint(-0.05, -2.0, 0.005)}, arm);
+  contacts.clear();
+  collider.FindContacts(positions, velocities, h, 0.001, contacts);
+  for (const Contact& c : contacts) {
+    // Within the margin of the thin-shell test only, never pushed inwards.
+    EXPECT_LT(c.target_normal_velocity, (kThickness - 0.005) / h + 0.05) << c.particle;
+  }
+}
+
 TEST_F(Fixture, AParticleFiveCentimetresOutsideGetsNoContactAndStays) {
   collider.Update(avatar->skeleton().rest_world(), unused_skin, 0.01);
   Points positions = At({SidePoint(0.0, 1.0, 0.05), SidePoint(0.1, -2.0, 0.05)}, arm);
@@ -282,6 +329,8 @@ TEST_F(Fixture, FindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
   collider.ProjectOut(positions, velocities);
   world[1] = Eigen::Translation3d(0.01, 0.0, 0.0) * world[1];
+  Points skinned = avatar->rest_vertices();
+  skinned.rowwise() += Eigen::RowVector3d(0.01, 0.0, 0.0);
   g_num_allocations = 0;
   g_count_allocations = true;
   {  // The counter sees Eigen's heap and operator new.
@@ -294,6 +343,12 @@ TEST_F(Fixture, FindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   contacts.clear();
   collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
   collider.ProjectOut(positions, velocities);
+  // With skin, the maps are redrawn in FindContacts: no allocation either.
+  collider.Update(world, skinned, 0.01);
+  contacts.clear();
+  collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
+  collider.ProjectOut(positions, velocities);
+  collider.RefreshAllMaps();
   g_count_allocations = false;
   EXPECT_EQ(g_num_allocations, 0);
 }
@@ -304,7 +359,7 @@ TEST(SuperquadricCollider, RefusesBadInput) {
   settings.thickness = -1.0;
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), settings), InputError);
   SuperquadricColliderOptions options;
-  options.map_eta_intervals = 2;
+  options.map_spacing = 0.001;  // below 2 mm
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), {}, options), InputError);
 }
 
