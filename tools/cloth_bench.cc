@@ -73,7 +73,9 @@ SolverMethod MethodNamed(const std::string& name) {
 }
 
 /// Steps per 1/60 s frame for a step of dt [s].
-int SubstepsOf(double dt) { return std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * dt)))); }
+int SubstepsOf(double dt) {
+  return std::max(1, static_cast<int>(std::lround(1.0 / (60.0 * dt))));
+}
 
 constexpr const char* kSolverNames[] = {"pcg", "hierarchical", "multigrid", "multigrid_galerkin",
                                         "multigrid_rediscretised", "direct"};
@@ -97,7 +99,8 @@ void ApplySolverSpec(const std::string& spec, Run& run) {
     const std::string text = equals == std::string::npos ? "" : part.substr(equals + 1);
     char* end = nullptr;
     const double value = std::strtod(text.c_str(), &end);
-    const bool is_number = !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
+    const bool is_number =
+        !text.empty() && end == text.c_str() + text.size() && std::isfinite(value);
     if (key == "tol" && is_number && value >= 1e-14 && value <= 0.999) {
       run.tolerance = value;
     } else if (key == "levels" && is_number && value == std::floor(value) && value >= 0 &&
