@@ -162,7 +162,12 @@ AssimpSkeleton CollectSkeleton(const aiScene& scene, const Eigen::Matrix4d& file
       const int index = static_cast<int>(skeleton.joints.size());
       sim::Joint joint;
       joint.name = node->mName.length > 0 ? node->mName.C_Str() : "joint" + std::to_string(index);
-      if (skeleton.index_of_name.count(joint.name)) joint.name += "#" + std::to_string(index);
+      if (skeleton.index_of_name.count(joint.name)) {
+        // Appended in two parts: "#" + std::to_string(...) trips GCC 12's -Wrestrict false
+        // positive (GCC bug 105329) at -O3.
+        joint.name += '#';
+        joint.name += std::to_string(index);
+      }
       joint.parent = parent;
       const Eigen::Isometry3d world = RigidPart(file_to_world * GlobalTransform(node));
       joint.rest_local = parent < 0 ? world : skeleton.rest_world[parent].inverse() * world;
