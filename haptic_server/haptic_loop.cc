@@ -12,12 +12,13 @@
 #include <vector>
 
 #include "sim_core/common/input_error.h"
+#include "sim_core/common/monotonic_clock.h"
 #include "sim_core/common/percentile.h"
 
 namespace costume::haptics {
 
 namespace {
-constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
+using sim::kNanosPerSecond;
 
 /// Tells the core it is in a spin-wait (x86 PAUSE, ARM YIELD): the hyperthread sibling or the
 /// hypervisor may use the slot, and leaving the loop does not flush the pipeline.
@@ -45,20 +46,9 @@ const HapticLoopOptions& CheckedLoopOptions(const HapticLoopOptions& options) {
 }
 }  // namespace
 
-std::int64_t MonotonicClock::Now() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
-}
+std::int64_t MonotonicClock::Now() { return sim::MonotonicNs(); }
 
-void MonotonicClock::SleepUntil(std::int64_t deadline) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(deadline / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(deadline % kNanosPerSecond);
-  // Absolute: a signal that interrupts the sleep just sleeps again to the same deadline.
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
+void MonotonicClock::SleepUntil(std::int64_t deadline) { sim::SleepUntilNs(deadline); }
 
 void FakeClock::SleepUntil(std::int64_t deadline) {
   now_ = std::max(now_, deadline);

@@ -11,25 +11,14 @@
 #include <sstream>
 #include <thread>
 
+#include "sim_core/common/monotonic_clock.h"
+
 namespace costume::tools {
 
 namespace {
 
-constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
-
-std::int64_t MonotonicNs() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
-}
-
-void SleepNs(std::int64_t ns) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(ns / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(ns % kNanosPerSecond);
-  while (clock_nanosleep(CLOCK_MONOTONIC, 0, &ts, &ts) == EINTR) {
-  }
-}
+using sim::kNanosPerSecond;
+using sim::MonotonicNs;
 
 /// The steal column of one "cpu..." line, or −1 when it has fewer than 8 numbers.
 std::int64_t StealOfLine(std::string_view line) {
@@ -154,7 +143,7 @@ ClockSpinResult SpinOnTheClock(const ClockSpinOptions& options) {
         previous = now;
       }
       gaps.AddSpinTime(now - start);
-      if (gaps.spin_ns() < total) SleepNs(to_ns(options.rest));
+      if (gaps.spin_ns() < total) sim::SleepUntilNs(MonotonicNs() + to_ns(options.rest));
     }
   });
   spinner.join();

@@ -13,32 +13,18 @@
 #include "bus/channels.h"
 #include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/common/monotonic_clock.h"
 #include "sim_core/common/percentile.h"
 
 namespace costume::sim_app {
 
 namespace {
 
-constexpr std::int64_t kNanosPerSecond = 1'000'000'000;
+using sim::kNanosPerSecond;
 /// Pending warnings kept for one status message; later ones in the same period are dropped
 /// (and the last entry says so) so a flood of bad commands cannot grow the message.
 constexpr std::size_t kMaxWarnings = 16;
 constexpr int kGrabButton = 1;  // grab.buttons bit 0
-
-std::int64_t MonotonicNow() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * kNanosPerSecond + ts.tv_nsec;
-}
-
-void SleepUntil(std::int64_t deadline) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(deadline / kNanosPerSecond);
-  ts.tv_nsec = static_cast<long>(deadline % kNanosPerSecond);
-  // Absolute: a signal that interrupts the sleep sleeps again to the same deadline.
-  while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-}
 
 sim::Grab ToGrab(const costume_lcm::grab& message) {
   sim::Grab grab;
@@ -218,10 +204,10 @@ void SimServer::Step() {
 
 std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_frames) {
   const auto period = static_cast<std::int64_t>(std::llround(1e9 / scene_.frame_rate));
-  const auto now = options_.clock_now ? options_.clock_now : MonotonicNow;
+  const auto now = options_.clock_now ? options_.clock_now : sim::MonotonicNs;
   const auto sleep_until = options_.clock_sleep_until
                                ? options_.clock_sleep_until
-                               : std::function<void(std::int64_t)>(SleepUntil);
+                               : std::function<void(std::int64_t)>(sim::SleepUntilNs);
   std::int64_t deadline = now();
   std::int64_t previous_wake = -1;
   std::int64_t steps = 0;
