@@ -16,6 +16,21 @@ namespace {
 /// How long a statement waits for another process's lock before failing [ms].
 constexpr int kBusyTimeoutMs = 30000;
 
+/// Puts a new file into WAL mode, retrying while another process does the same. Switching
+/// needs an exclusive lock, and when two connections race for it on a fresh file SQLite
+/// answers SQLITE_BUSY at once, without calling the busy handler (its deadlock avoidance), so
+/// the busy timeout alone does not cover two processes opening an empty catalogue together.
+/// Any other outcome is left to the PRAGMA that follows, which reports it.
+void SwitchToWal(sqlite3* db) {
+  constexpr int kRetryMs = 5;
+  for (int waited = 0; waited < kBusyTimeoutMs; waited += kRetryMs) {
+    if (sqlite3_exec(db, "PRAGMA journal_mode = WAL;", nullptr, nullptr, nullptr) != SQLITE_BUSY) {
+      return;
+    }
+    sqlite3_sleep(kRetryMs);
+  }
+}
+
 /// $1, $2, ... → ?1, ?2, ... (the catalogue's SQL has no '$' elsewhere).
 std::string ToSqliteParameters(std::string sql) {
   for (char& c : sql) {
@@ -152,6 +167,7 @@ std::unique_ptr<SqlConnection> OpenSqlite(const std::string& path, const std::st
   }
   auto connection = std::make_unique<SqliteConnection>(db, url);
   sqlite3_busy_timeout(db, kBusyTimeoutMs);
+  SwitchToWal(db);
   // Reading the header here turns "not a database" into an error at open time.
   connection->Execute(
       "PRAGMA journal_mode = WAL; PRAGMA synchronous = FULL; "
