@@ -2,6 +2,7 @@
 
 #include "bus/channels.h"
 #include "bus/receive_filter.h"
+#include "bus/settings_codec.h"
 
 namespace costume::frontend {
 namespace {
@@ -18,44 +19,7 @@ Command Blank(std::int8_t kind) {
   return message;
 }
 
-std::int8_t MethodOf(sim::SolverMethod method) {
-  switch (method) {
-    case sim::SolverMethod::kPcg: return costume_lcm::solver_parameters::METHOD_PCG;
-    case sim::SolverMethod::kHierarchical: return costume_lcm::solver_parameters::METHOD_HIERARCHICAL;
-    case sim::SolverMethod::kMultigrid: return costume_lcm::solver_parameters::METHOD_MULTIGRID;
-    case sim::SolverMethod::kDirect: return costume_lcm::solver_parameters::METHOD_DIRECT;
-  }
-  return costume_lcm::solver_parameters::METHOD_PCG;
-}
-
 }  // namespace
-
-costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings) {
-  costume_lcm::solver_parameters p{};
-  p.method = MethodOf(settings.method);
-  p.levels = settings.levels;
-  p.tolerance = settings.tolerance;
-  p.max_iterations = settings.max_iterations;
-  p.substeps = settings.substeps;
-  p.strain_limit = settings.strain_limit;
-  return p;
-}
-
-costume_lcm::material_parameters ToMessage(const sim::Material& material) {
-  costume_lcm::material_parameters p{};
-  p.name = material.name;
-  p.density = material.density;
-  p.stretch_stiffness = material.stretch_stiffness;
-  p.shear_stiffness = material.shear_stiffness;
-  p.bending_rigidity = material.bending_rigidity;
-  p.damping = material.damping;
-  p.air_drag = material.air_drag;
-  p.friction = material.friction;
-  p.structural_spring_k = material.structural_spring_k;
-  p.shear_spring_k = material.shear_spring_k;
-  p.bending_spring_k = material.bending_spring_k;
-  return p;
-}
 
 CommandSender::CommandSender(bus::MessageBus& bus, bus::ResendPolicy resend)
     : commands_(bus, bus::kCommandChannel, resend), pointer_(bus, bus::kPointerChannel) {}
@@ -115,13 +79,13 @@ bool CommandSender::Stop() {
 bool CommandSender::SetMaterial(int garment, const sim::Material& material) {
   Command message = Blank(Command::KIND_SET_MATERIAL);
   message.garment = garment;
-  message.material = ToMessage(material);
+  message.material = bus::ToMessage(material);
   return Send(message);
 }
 
 bool CommandSender::SetSolver(const sim::SolverSettings& settings) {
   Command message = Blank(Command::KIND_SET_SOLVER);
-  message.solver = ToMessage(settings);
+  message.solver = bus::ToMessage(settings);
   return Send(message);
 }
 

@@ -33,11 +33,6 @@ struct JointAngles {
   Eigen::Vector3d degrees = Eigen::Vector3d::Zero();
 };
 
-/// The solver fields of command.solver, as sim::SolverSettings.
-costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings);
-/// The fabric fields of command.material, as sim::Material.
-costume_lcm::material_parameters ToMessage(const sim::Material& material);
-
 /// Publishes the GUI's commands and pointer samples on `bus`.
 class CommandSender {
  public:

@@ -80,6 +80,8 @@ class SolverPanel : public QGroupBox {
   bool SetSettings(const sim::SolverSettings& settings, QString* reason = nullptr);
 
   QComboBox* method = nullptr;
+  /// Multigrid only: index 0 rediscretised coarse models, 1 Galerkin products (PᵀAP).
+  QComboBox* coarse_operator = nullptr;
   QSpinBox* levels = nullptr;
   QDoubleSpinBox* tolerance = nullptr;
   QSpinBox* max_iterations = nullptr;

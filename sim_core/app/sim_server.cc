@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "bus/channels.h"
+#include "bus/settings_codec.h"
 #include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/common/monotonic_clock.h"
@@ -47,29 +48,6 @@ std::int8_t ToLcmPlayback(Playback playback) {
     case Playback::kStopped: break;
   }
   return costume_lcm::status::PLAYBACK_STOPPED;
-}
-
-/// The scene's solver settings with `solver`'s fields; ranges are checked by
-/// Simulation::Build (ValidateScene). Throws InputError for an unknown method.
-sim::SolverSettings ToSolverSettings(const costume_lcm::solver_parameters& solver) {
-  using P = costume_lcm::solver_parameters;
-  sim::SolverSettings settings;
-  switch (solver.method) {
-    case P::METHOD_PCG: settings.method = sim::SolverMethod::kPcg; break;
-    case P::METHOD_HIERARCHICAL: settings.method = sim::SolverMethod::kHierarchical; break;
-    case P::METHOD_MULTIGRID: settings.method = sim::SolverMethod::kMultigrid; break;
-    case P::METHOD_DIRECT: settings.method = sim::SolverMethod::kDirect; break;
-    default:
-      throw sim::InputError("command SET_SOLVER: solver.method = " +
-                            std::to_string(solver.method) + ": must be 0 (pcg), 1 "
-                            "(hierarchical), 2 (multigrid) or 3 (direct)");
-  }
-  settings.levels = solver.levels;
-  settings.tolerance = solver.tolerance;
-  settings.max_iterations = solver.max_iterations;
-  settings.substeps = solver.substeps;
-  settings.strain_limit = solver.strain_limit;
-  return settings;
 }
 
 std::string CommandName(std::int8_t kind) {
@@ -350,7 +328,7 @@ void SimServer::Redo() {
 // the model revision too (same springs, same rest lengths).
 void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
   try {
-    const sim::SolverSettings settings = ToSolverSettings(solver);
+    const sim::SolverSettings settings = bus::FromMessage(solver);
     simulation_->SetSolver(settings);
     scene_.solver = settings;
   } catch (const sim::InputError& error) {
@@ -416,18 +394,8 @@ void SimServer::SetMaterial(const costume_lcm::command& command) {
   for (int g = 0; g < count; ++g) {
     if (command.garment >= 0 && g != command.garment) continue;
     sim::GarmentSpec& garment = scene.garments[g];
-    sim::Material material;
+    sim::Material material = bus::FromMessage(p);
     material.name = garment.name + "_fabric";
-    material.density = p.density;
-    material.stretch_stiffness = p.stretch_stiffness;
-    material.shear_stiffness = p.shear_stiffness;
-    material.bending_rigidity = p.bending_rigidity;
-    material.damping = p.damping;
-    material.air_drag = p.air_drag;
-    material.friction = p.friction;
-    material.structural_spring_k = p.structural_spring_k;
-    material.shear_spring_k = p.shear_spring_k;
-    material.bending_spring_k = p.bending_spring_k;
     std::erase_if(scene.materials,
                   [&](const sim::Material& m) { return m.name == material.name; });
     scene.materials.push_back(material);

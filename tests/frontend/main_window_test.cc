@@ -143,6 +143,8 @@ TEST_F(MainWindowTest, SolverControlsSendSetSolver) {
   SolverPanel* panel = window_->solver_panel();
   panel->method->setCurrentIndex(2);
   EXPECT_TRUE(panel->levels->isEnabled());
+  EXPECT_TRUE(panel->coarse_operator->isEnabled());
+  panel->coarse_operator->setCurrentIndex(1);
   panel->levels->setValue(3);
   panel->tolerance->setValue(0.001);
   panel->max_iterations->setValue(250);
@@ -151,6 +153,7 @@ TEST_F(MainWindowTest, SolverControlsSendSetSolver) {
   Command c = One();
   EXPECT_EQ(c.kind, Command::KIND_SET_SOLVER);
   EXPECT_EQ(c.solver.method, costume_lcm::solver_parameters::METHOD_MULTIGRID);
+  EXPECT_EQ(c.solver.coarse_operator, costume_lcm::solver_parameters::COARSE_GALERKIN);
   EXPECT_EQ(c.solver.levels, 3);
   EXPECT_DOUBLE_EQ(c.solver.tolerance, 0.001);
   EXPECT_EQ(c.solver.max_iterations, 250);
@@ -158,6 +161,7 @@ TEST_F(MainWindowTest, SolverControlsSendSetSolver) {
 
   panel->method->setCurrentIndex(3);
   EXPECT_FALSE(panel->levels->isEnabled());
+  EXPECT_FALSE(panel->coarse_operator->isEnabled());
   EXPECT_FALSE(panel->tolerance->isEnabled());
   panel->apply->click();
   EXPECT_EQ(One().solver.method, costume_lcm::solver_parameters::METHOD_DIRECT);

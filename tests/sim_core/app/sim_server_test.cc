@@ -525,6 +525,15 @@ TEST_F(SimServerTest, SetSolverKeepsTheClothStateTheEditsAndTheUndoHistory) {
   EXPECT_EQ(server_->simulation().num_undoable_edits(), 0);
   Step(30);
   EXPECT_TRUE(server_->simulation().state().positions.allFinite());
+
+  // Multigrid with Galerkin coarse levels: the coarse operator reaches the scene.
+  solver.solver.method = costume_lcm::solver_parameters::METHOD_MULTIGRID;
+  solver.solver.coarse_operator = costume_lcm::solver_parameters::COARSE_GALERKIN;
+  SendCommand(solver);
+  Step(10);
+  EXPECT_EQ(server_->simulation().scene().solver.method, sim::SolverMethod::kMultigrid);
+  EXPECT_EQ(server_->simulation().scene().solver.coarse_operator, sim::CoarseOperator::kGalerkin);
+  EXPECT_TRUE(server_->simulation().state().positions.allFinite());
   EXPECT_EQ(server_->ignored().commands_refused, 0);
 }
 

@@ -1,0 +1,106 @@
+#include "bus/settings_codec.h"
+
+#include <string>
+
+#include "sim_core/common/input_error.h"
+
+namespace costume::bus {
+namespace {
+
+using P = costume_lcm::solver_parameters;
+
+std::int8_t MethodOf(sim::SolverMethod method) {
+  switch (method) {
+    case sim::SolverMethod::kPcg: return P::METHOD_PCG;
+    case sim::SolverMethod::kHierarchical: return P::METHOD_HIERARCHICAL;
+    case sim::SolverMethod::kMultigrid: return P::METHOD_MULTIGRID;
+    case sim::SolverMethod::kDirect: return P::METHOD_DIRECT;
+  }
+  return P::METHOD_PCG;
+}
+
+sim::SolverMethod MethodFrom(std::int8_t method) {
+  switch (method) {
+    case P::METHOD_PCG: return sim::SolverMethod::kPcg;
+    case P::METHOD_HIERARCHICAL: return sim::SolverMethod::kHierarchical;
+    case P::METHOD_MULTIGRID: return sim::SolverMethod::kMultigrid;
+    case P::METHOD_DIRECT: return sim::SolverMethod::kDirect;
+    default: break;
+  }
+  throw sim::InputError("command SET_SOLVER: solver.method = " + std::to_string(method) +
+                        ": must be 0 (pcg), 1 (hierarchical), 2 (multigrid) or 3 (direct)");
+}
+
+std::int8_t CoarseOperatorOf(sim::CoarseOperator op) {
+  return op == sim::CoarseOperator::kGalerkin ? P::COARSE_GALERKIN : P::COARSE_REDISCRETISED;
+}
+
+sim::CoarseOperator CoarseOperatorFrom(std::int8_t op) {
+  switch (op) {
+    case P::COARSE_REDISCRETISED: return sim::CoarseOperator::kRediscretised;
+    case P::COARSE_GALERKIN: return sim::CoarseOperator::kGalerkin;
+    default: break;
+  }
+  throw sim::InputError("command SET_SOLVER: solver.coarse_operator = " + std::to_string(op) +
+                        ": must be 0 (rediscretised) or 1 (galerkin)");
+}
+
+}  // namespace
+
+costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings) {
+  costume_lcm::solver_parameters p{};
+  p.method = MethodOf(settings.method);
+  p.coarse_operator = CoarseOperatorOf(settings.coarse_operator);
+  p.levels = settings.levels;
+  p.tolerance = settings.tolerance;
+  p.max_iterations = settings.max_iterations;
+  p.substeps = settings.substeps;
+  p.strain_limit = settings.strain_limit;
+  return p;
+}
+
+sim::SolverSettings FromMessage(const costume_lcm::solver_parameters& solver) {
+  sim::SolverSettings settings;
+  settings.method = MethodFrom(solver.method);
+  settings.coarse_operator = CoarseOperatorFrom(solver.coarse_operator);
+  settings.levels = solver.levels;
+  settings.tolerance = solver.tolerance;
+  settings.max_iterations = solver.max_iterations;
+  settings.substeps = solver.substeps;
+  settings.strain_limit = solver.strain_limit;
+  return settings;
+}
+
+costume_lcm::material_parameters ToMessage(const sim::Material& material) {
+  costume_lcm::material_parameters p{};
+  p.name = material.name;
+  p.density = material.density;
+  p.stretch_stiffness = material.stretch_stiffness;
+  p.shear_stiffness = material.shear_stiffness;
+  p.bending_rigidity = material.bending_rigidity;
+  p.damping = material.damping;
+  p.air_drag = material.air_drag;
+  p.friction = material.friction;
+  p.structural_spring_k = material.structural_spring_k;
+  p.shear_spring_k = material.shear_spring_k;
+  p.bending_spring_k = material.bending_spring_k;
+  return p;
+}
+
+sim::Material FromMessage(const costume_lcm::material_parameters& p) {
+  sim::Material material;
+  material.name = p.name;
+  material.density = p.density;
+  material.stretch_stiffness = p.stretch_stiffness;
+  material.shear_stiffness = p.shear_stiffness;
+  material.bending_rigidity = p.bending_rigidity;
+  material.damping = p.damping;
+  material.air_drag = p.air_drag;
+  material.friction = p.friction;
+  material.structural_spring_k = p.structural_spring_k;
+  material.shear_spring_k = p.shear_spring_k;
+  material.bending_spring_k = p.bending_spring_k;
+  return material;
+}
+
+}  // namespace costume::bus
