@@ -1,7 +1,10 @@
 #include "tools/machine_floor.h"
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <sched.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -32,6 +35,22 @@ std::int64_t StealOfLine(std::string_view line) {
   return value;
 }
 
+/// The next unsigned decimal number in `*text` (skipping spaces), consumed; −1 if none.
+std::int64_t ParseNumber(std::string_view* text) {
+  std::size_t i = 0;
+  while (i < text->size() && (*text)[i] == ' ') ++i;
+  if (i == text->size() || (*text)[i] < '0' || (*text)[i] > '9') {
+    text->remove_prefix(i);
+    return -1;
+  }
+  std::int64_t value = 0;
+  for (; i < text->size() && (*text)[i] >= '0' && (*text)[i] <= '9'; ++i) {
+    value = value * 10 + ((*text)[i] - '0');
+  }
+  text->remove_prefix(i);
+  return value;
+}
+
 }  // namespace
 
 StealTicks ParseStealTicks(std::string_view proc_stat) {
@@ -51,6 +70,30 @@ StealTicks ParseStealTicks(std::string_view proc_stat) {
     }
   }
   return ticks;
+}
+
+int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
+                   std::int64_t* total) {
+  int count = 0;
+  while (!proc_stat.empty()) {
+    const std::size_t end = std::min(proc_stat.find('\n'), proc_stat.size());
+    std::string_view line = proc_stat.substr(0, end);
+    proc_stat.remove_prefix(std::min(end + 1, proc_stat.size()));
+    if (line.substr(0, 3) != "cpu") continue;
+    line.remove_prefix(3);
+    int cpu = -1;  // −1: the aggregate line
+    if (!line.empty() && line[0] != ' ') cpu = static_cast<int>(ParseNumber(&line));
+    std::int64_t value = -1;
+    for (int column = 1; column <= 8; ++column) value = ParseNumber(&line);
+    if (value < 0) continue;
+    if (cpu < 0) {
+      *total = value;
+    } else if (cpu < max_cpus) {
+      per_cpu[cpu] = value;
+      ++count;
+    }
+  }
+  return count;
 }
 
 StealTicks ReadStealTicks(const std::string& path) {
@@ -117,6 +160,71 @@ std::vector<std::int64_t> ClockGaps::longest() const {
     if (gap > 0) gaps.push_back(gap);
   }
   return gaps;
+}
+
+GapWitness::GapWitness(std::int64_t threshold_ns, std::size_t capacity) : threshold_(threshold_ns) {
+  records_.reserve(capacity);
+}
+
+GapWitness::~GapWitness() {
+  if (schedstat_fd_ >= 0) ::close(schedstat_fd_);
+  if (stat_fd_ >= 0) ::close(stat_fd_);
+}
+
+void GapWitness::Reopen() {
+  if (schedstat_fd_ >= 0) ::close(schedstat_fd_);
+  if (stat_fd_ < 0) stat_fd_ = ::open("/proc/stat", O_RDONLY | O_CLOEXEC);
+  schedstat_fd_ = ::open("/proc/thread-self/schedstat", O_RDONLY | O_CLOEXEC);
+  available_ = available_ && schedstat_fd_ >= 0 && stat_fd_ >= 0;
+  have_last_ = false;
+}
+
+bool GapWitness::Read(std::int64_t now, Reading* reading) {
+  // The cpu lines come first in /proc/stat; 4 KB hold them for up to 64 CPUs.
+  const ssize_t n = ::pread(stat_fd_, buffer_.data(), buffer_.size(), 0);
+  if (n <= 0) return false;
+  std::string_view stat(buffer_.data(), static_cast<std::size_t>(n));
+  stat = stat.substr(0, stat.rfind('\n') + 1);  // whole lines only
+  if (ParseStealInto(stat, reading->steal.data(), kMaxCpus, &reading->steal_total) == 0) return false;
+  const ssize_t m = ::pread(schedstat_fd_, buffer_.data(), buffer_.size(), 0);
+  if (m <= 0) return false;
+  std::string_view schedstat(buffer_.data(), static_cast<std::size_t>(m));
+  reading->exec_ns = ParseNumber(&schedstat);
+  reading->run_delay_ns = ParseNumber(&schedstat);
+  reading->now = now;
+  reading->cpu = sched_getcpu();
+  return reading->exec_ns >= 0 && reading->run_delay_ns >= 0;
+}
+
+void GapWitness::Sample(std::int64_t now) {
+  if (!available_) return;
+  const long tid = ::syscall(SYS_gettid);
+  if (tid != tid_) {
+    tid_ = tid;
+    Reopen();
+    if (!available_) return;
+  }
+  if (!Read(now, &current_)) {
+    available_ = false;
+    return;
+  }
+  if (have_last_ && current_.now - last_.now > threshold_) {
+    ++num_long_;
+    if (records_.size() < records_.capacity()) {
+      GapRecord record;
+      record.gap_ns = current_.now - last_.now;
+      record.exec_ns = current_.exec_ns - last_.exec_ns;
+      record.run_delay_ns = current_.run_delay_ns - last_.run_delay_ns;
+      const int cpu = std::clamp(last_.cpu, 0, kMaxCpus - 1);
+      record.steal_ticks_cpu = current_.steal[cpu] - last_.steal[cpu];
+      record.steal_ticks_all = current_.steal_total - last_.steal_total;
+      record.cpu_before = last_.cpu;
+      record.cpu_after = current_.cpu;
+      records_.push_back(record);
+    }
+  }
+  last_ = current_;
+  have_last_ = true;
 }
 
 ClockSpinResult SpinOnTheClock(const ClockSpinOptions& options) {

@@ -39,6 +39,82 @@ StealTicks StealDelta(const StealTicks& before, const StealTicks& after);
 /// `a` + `b` per CPU (to add up the deltas of several intervals); an unavailable side adds 0.
 StealTicks StealSum(const StealTicks& a, const StealTicks& b);
 
+/// Writes the steal column of each "cpuN" line of /proc/stat text into `per_cpu` (CPU N at
+/// index N, at most `max_cpus`) and the aggregate line's into `*total`; returns how many CPU
+/// lines were read (0: none with a steal column). Never allocates: for sampling in a tick.
+int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
+                   std::int64_t* total);
+
+/// What the kernel accounted to a thread and to its CPU over one long period of a loop: the
+/// evidence that tells a stall of the guest (the thread waited on a run queue) from one of
+/// the host (the virtual CPU itself did not run, which the guest counts as steal).
+struct GapRecord {
+  /// The period [ns].
+  std::int64_t gap_ns = 0;
+  /// The thread's run time over it [ns] (/proc/thread-self/schedstat, first field; with
+  /// paravirtual steal accounting, time the host took is not in it).
+  std::int64_t exec_ns = 0;
+  /// Time it waited runnable on a run queue of this kernel [ns] (second field).
+  std::int64_t run_delay_ns = 0;
+  /// Steal counted over the period [USER_HZ ticks] for the CPU the thread ran on before it,
+  /// and for all CPUs. /proc/stat counts in 10 ms ticks, so one period's count is 0 or 1:
+  /// summed over many periods it estimates the stolen time (its expectation is exact).
+  std::int64_t steal_ticks_cpu = 0;
+  std::int64_t steal_ticks_all = 0;
+  /// CPU at the tick before and at the tick after the period (sched_getcpu).
+  int cpu_before = -1;
+  int cpu_after = -1;
+};
+
+/// Samples the calling thread's scheduling statistics and the CPUs' steal at every tick of a
+/// loop (two preads, about 9 µs here) and keeps a GapRecord for each period longer than
+/// `threshold`. For benchmarks only: it adds that work to each tick. Sample never allocates
+/// (records beyond `capacity` are counted, not kept) and reopens its files when called from a
+/// new thread (a loop restarted on another thread), without a record across the change.
+class GapWitness {
+ public:
+  GapWitness(std::int64_t threshold_ns, std::size_t capacity);
+  ~GapWitness();
+  GapWitness(const GapWitness&) = delete;
+  GapWitness& operator=(const GapWitness&) = delete;
+
+  /// One tick, `now` [ns, CLOCK_MONOTONIC] its wake-up.
+  void Sample(std::int64_t now);
+  /// Forget the last sample (the loop paused): the next Sample starts a new run of periods.
+  void Break() { have_last_ = false; }
+
+  const std::vector<GapRecord>& records() const { return records_; }
+  /// Long periods seen, kept or not.
+  std::int64_t num_long() const { return num_long_; }
+  /// False once a file could not be read (no /proc): nothing is recorded then.
+  bool available() const { return available_; }
+
+ private:
+  static constexpr int kMaxCpus = 64;
+  struct Reading {
+    std::int64_t now = 0;
+    std::int64_t exec_ns = 0;
+    std::int64_t run_delay_ns = 0;
+    std::int64_t steal_total = 0;
+    std::array<std::int64_t, kMaxCpus> steal{};
+    int cpu = -1;
+  };
+  bool Read(std::int64_t now, Reading* reading);
+  void Reopen();
+
+  std::int64_t threshold_;
+  std::vector<GapRecord> records_;
+  std::int64_t num_long_ = 0;
+  bool available_ = true;
+  int schedstat_fd_ = -1;
+  int stat_fd_ = -1;
+  long tid_ = -1;
+  bool have_last_ = false;
+  Reading last_;
+  Reading current_;
+  std::array<char, 4096> buffer_{};
+};
+
 /// Gaps between consecutive clock reads of a spinning thread.
 class ClockGaps {
  public:

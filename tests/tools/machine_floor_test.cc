@@ -2,7 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <thread>
 #include <vector>
+
+#include "sim_core/common/monotonic_clock.h"
 
 namespace costume::tools {
 namespace {
@@ -44,6 +48,52 @@ TEST(StealTicks, DeltasAndSumsArePerCpu) {
   EXPECT_EQ(twice.per_cpu, (std::vector<std::int64_t>{8, 30}));
   EXPECT_EQ(StealSum(StealTicks{}, delta).total, 19);
   EXPECT_FALSE(StealDelta(StealTicks{}, after).available);
+}
+
+TEST(StealTicks, ParseIntoFixedStorageAgreesWithTheAllocatingParser) {
+  std::array<std::int64_t, 4> per_cpu{};
+  std::int64_t total = -1;
+  EXPECT_EQ(ParseStealInto(kProcStat, per_cpu.data(), 4, &total), 2);
+  EXPECT_EQ(total, 2581);
+  EXPECT_EQ(per_cpu[0], 1290);
+  EXPECT_EQ(per_cpu[1], 1291);
+  // CPUs beyond the storage are skipped, lines without a steal column are not counted.
+  EXPECT_EQ(ParseStealInto(kProcStat, per_cpu.data(), 1, &total), 1);
+  EXPECT_EQ(ParseStealInto("cpu  1 2 3 4 5 6 7\ncpu0 1 2\n", per_cpu.data(), 4, &total), 0);
+}
+
+// A thread that sleeps 5 ms between two samples: one long period, of which it ran only a
+// sliver (a sleeping thread accrues neither run time nor run-queue delay while asleep).
+TEST(GapWitness, RecordsALongPeriodWithWhatTheThreadDidInIt) {
+  GapWitness witness(2'000'000, 8);
+  witness.Sample(sim::MonotonicNs());
+  if (!witness.available()) GTEST_SKIP() << "no /proc/thread-self/schedstat here";
+  witness.Sample(sim::MonotonicNs());  // a short period: not kept
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  witness.Sample(sim::MonotonicNs());
+  ASSERT_EQ(witness.num_long(), 1);
+  const GapRecord& r = witness.records().at(0);
+  EXPECT_GE(r.gap_ns, 5'000'000);
+  EXPECT_GE(r.exec_ns, 0);
+  EXPECT_LT(r.exec_ns, r.gap_ns / 2);
+  EXPECT_GE(r.run_delay_ns, 0);
+  EXPECT_LE(r.run_delay_ns, r.gap_ns);
+  EXPECT_GE(r.steal_ticks_cpu, 0);
+  EXPECT_GE(r.steal_ticks_all, r.steal_ticks_cpu);
+  EXPECT_GE(r.cpu_before, 0);
+}
+
+TEST(GapWitness, KeepsNoPeriodAcrossABreakOrAThreadChange) {
+  GapWitness witness(1'000'000, 8);
+  witness.Sample(sim::MonotonicNs());
+  if (!witness.available()) GTEST_SKIP() << "no /proc/thread-self/schedstat here";
+  std::this_thread::sleep_for(std::chrono::milliseconds(3));
+  witness.Break();
+  witness.Sample(sim::MonotonicNs());
+  std::this_thread::sleep_for(std::chrono::milliseconds(3));
+  std::thread([&witness] { witness.Sample(sim::MonotonicNs()); }).join();
+  EXPECT_EQ(witness.num_long(), 0);
+  EXPECT_TRUE(witness.records().empty());
 }
 
 TEST(ClockGaps, CountsEachGapOverEveryThresholdBelowIt) {
