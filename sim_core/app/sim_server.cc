@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <ctime>
 #include <optional>
+#include <sstream>
 #include <utility>
 
 #include "bus/channels.h"
@@ -169,7 +170,10 @@ void SimServer::Step() {
   commands_.clear();
   ApplyLatestGrab();
   if (playback_ == Playback::kPlaying) {
-    last_iterations_ = simulation_->AdvanceFrame().iterations;
+    const sim::FrameReport report = simulation_->AdvanceFrame();
+    last_iterations_ = report.iterations;
+    period_unconverged_frames_ += report.converged ? 0 : 1;
+    period_rolled_back_steps_ += report.rolled_back_steps;
     ++frame_;
   }
   PublishFrame();
@@ -705,8 +709,34 @@ void SimServer::PublishStatusIfDue(double work_ms) {
   if (ticks_ % ticks_per_status == 0 || !warnings_.empty()) PublishStatus();
 }
 
+void SimServer::AddSolverHealthWarnings() {
+  const sim::SolverSettings& solver = simulation_->scene().solver;
+  const auto number = [](double value) {
+    std::ostringstream text;
+    text << value;  // 0.01, 1e-06: as the user typed it, not std::to_string's 0.010000
+    return text.str();
+  };
+  if (period_unconverged_frames_ > 0) {
+    warnings_.push_back(
+        "solver: " + std::to_string(period_unconverged_frames_) + " of " +
+        std::to_string(period_ticks_) + " frames stopped at the iteration cap (max_iterations = " +
+        std::to_string(solver.max_iterations) + ") before the tolerance (" +
+        number(solver.tolerance) + "): the cloth lags its physics; raise the cap, add "
+        "substeps or use the multigrid solver");
+  }
+  if (period_rolled_back_steps_ > 0) {
+    warnings_.push_back(
+        "solver: " + std::to_string(period_rolled_back_steps_) + " steps produced non-finite "
+        "values and were undone (the cloth held still for them): tighten the tolerance (now " +
+        number(solver.tolerance) + "), add substeps (now " +
+        std::to_string(solver.substeps) + ") or switch the strain limit on");
+  }
+  period_unconverged_frames_ = period_rolled_back_steps_ = 0;
+}
+
 void SimServer::PublishStatus() {
   using S = costume_lcm::status;
+  AddSolverHealthWarnings();
   const auto now = std::chrono::steady_clock::now();
   const double elapsed = std::chrono::duration<double>(now - period_start_).count();
   S m{};

@@ -154,6 +154,8 @@ class SimServer {
 
   /// Publishes a status message now and clears the pending warnings.
   void PublishStatus();
+  /// Warnings about the period's solves (iteration cap reached, steps undone), if any.
+  void AddSolverHealthWarnings();
   /// Adds a warning to the next status (which is then published at the end of this Step).
   void Warn(std::string warning);
   /// A warning repeated in every status from now on (e.g. a real-time priority refused to a
@@ -265,6 +267,10 @@ class SimServer {
   std::int64_t ticks_ = 0;
   std::int64_t overruns_ = 0;
   std::int64_t period_ticks_ = 0;
+  /// Frames of this status period whose solve stopped at the iteration cap, and steps undone
+  /// for non-finite values: reported once per status, with the settings to change.
+  int period_unconverged_frames_ = 0;
+  int period_rolled_back_steps_ = 0;
   double period_work_ms_ = 0.0;
   double period_max_work_ms_ = 0.0;
   /// Wake-to-wake frame periods Run measured in this status period [ns] (capacity reserved

@@ -419,6 +419,36 @@ TEST_F(SimServerTest, UnavailableCommandsWarnInStatusWithoutCrashing) {
   EXPECT_EQ(received_.frame, 2);
 }
 
+// A solve stopped by its iteration cap before the tolerance is reported once per status, with
+// the settings to change; a healthy solver says nothing.
+TEST_F(SimServerTest, SolvesStoppedByTheIterationCapAreReportedOncePerStatus) {
+  Step(70);  // the default solver converges: statuses without solver warnings
+  for (const costume_lcm::status& status : received_.statuses) {
+    for (const std::string& w : status.warnings) EXPECT_EQ(w.find("solver:"), std::string::npos) << w;
+  }
+  command solver{};
+  solver.kind = command::KIND_SET_SOLVER;
+  solver.solver.method = costume_lcm::solver_parameters::METHOD_PCG;
+  solver.solver.tolerance = 1e-9;
+  solver.solver.max_iterations = 1;
+  solver.solver.substeps = 1;
+  solver.solver.strain_limit = 0.1;
+  SendCommand(solver);
+  received_.statuses.clear();
+  Step(60);
+  ASSERT_FALSE(received_.statuses.empty());
+  int reports = 0;
+  for (const costume_lcm::status& status : received_.statuses) {
+    for (const std::string& w : status.warnings) {
+      if (w.find("solver:") == std::string::npos) continue;
+      ++reports;
+      EXPECT_NE(w.find("stopped at the iteration cap (max_iterations = 1)"), std::string::npos) << w;
+      EXPECT_NE(w.find("tolerance (1e-09)"), std::string::npos) << w;
+    }
+  }
+  EXPECT_EQ(reports, 1);  // one status period, one report
+}
+
 // A refused real-time priority (the grab acknowledger's) is repeated in every status, first,
 // without making the server publish status every frame.
 TEST_F(SimServerTest, AStandingWarningIsInEveryStatusWithoutForcingOne) {
