@@ -5,7 +5,9 @@
 /// the true skinned mesh (not the collider's proxy), measured every frame with MeshDistance.
 /// Avatars: the built-in humanoid, and the MakeHuman body from ../shared/data when present.
 /// Single-threaded. The two methods run back to back in one process, so their ratio is
-/// measured side by side on the same machine state.
+/// measured side by side on the same machine state. A last line gives the mesh method's
+/// cloth-side adaptive regions' saving on a flat and on a folded sheet
+/// (tools/regions_comparison.h, as collision_regions_bench).
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -27,6 +29,7 @@
 #include "sim_core/common/input_error.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
+#include "tools/regions_comparison.h"
 
 namespace {
 
@@ -41,6 +44,8 @@ struct Options {
   std::string solver = "pcg";
   std::string makehuman_garment = "female_casualsuit02";
   bool makehuman = true;
+  /// Calls per mode of the cloth-side regions' comparison (0: skip it).
+  int regions_reps = 100;
 };
 
 /// CPU time of the calling thread [ms]: unlike wall time, not stretched when other
@@ -246,6 +251,11 @@ int main(int argc, char** argv) {
   app.add_option("--makehuman-garment", options.makehuman_garment,
                  "MakeHuman garment folder under makehuman/clothes");
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
+  app.add_option("--regions-reps", options.regions_reps,
+                 "Calls per mode of the adaptive regions' comparison on a flat and a folded "
+                 "sheet (as collision_regions_bench; 0: skip)")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
     auto humanoid = sim::MakeHumanoid();
@@ -269,6 +279,12 @@ int main(int argc, char** argv) {
       });
     } else if (options.makehuman) {
       std::cerr << "MakeHuman body not found under " << mh << "; skipped\n";
+    }
+    if (options.regions_reps > 0) {
+      tools::RegionsComparisonSettings regions;
+      regions.reps = options.regions_reps;
+      std::cout << json{{"adaptive_regions", tools::CompareClothRegions(regions)}}.dump()
+                << std::endl;
     }
   } catch (const sim::InputError& error) {
     std::cerr << "collision_bench: " << error.what() << "\n";
