@@ -2,8 +2,10 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -348,6 +350,108 @@ std::shared_ptr<const sim::Avatar> LoadMakeHumanAvatar(const std::string& obj_pa
   auto influences = ReadWeights(weights_path, *data.skeleton, kept_index, static_cast<int>(kept.size()));
   FillInfluences(influences, 0, data);
   return sim::Avatar::Create(std::move(data));
+}
+
+namespace {
+
+/// A body vertex index of a .mhclo line, checked against the body.
+int BodyVertex(const std::string& where, const std::string& word, const ObjMesh& body) {
+  const double value = ParseNumber(where, word);
+  if (value != std::floor(value) || value < 0 || value >= body.vertices.rows()) {
+    throw InputError(where + ": body vertex " + word + " out of range (allowed: 0.." +
+                     std::to_string(body.vertices.rows() - 1) + ")");
+  }
+  return static_cast<int>(value);
+}
+
+/// What a .mhclo file says about fitting its garment.
+struct MhcloFit {
+  std::string obj_file;
+  /// Per axis: the body's size over the garment's reference size [-].
+  Eigen::Vector3d axis_scale = Eigen::Vector3d::Constant(-1.0);
+  /// Per garment vertex, in file units of the body.
+  std::vector<Eigen::Vector3d> positions;
+};
+
+/// One "verts" row: "i" (the body vertex itself) or "i j k wi wj wk dx dy dz".
+Eigen::Vector3d FitRow(const std::string& where, const std::vector<std::string>& words,
+                       const ObjMesh& body, const Eigen::Vector3d& axis_scale) {
+  if (words.size() == 1) return body.vertices.row(BodyVertex(where, words[0], body)).transpose();
+  if (words.size() != 9) {
+    throw InputError(where + ": a vertex row has " + std::to_string(words.size()) +
+                     " numbers (allowed: 1, or 3 body vertices, 3 weights, 3 offsets)");
+  }
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    position += ParseNumber(where, words[3 + k]) *
+                body.vertices.row(BodyVertex(where, words[k], body)).transpose();
+  }
+  for (int axis = 0; axis < 3; ++axis) {
+    position[axis] += axis_scale[axis] * ParseNumber(where, words[6 + axis]);
+  }
+  return position;
+}
+
+MhcloFit ReadMhclo(const std::string& path, const ObjMesh& body) {
+  std::istringstream stream(ReadWholeFile(path, "MakeHuman clothes file"));
+  MhcloFit fit;
+  bool in_verts = false;
+  std::string line;
+  for (int number = 1; std::getline(stream, line); ++number) {
+    const std::string where = path + ":" + std::to_string(number);
+    std::istringstream split(line);
+    std::vector<std::string> words;
+    for (std::string word; split >> word;) words.push_back(word);
+    if (words.empty() || words[0][0] == '#') continue;
+    const bool numeric = std::isdigit(static_cast<unsigned char>(words[0][0])) != 0;
+    if (in_verts && numeric) {
+      if (fit.axis_scale.minCoeff() <= 0.0) {
+        throw InputError(where + ": vertex rows before the x_scale, y_scale and z_scale lines");
+      }
+      fit.positions.push_back(FitRow(where, words, body, fit.axis_scale));
+      continue;
+    }
+    in_verts = words[0] == "verts";
+    const int axis = words[0] == "x_scale" ? 0 : words[0] == "y_scale" ? 1 : words[0] == "z_scale" ? 2 : -1;
+    if (axis >= 0) {
+      if (words.size() != 4) throw InputError(where + ": " + words[0] + " needs 2 body vertices and a distance");
+      const double reference = ParseNumber(where, words[3]);
+      const double size = std::abs(body.vertices(BodyVertex(where, words[1], body), axis) -
+                                   body.vertices(BodyVertex(where, words[2], body), axis));
+      if (!(reference > 0.0) || !(size > 0.0)) {
+        throw InputError(where + ": " + words[0] + " distances must be > 0 (body " +
+                         sim::FormatValue(size) + ", reference " + sim::FormatValue(reference) + ")");
+      }
+      fit.axis_scale[axis] = size / reference;
+    } else if (words[0] == "obj_file" && words.size() == 2) {
+      fit.obj_file = words[1];
+    }
+  }
+  if (fit.obj_file.empty()) throw InputError(path + ": missing 'obj_file' line");
+  return fit;
+}
+
+}  // namespace
+
+sim::SurfaceMesh LoadMakeHumanGarment(const std::string& mhclo_path, const ObjMesh& body,
+                                      double scale) {
+  sim::RequirePositive(mhclo_path + ": scale", scale, "m per file unit");
+  const MhcloFit fit = ReadMhclo(mhclo_path, body);
+  const std::string obj_path = (std::filesystem::path(mhclo_path).parent_path() / fit.obj_file).string();
+  const ObjMesh garment = ReadObj(obj_path);
+  if (static_cast<Eigen::Index>(fit.positions.size()) != garment.vertices.rows()) {
+    throw InputError(mhclo_path + ": " + std::to_string(fit.positions.size()) +
+                     " vertex rows for the " + std::to_string(garment.vertices.rows()) +
+                     " vertices of " + obj_path + " (they must agree)");
+  }
+  sim::SurfaceMesh mesh;
+  mesh.source = mhclo_path;
+  mesh.faces = garment.faces;
+  mesh.vertices.resize(garment.vertices.rows(), 3);
+  for (std::size_t v = 0; v < fit.positions.size(); ++v) {
+    mesh.vertices.row(static_cast<Eigen::Index>(v)) = scale * fit.positions[v].transpose();
+  }
+  return mesh;
 }
 
 }  // namespace costume::assets

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "sim_core/avatar/avatar.h"
+#include "sim_core/cloth/mesh_cloth.h"
 
 namespace costume::assets {
 
@@ -54,5 +55,21 @@ std::shared_ptr<const sim::Avatar> LoadMakeHumanAvatar(const std::string& obj_pa
                                                        const std::string& skeleton_path,
                                                        const std::string& weights_path,
                                                        const MakeHumanImportOptions& options = {});
+
+/// A MakeHuman garment fitted to the body `body` (base.obj with its helper groups, as
+/// ReadObj gives it) the way MakeHuman fits it: each garment vertex is the weighted sum of
+/// three body vertices (mostly of the helper-tights and helper-skirt surfaces, which lie
+/// over the skin) plus an offset scaled per axis by the body's size (the x/y/z_scale lines:
+/// the distance between two body vertices over the distance they had when the garment was
+/// made). The garment's own OBJ (its `obj_file` line, beside the .mhclo) gives the faces;
+/// its vertex positions are the garment's authoring shape, not fitted to base.obj (for
+/// female_casualsuit02 they sit 4 cm lower, up to 5 cm inside the skin). Vertices and
+/// faces keep the OBJ's order; positions × `scale` [m per file unit] (MakeHuman: 0.1).
+/// Throws sim::InputError naming the .mhclo and line (or the OBJ) for: a missing or
+/// malformed scale line, a row of other than 1 or 9 numbers, a body vertex index out of
+/// range, a zero reference distance, a row count other than the OBJ's vertex count, and
+/// what ReadObj refuses.
+sim::SurfaceMesh LoadMakeHumanGarment(const std::string& mhclo_path, const ObjMesh& body,
+                                      double scale = 0.1);
 
 }  // namespace costume::assets

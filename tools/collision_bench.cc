@@ -15,18 +15,16 @@
 #include <ctime>
 #include <filesystem>
 #include <iostream>
-#include <map>
-#include <numeric>
 #include <nlohmann/json.hpp>
 #include <vector>
 
 #include "assets/clip_import.h"
 #include "assets/makehuman_import.h"
-#include "assets/mesh_import.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/scene/garment_fit.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
 #include "tools/regions_comparison.h"
@@ -96,60 +94,26 @@ sim::SceneDescription GarmentScene(std::shared_ptr<const sim::Avatar> avatar,
   return scene;
 }
 
-/// The vertices of the mesh's open boundary loops whose mean height lies within `band` [m]
-/// of `height`: the waistband of trousers fitted to the body, which holds them up.
-std::vector<Eigen::Vector3d> WaistbandPoints(const sim::SurfaceMesh& mesh, double height, double band) {
-  std::map<std::pair<int, int>, int> uses;
-  for (const std::vector<int>& face : mesh.faces) {
-    for (std::size_t k = 0; k < face.size(); ++k) {
-      ++uses[std::minmax(face[k], face[(k + 1) % face.size()])];
-    }
-  }
-  std::vector<int> parent(mesh.vertices.rows());
-  std::iota(parent.begin(), parent.end(), 0);
-  auto root = [&](int v) {
-    while (parent[v] != v) v = parent[v] = parent[parent[v]];
-    return v;
-  };
-  std::vector<bool> on_boundary(mesh.vertices.rows(), false);
-  for (const auto& [edge, count] : uses) {
-    if (count != 1) continue;
-    on_boundary[edge.first] = on_boundary[edge.second] = true;
-    parent[root(edge.first)] = root(edge.second);
-  }
-  std::map<int, std::vector<int>> loops;
-  for (int v = 0; v < static_cast<int>(on_boundary.size()); ++v) {
-    if (on_boundary[v]) loops[root(v)].push_back(v);
-  }
-  std::vector<Eigen::Vector3d> points;
-  for (const auto& [id, loop] : loops) {
-    double mean = 0.0;
-    for (int v : loop) mean += mesh.vertices(v, 1) / loop.size();
-    if (std::abs(mean - height) > band) continue;
-    for (int v : loop) points.push_back(mesh.vertices.row(v).transpose());
-  }
-  return points;
-}
-
-/// The MakeHuman garment from ../shared/data as a mesh garment whose waistband moves with
+/// The MakeHuman garment from ../shared/data, fitted to the body by its .mhclo and then out
+/// of the body (GarmentSpec::fit_outside_body), as a mesh garment whose waistband moves with
 /// the avatar's pelvis (its lower torso when the skeleton has no pelvis of its own).
 sim::SceneDescription MakeHumanGarmentScene(std::shared_ptr<const sim::Avatar> body,
                                             std::shared_ptr<const sim::Clip> clip,
                                             sim::BodyCollisionMethod method,
-                                            const std::filesystem::path& obj, const Options& options) {
+                                            const assets::ObjMesh& base_obj,
+                                            const std::filesystem::path& mhclo, const Options& options) {
   sim::SceneDescription scene = GarmentScene(body, clip, method, options);
-  assets::MeshImportOptions import;
-  import.scale = 0.1;  // MakeHuman files are in decimetres
   sim::GarmentSpec garment;
   garment.name = options.makehuman_garment;
   garment.material = scene.materials[0].name;
-  // Its rolled hems are strips of 0.5 mm edges (330 edges under 1 mm): welded at 3 mm, or
-  // their microgram particles would need a step of 2 ms.
-  garment.mesh = sim::WeldShortEdges(assets::ImportSurfaceMesh(obj.string(), import), 0.003);
+  // Its rolled hems are strips of 0.5 mm edges, and the fit leaves slivers: welded at 5 mm,
+  // or their microgram particles would need a step of 2 ms.
+  garment.mesh = sim::WeldShortEdges(assets::LoadMakeHumanGarment(mhclo.string(), base_obj), 0.005);
   const sim::Skeleton& skeleton = body->skeleton();
   const double waist = skeleton.rest_world()[skeleton.Find(sim::HAnimJoint::kVl5)].translation().y();
-  garment.pin_points = WaistbandPoints(*garment.mesh, waist, 0.08);
+  garment.pin_points = sim::WaistbandPoints(*garment.mesh, waist, 0.08);
   garment.attach_to = sim::HAnimJoint::kSacroiliac;
+  garment.fit_outside_body = true;
   scene.garments = {garment};
   return scene;
 }
@@ -272,10 +236,11 @@ int main(int argc, char** argv) {
       RunAvatar("makehuman", [&](sim::BodyCollisionMethod method) {
         return GarmentScene(body, walk, method, options);
       });
-      const std::filesystem::path obj = mh / "clothes" / options.makehuman_garment /
-                                        (options.makehuman_garment + ".obj");
+      const std::filesystem::path mhclo = mh / "clothes" / options.makehuman_garment /
+                                          (options.makehuman_garment + ".mhclo");
+      const assets::ObjMesh base_obj = assets::ReadObj((mh / "body" / "base.obj").string());
       RunAvatar("makehuman + " + options.makehuman_garment, [&](sim::BodyCollisionMethod method) {
-        return MakeHumanGarmentScene(body, walk, method, obj, options);
+        return MakeHumanGarmentScene(body, walk, method, base_obj, mhclo, options);
       });
     } else if (options.makehuman) {
       std::cerr << "MakeHuman body not found under " << mh << "; skipped\n";

@@ -170,6 +170,9 @@ void ValidateGarment(const GarmentSpec& garment, std::size_t index,
   }
   refuser.RequirePositive(field + ".pin_tolerance", garment.pin_tolerance, "m");
   if (garment.panel) ValidatePanel(*garment.panel, field + ".panel", refuser);
+  if (garment.fit_outside_body && !garment.mesh) {
+    refuser.Refuse(field + ".fit_outside_body", "true", "only mesh garments are fitted out of the body");
+  }
 }
 
 void ValidateGarments(const SceneDescription& scene, const Refuser& refuser) {
@@ -210,6 +213,10 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
       if (garment.attach_to) {
         refuser.Refuse(field + ".attach_to", Quote(std::string(HAnimName(*garment.attach_to))),
                        "garments attach to an avatar, and the scene has none");
+      }
+      if (garment.fit_outside_body) {
+        refuser.Refuse(field + ".fit_outside_body", "true",
+                       "a garment is fitted out of an avatar, and the scene has none");
       }
     }
     return;

@@ -75,6 +75,12 @@ struct GarmentSpec {
   /// When set, the pinned particles are held by this joint of the scene's avatar and move
   /// with it (a waistband, a collar) instead of staying fixed in space; needs an avatar.
   std::optional<HAnimJoint> attach_to;
+  /// Mesh garments modelled on the skin with no thickness (MakeHuman's): before the cloth
+  /// is built, the mesh is moved out of the avatar's rest surface to the collision
+  /// thickness + 1 mm (FitOutsideBody, garment_fit.h), and the rest lengths
+  /// are those of the moved mesh; pin points are matched on the mesh as given. Needs a mesh
+  /// and an avatar whose surface is closed. Off: the mesh is used as it is.
+  bool fit_outside_body = false;
   /// Line of the garment's table in the scene file (0 when not from a file), for messages.
   int source_line = 0;
 };

@@ -11,11 +11,16 @@
 #include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/hierarchy/step_solvers.h"
+#include "sim_core/scene/garment_fit.h"
 #include "sim_core/solver/strain_limit.h"
 
 namespace costume::sim {
 
 namespace {
+
+/// How far beyond the collision thickness a fitted garment starts [m]: clear of the shell,
+/// so that the first step finds it resting on the shell rather than inside.
+constexpr double kFitClearanceExtra = 0.001;
 
 /// Wall-clock time since `start` [ms], for the frame report.
 double MillisecondsSince(std::chrono::steady_clock::time_point start) {
@@ -81,6 +86,16 @@ ClothModelData BuildPatternGarment(const SceneDescription& scene, const GarmentS
   return std::move(pattern.data);
 }
 
+/// The mesh of a mesh garment, moved out of the avatar's rest surface when the garment
+/// asks for it (fit_outside_body): it then starts outside the collider's shell, with rest
+/// lengths measured there.
+SurfaceMesh FittedMesh(const SceneDescription& scene, const GarmentSpec& garment) {
+  if (!garment.fit_outside_body) return *garment.mesh;
+  const AvatarSpec& spec = *scene.avatar;
+  return FitOutsideBody(*garment.mesh, spec.avatar->rest_vertices(), spec.avatar->triangles(),
+                        spec.thickness + kFitClearanceExtra);
+}
+
 ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& garment,
                             std::vector<BodyAttachment>& attachments) {
   if (garment.model) {  // prebuilt: its springs already carry the material (and any edits)
@@ -93,9 +108,11 @@ ClothModelData BuildGarment(const SceneDescription& scene, const GarmentSpec& ga
   if (garment.pattern) return BuildPatternGarment(scene, garment, material, attachments);
   ClothModelData data = garment.panel
                             ? BuildLatticePanel(*garment.panel, material, garment.name)
-                            : BuildMeshCloth(*garment.mesh, material, garment.name);
-  data.pinned = FindNearestParticles(data.rest_positions, garment.pin_points,
-                                     garment.pin_tolerance, GarmentContext(scene, garment));
+                            : BuildMeshCloth(FittedMesh(scene, garment), material, garment.name);
+  // Pins name points of the garment as given, before any fitting moved them.
+  data.pinned = FindNearestParticles(garment.mesh ? garment.mesh->vertices : data.rest_positions,
+                                     garment.pin_points, garment.pin_tolerance,
+                                     GarmentContext(scene, garment));
   if (garment.attach_to) Attach(scene, garment, *garment.attach_to, data, attachments);
   return data;
 }

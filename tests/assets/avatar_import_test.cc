@@ -7,6 +7,7 @@
 #include "assets/skeleton_families.h"
 #include "sim_core/avatar/clip.h"
 #include "sim_core/common/input_error.h"
+#include "tests/assets/assimp_export_support.h"
 #include "tests/assets/import_test_support.h"
 
 namespace costume::assets {
@@ -83,6 +84,87 @@ TEST(AvatarImport, SkinningTheRestPoseGivesTheRestSurface) {
   sim::Points skinned;
   sim::SkinVertices(*avatar, world, scratch, skinned);
   EXPECT_LT((skinned - avatar->rest_vertices()).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+constexpr Conversion kConversions[] = {Conversion::kFbxBinaryCentimetres,
+                                       Conversion::kFbxAsciiMetresZUp,
+                                       Conversion::kColladaCentimetres};
+
+std::string ConvertedName(Conversion conversion) {
+  return conversion == Conversion::kColladaCentimetres
+             ? "man.dae"
+             : (conversion == Conversion::kFbxBinaryCentimetres ? "man.fbx" : "man_ascii.fbx");
+}
+
+/// The largest distance from a point of `points` to its nearest point of `reference` [m].
+double FarthestFromNearest(const sim::Points& points, const sim::Points& reference) {
+  double farthest = 0.0;
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const double nearest = (reference.rowwise() - points.row(i)).rowwise().squaredNorm().minCoeff();
+    farthest = std::max(farthest, std::sqrt(nearest));
+  }
+  return farthest;
+}
+
+// The same body through assimp's FBX and Collada exporters (assimp_export_support.h): each
+// file declares its own unit and up axis, so a wrong unit or axis detection shows as a
+// height 100 times off or a body lying along z.
+TEST(AvatarImport, CesiumManConvertedToFbxAndColladaMatchesTheGlb) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const auto glb = LoadAvatar(kCesiumMan.string());
+  const sim::Skeleton& expected = glb->skeleton();
+  ScratchDir dir;
+  for (Conversion conversion : kConversions) {
+    SCOPED_TRACE(ConversionName(conversion));
+    const fs::path file = dir.path() / ConvertedName(conversion);
+    ExportCesiumMan(kCesiumMan, file, conversion);
+    const auto avatar = LoadAvatar(file.string());
+    // The exporters write every triangle corner as its own vertex; joined by position they
+    // are the glTF's vertices again.
+    EXPECT_EQ(avatar->num_vertices(), glb->num_vertices());
+    EXPECT_EQ(avatar->triangles().size(), glb->triangles().size());
+    EXPECT_NEAR(Height(*avatar), Height(*glb), 1e-4);
+    EXPECT_LT(FarthestFromNearest(avatar->rest_vertices(), glb->rest_vertices()), 1e-4);
+    ExpectValidWeights(*avatar);
+    // Same joints, mapped onto the same H-Anim joints, at the same rest places.
+    const sim::Skeleton& s = avatar->skeleton();
+    ASSERT_EQ(s.num_joints(), expected.num_joints());
+    for (int j = 0; j < expected.num_joints(); ++j) {
+      const int same = s.FindByName(expected.joint(j).name);
+      ASSERT_GE(same, 0) << expected.joint(j).name;
+      EXPECT_EQ(s.joint(same).hanim, expected.joint(j).hanim) << expected.joint(j).name;
+      EXPECT_LT((s.rest_world()[same].translation() - expected.rest_world()[j].translation()).norm(), 1e-4)
+          << expected.joint(j).name;
+    }
+    std::vector<Eigen::Isometry3d> world, scratch;
+    sim::ComputeJointWorld(s, sim::RestPose(s), world);
+    sim::Points skinned;
+    sim::SkinVertices(*avatar, world, scratch, skinned);
+    EXPECT_LT((skinned - avatar->rest_vertices()).cwiseAbs().maxCoeff(), 1e-6);
+  }
+}
+
+TEST(AvatarImport, TruncatedConvertedFilesThrowNamingTheFile) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  std::vector<std::string> files;
+  for (Conversion conversion : kConversions) {
+    const fs::path whole = dir.path() / ConvertedName(conversion);
+    ExportCesiumMan(kCesiumMan, whole, conversion);
+    files.push_back(dir.WriteTruncated("cut_" + ConvertedName(conversion), whole));
+  }
+  // As assimp 5.2.5 writes it, without the null records that close nested nodes.
+  const fs::path unrepaired = dir.path() / "unrepaired.fbx";
+  ExportCesiumMan(kCesiumMan, unrepaired, Conversion::kFbxBinaryCentimetres, false);
+  files.push_back(unrepaired.string());
+  for (const std::string& file : files) {
+    try {
+      LoadAvatar(file);
+      ADD_FAILURE() << "no error for " << file;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+    }
+  }
 }
 
 const char* kBoxObj =

@@ -2,11 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 
 #include "assets/makehuman_import.h"
 #include "assets/skeleton_families.h"
 #include "sim_core/common/input_error.h"
+#include "tests/assets/assimp_export_support.h"
 #include "tests/assets/import_test_support.h"
 
 namespace costume::assets {
@@ -162,6 +164,85 @@ TEST(ClipImport, CesiumManWalkIsTwoSeconds) {
   EXPECT_NEAR(clip.duration(), 2.0, 0.05);
   EXPECT_EQ(clip.skeleton->num_joints(), 19);
   EXPECT_TRUE(clip.loops);
+}
+
+constexpr Conversion kConversions[] = {Conversion::kFbxBinaryCentimetres,
+                                       Conversion::kFbxAsciiMetresZUp,
+                                       Conversion::kColladaCentimetres};
+
+std::string ConvertedName(Conversion conversion) {
+  return conversion == Conversion::kColladaCentimetres
+             ? "man.dae"
+             : (conversion == Conversion::kFbxBinaryCentimetres ? "man.fbx" : "man_ascii.fbx");
+}
+
+/// Each frame's world positions of the root and both ankles [m].
+std::vector<std::array<Eigen::Vector3d, 3>> RootAndAnkles(const sim::Clip& clip) {
+  const sim::Skeleton& s = *clip.skeleton;
+  const int joints[3] = {s.Find(HAnimJoint::kHumanoidRoot), s.Find(HAnimJoint::kLTalocrural),
+                         s.Find(HAnimJoint::kRTalocrural)};
+  std::vector<std::array<Eigen::Vector3d, 3>> track;
+  std::vector<Eigen::Isometry3d> world;
+  for (const sim::Pose& frame : clip.frames) {
+    sim::ComputeJointWorld(s, frame, world);
+    track.push_back({world[joints[0]].translation(), world[joints[1]].translation(),
+                     world[joints[2]].translation()});
+  }
+  return track;
+}
+
+// The walk through assimp's FBX and Collada exporters (assimp_export_support.h, which puts
+// the animation in seconds first: assimp 5.2.5 writes ticks where seconds are due).
+TEST(ClipImport, CesiumManWalkConvertedToFbxAndColladaMatchesTheGlb) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  const fs::path glb_path = kData / "khronos-cesiumman/CesiumMan.glb";
+  // Sampled at the walk's own key times (48 keys over 2 s): between keys FBX interpolates
+  // Euler angles, and the exporter writes them wrapped at ±180° (a turn of almost 360°
+  // between two keys, which assimp's reader honours: up to 0.8 m off at 30 Hz).
+  ClipImportOptions at_keys;
+  at_keys.sample_rate = 24.0;
+  const sim::Clip glb = LoadClip(glb_path.string(), at_keys);
+  const auto expected = RootAndAnkles(glb);
+  ScratchDir dir;
+  for (Conversion conversion : kConversions) {
+    SCOPED_TRACE(ConversionName(conversion));
+    const fs::path file = dir.path() / ConvertedName(conversion);
+    ExportCesiumMan(glb_path, file, conversion);
+    EXPECT_NEAR(LoadClip(file.string()).duration(), 2.0, 0.05);
+    const sim::Clip clip = LoadClip(file.string(), at_keys);
+    EXPECT_EQ(clip.frames.size(), glb.frames.size());
+    EXPECT_NEAR(clip.frame_time, glb.frame_time, 1e-9);
+    EXPECT_EQ(clip.loops, glb.loops);
+    ASSERT_EQ(clip.skeleton->num_joints(), glb.skeleton->num_joints());
+    // The hips and feet move as in the glTF, frame by frame, within 1 mm.
+    const auto track = RootAndAnkles(clip);
+    ASSERT_EQ(track.size(), expected.size());
+    double worst = 0.0;
+    for (std::size_t f = 0; f < track.size(); ++f) {
+      for (int k = 0; k < 3; ++k) worst = std::max(worst, (track[f][k] - expected[f][k]).norm());
+    }
+    EXPECT_LT(worst, 1e-3);
+  }
+  // The oracle is not trivial: the glTF's ankles move by decimetres over the walk.
+  double swing = 0.0;
+  for (const auto& frame : expected) swing = std::max(swing, (frame[1] - expected[0][1]).norm());
+  EXPECT_GT(swing, 0.1);
+}
+
+TEST(ClipImport, TruncatedConvertedFilesThrowNamingTheFile) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  for (Conversion conversion : kConversions) {
+    const fs::path whole = dir.path() / ConvertedName(conversion);
+    ExportCesiumMan(kData / "khronos-cesiumman/CesiumMan.glb", whole, conversion);
+    const std::string cut = dir.WriteTruncated("cut_" + ConvertedName(conversion), whole);
+    try {
+      LoadClip(cut);
+      ADD_FAILURE() << "no error for " << cut;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(cut), std::string::npos) << e.what();
+    }
+  }
 }
 
 /// Peak-to-peak, over the clip retargeted onto the MakeHuman skeleton, of each ankle's

@@ -4,6 +4,7 @@
 
 #include "assets/skeleton_families.h"
 #include "sim_core/avatar/clip.h"
+#include "sim_core/collision/mesh_distance.h"
 #include "sim_core/common/input_error.h"
 #include "tests/assets/import_test_support.h"
 
@@ -128,6 +129,53 @@ TEST(MakeHumanImport, DamagedFilesThrowNamingTheFile) {
       ADD_FAILURE() << "no error for " << c.named;
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find(c.named), std::string::npos) << e.what();
+    }
+  }
+}
+
+/// The fraction of `vertices` inside the body's skin.
+double FractionInside(const sim::Points& vertices, const sim::Avatar& body) {
+  const sim::MeshDistance skin("makehuman", body.rest_vertices(), body.triangles());
+  int inside = 0;
+  for (Eigen::Index v = 0; v < vertices.rows(); ++v) inside += skin.SignedDistance(vertices.row(v).transpose(), 0.2) < 0;
+  return static_cast<double>(inside) / static_cast<double>(vertices.rows());
+}
+
+TEST(MakeHumanImport, GarmentsFitTheBodyByTheirMhclo) {
+  SKIP_WITHOUT("makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo");
+  const fs::path suit = kData / "makehuman/clothes/female_casualsuit02";
+  const ObjMesh base = ReadObj((kBody / "base.obj").string());
+  const sim::SurfaceMesh fitted = LoadMakeHumanGarment((suit / "female_casualsuit02.mhclo").string(), base);
+  const ObjMesh authored = ReadObj((suit / "female_casualsuit02.obj").string());
+  // SOURCE.md: 2,876 vertices, 2,744 quads, in the OBJ's order.
+  ASSERT_EQ(fitted.vertices.rows(), 2876);
+  EXPECT_EQ(fitted.faces, authored.faces);
+  // The OBJ is the garment's authoring shape: 40 % of it lies inside base.obj's skin; fitted
+  // over the helper surfaces, less than 15 % does (a tight suit, touching the skin).
+  const auto body = LoadBody();
+  EXPECT_GT(FractionInside(0.1 * authored.vertices, *body), 0.3);
+  EXPECT_LT(FractionInside(fitted.vertices, *body), 0.15);
+  // In metres, on the body: between the knees (shorts) and the shoulders.
+  EXPECT_GT(fitted.vertices.col(1).minCoeff(), -0.5);
+  EXPECT_LT(fitted.vertices.col(1).maxCoeff(), 0.7);
+}
+
+TEST(MakeHumanImport, DamagedMhcloThrowsNamingTheFile) {
+  SKIP_WITHOUT("makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo");
+  const fs::path suit = kData / "makehuman/clothes/female_casualsuit02";
+  const ObjMesh base = ReadObj((kBody / "base.obj").string());
+  ScratchDir dir;
+  fs::copy_file(suit / "female_casualsuit02.obj", dir.path() / "female_casualsuit02.obj");
+  for (const std::string& file :
+       {dir.WriteTruncated("cut.mhclo", suit / "female_casualsuit02.mhclo"), dir.WriteGarbage("junk.mhclo", 4000),
+        dir.Write("bad_row.mhclo", "obj_file female_casualsuit02.obj\nx_scale 5399 11998 1.3980\n"
+                                   "z_scale 962 5320 1.8461\ny_scale 791 881 2.2048\nverts 0\n1 2 99999 0 0 1 0 0 0\n"),
+        (dir.path() / "absent.mhclo").string()}) {
+    try {
+      LoadMakeHumanGarment(file, base);
+      ADD_FAILURE() << "no error for " << file;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(fs::path(file).filename().string()), std::string::npos) << e.what();
     }
   }
 }
