@@ -523,7 +523,7 @@ std::string ResolvePath(const std::string& base_dir, const std::string& file) {
 }
 
 sim::SurfaceMesh ParseMesh(const TableView& table) {
-  table.RefuseUnknownKeys({"file", "scale", "offset", "weld_below"});
+  table.RefuseUnknownKeys({"file", "scale", "offset", "weld_below", "fit_outside_body"});
   const Field file = table.Require("file");
   MeshImportOptions options;
   options.scale = NumberOr(table, "scale", options.scale, kPositive, "m per file unit");
@@ -573,7 +573,10 @@ sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::str
                  ": needs exactly one of [garment.panel], [garment.mesh] and pattern = \"...\"");
   }
   if (panel) garment.panel = ParsePanel(*panel);
-  if (mesh) garment.mesh = ParseMesh(*mesh);
+  if (mesh) {
+    garment.mesh = ParseMesh(*mesh);
+    garment.fit_outside_body = BoolOr(*mesh, "fit_outside_body", false);
+  }
   if (pattern) {
     garment.pattern = ReadChoice(*pattern, {"skirt", "cape", "dress"});
     garment.pattern_resolution = IntegerOr(table, "resolution", garment.pattern_resolution, 8, 1024);

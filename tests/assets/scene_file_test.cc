@@ -483,6 +483,34 @@ TEST(LoadSceneFile, ReadsMeshGarmentsRelativeToTheSceneFile) {
   ASSERT_EQ(mesh.vertices.rows(), 4);
   EXPECT_NEAR(mesh.vertices.col(0).maxCoeff(), 1.0, 1e-12);
   EXPECT_NEAR(mesh.vertices.col(1).minCoeff(), 1.0, 1e-12);
+  EXPECT_FALSE(scene.garments[0].fit_outside_body);
+  std::filesystem::remove_all(dir);
+}
+
+// fit_outside_body is read from [garment.mesh]; without an avatar to fit to it is refused,
+// pointing at the garment.
+TEST(LoadSceneFile, ReadsFitOutsideBodyAndRefusesItWithoutAvatar) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_fit_test";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "square.obj") << "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 2 3 4\n";
+  const std::string garment =
+      "[[garment]]\nname = \"square\"\n[garment.mesh]\nfile = \"square.obj\"\n"
+      "fit_outside_body = true\n";
+  std::ofstream(dir / "fitted.toml") << "[avatar]\n" << garment;
+  const SceneDescription scene = LoadSceneFile((dir / "fitted.toml").string());
+  ASSERT_EQ(scene.garments.size(), 1u);
+  EXPECT_TRUE(scene.garments[0].fit_outside_body);
+
+  std::ofstream(dir / "bare.toml") << garment;
+  try {
+    LoadSceneFile((dir / "bare.toml").string());
+    ADD_FAILURE() << "fit_outside_body without an avatar was accepted";
+  } catch (const InputError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("fit_outside_body"), std::string::npos) << message;
+    EXPECT_NE(message.find("avatar"), std::string::npos) << message;
+  }
   std::filesystem::remove_all(dir);
 }
 
