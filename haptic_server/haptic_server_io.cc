@@ -320,7 +320,8 @@ HapticServerIo::HapticServerIo(bus::MessageBus& bus, LoopClock& clock, PatchMail
       feedback_out_(bus, bus::kFeedbackChannel),
       grab_out_(bus, bus::kGrabChannel),
       command_out_(bus, bus::kHapticCommandChannel, options.resend),
-      status_out_(bus, bus::kHapticStatusChannel) {
+      status_out_(bus, bus::kHapticStatusChannel),
+      preemption_warning_(KernelPreemptionWarning(ReadKernelPreemption())) {
   workspace_.Validate("haptic server workspace");
   const PatchCapacity& cap = options_.capacity;
   patches_.ForEachSlot([&cap](HapticPatch& slot) { slot.Reserve(cap.max_particles, cap.max_springs); });
@@ -505,6 +506,7 @@ std::vector<std::string> HapticServerIo::CollectWarnings(double elapsed,
     const RealtimeStatus rt = loop_->realtime_status();
     if (!rt.reason.empty()) warnings.push_back("real-time: " + rt.reason);
   }
+  if (!preemption_warning_.empty()) warnings.push_back("real-time: " + preemption_warning_);
   if (!io_priority_refusal_.empty()) warnings.push_back(io_priority_refusal_);
   if (loop_ != nullptr) {
     const LoopCounters c = loop_->counters();

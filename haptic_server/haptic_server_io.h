@@ -37,6 +37,7 @@
 #include "haptic_server/device.h"
 #include "haptic_server/haptic_loop.h"
 #include "haptic_server/haptic_tick.h"
+#include "haptic_server/kernel_preemption.h"
 #include "haptic_server/mouse_device.h"
 #include "lcm_types/costume_lcm/cloth_frame.hpp"
 #include "lcm_types/costume_lcm/command.hpp"
@@ -427,6 +428,8 @@ class HapticServerIo {
   /// What Start's thread was refused ("" when granted or not asked); written by the thread
   /// before its first Poll, read by it (status) or after Stop.
   std::string io_priority_refusal_;
+  /// KernelPreemptionWarning of this machine, read once: repeated in every status.
+  std::string preemption_warning_;
 };
 
 }  // namespace costume::haptics

@@ -123,6 +123,14 @@ void PrintRealtime(const HapticLoop& loop) {
     std::printf("real-time: SCHED_FIFO NOT granted: running at normal priority\n");
   }
   if (!rt.reason.empty()) std::printf("real-time: %s\n", rt.reason.c_str());
+  const KernelPreemption preemption = ReadKernelPreemption();
+  const std::string warning = KernelPreemptionWarning(preemption);
+  if (!warning.empty()) {
+    std::printf("real-time: %s\n", warning.c_str());
+  } else if (!preemption.model.empty()) {
+    std::printf("real-time: kernel preemption '%s' (from %s)\n", preemption.model.c_str(),
+                preemption.source.c_str());
+  }
   std::fflush(stdout);
 }
 

@@ -15,6 +15,7 @@ packages=(
   libsqlite3-dev libpq-dev                               # database
   postgresql                                             # catalogue tests start their own server
   libpng-dev                                             # render: thumbnails as PNG
+  zlib1g-dev                                             # haptic server: /proc/config.gz
 )
 
 missing=()

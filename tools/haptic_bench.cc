@@ -47,6 +47,7 @@
 #include "bus/typed_bus.h"
 #include "haptic_server/haptic_loop.h"
 #include "haptic_server/haptic_tick.h"
+#include "haptic_server/kernel_preemption.h"
 #include "haptic_server/simulated_device.h"
 #include "lcm_types/costume_lcm/grab.hpp"
 #include "lcm_types/costume_lcm/grab_ack.hpp"
@@ -915,6 +916,9 @@ int main(int argc, char** argv) {
   }
   json result;
   result["transport"] = transport;
+  const KernelPreemption preemption = ReadKernelPreemption();
+  result["kernel_preemption"] = {{"model", preemption.model}, {"source", preemption.source},
+                                 {"warning", KernelPreemptionWarning(preemption)}};
   result["feedback"] = json::array({FeedbackTiming(10, 10, repeats), FeedbackTiming(40, 25, repeats),
                                     FeedbackTiming(100, 50, repeats)});
   for (json& f : result["feedback"]) {
