@@ -188,6 +188,8 @@ json GapWitnessJson(const costume::tools::GapWitness& witness) {
     periods.push_back({{"period_us", Us(r.gap_ns)}, {"exec_us", Us(r.exec_ns)},
                        {"run_delay_us", Us(r.run_delay_ns)},
                        {"steal_ticks_cpu", r.steal_ticks_cpu}, {"steal_ticks_all", r.steal_ticks_all},
+                       {"steal_ticks_cpu_settled", r.steal_ticks_cpu_settled},
+                       {"steal_ticks_all_settled", r.steal_ticks_all_settled},
                        {"cpu_before", r.cpu_before}, {"cpu_after", r.cpu_after}});
     gap_ms += static_cast<double>(r.gap_ns) * 1e-6;
     exec_ms += static_cast<double>(r.exec_ns) * 1e-6;
@@ -355,7 +357,11 @@ class LoopVariant {
 /// The spinning thread of the floor, in segments like the loop variants.
 class ClockSpinVariant {
  public:
-  explicit ClockSpinVariant(int priority) : priority_(priority) {}
+  /// `attribute_gaps`: the spinner samples a GapWitness every 100 µs of spinning.
+  ClockSpinVariant(int priority, bool attribute_gaps)
+      : priority_(priority),
+        witness_(attribute_gaps ? std::make_unique<costume::tools::GapWitness>(2'000'000, 4096)
+                                : nullptr) {}
 
   void Segment(double seconds) {
     const costume::tools::StealTicks steal_before = costume::tools::ReadStealTicks();
@@ -363,6 +369,7 @@ class ClockSpinVariant {
     costume::tools::ClockSpinOptions options;
     options.seconds = seconds * options.burst / (options.burst + options.rest);
     options.priority = priority_;
+    options.witness = witness_.get();
     const costume::tools::ClockSpinResult run = costume::tools::SpinOnTheClock(options);
     gaps_.Merge(run.gaps);
     if (!run.priority_refusal.empty()) refusal_ = run.priority_refusal;
@@ -384,7 +391,7 @@ class ClockSpinVariant {
     std::vector<double> longest;
     for (std::int64_t g : gaps_.longest()) longest.push_back(Us(g));
     const double spun = std::max(spin_seconds(), 1e-9);
-    return {{"seconds_spinning", spin_seconds()},
+    json result = {{"seconds_spinning", spin_seconds()},
             {"seconds_wall", wall_seconds_},
             {"fifo_priority", priority_},
             {"fifo_refused", refusal_},
@@ -397,10 +404,13 @@ class ClockSpinVariant {
             {"gaps_over_2ms_per_60s", 60.0 * static_cast<double>(gaps_.num_over_threshold(2'000'000)) / spun},
             {"seconds_lost_in_gaps_over_100us", static_cast<double>(gaps_.lost_ns()) * 1e-9},
             {"steal", StealJson(steal_, wall_seconds_)}};
+    if (witness_) result["gap_witness"] = GapWitnessJson(*witness_);
+    return result;
   }
 
  private:
   int priority_;
+  std::unique_ptr<costume::tools::GapWitness> witness_;
   costume::tools::ClockGaps gaps_;
   std::string refusal_;
   double wall_seconds_ = 0.0;
@@ -418,11 +428,13 @@ std::string Format(const char* format, Args... args) {
 
 /// Where the long periods of the loop variants went (--attribute-gaps), summed over variants:
 /// the time beyond the nominal period, how much of it this kernel made the thread wait on a
-/// run queue, and the steal /proc/stat counted meanwhile. Steal comes in 10 ms ticks, so per
+/// run queue, and the steal /proc/stat counted from each period's start to 20 ms after its
+/// end (the guest books steal at its next scheduler tick). Steal comes in 10 ms ticks, so per
 /// period the count is 0 or 1 with mean stolen/10 ms: its sum estimates the stolen time, with
-/// the binomial spread shown, were every excess millisecond stolen.
+/// the binomial spread shown, were all the time neither running nor queued stolen.
 json GapAttribution(const json& variants, double nominal_ms) {
-  double excess_ms = 0.0, delay_ms = 0.0, steal_ms = 0.0, variance = 0.0, tick_ms = 10.0;
+  double excess_ms = 0.0, delay_ms = 0.0, steal_ms = 0.0, settled_ms = 0.0, tick_ms = 10.0;
+  double variance = 0.0;  // of the settled steal count, were the unqueued time all stolen
   std::int64_t periods = 0;
   for (const auto& [name, v] : variants.items()) {
     if (!v.is_object() || !v.contains("gap_witness")) continue;
@@ -430,32 +442,38 @@ json GapAttribution(const json& variants, double nominal_ms) {
     tick_ms = w.value("tick_ms", 10.0);
     for (const json& p : w["periods"]) {
       const double excess = p["period_us"].get<double>() * 1e-3 - nominal_ms;
-      const double q = std::clamp(excess / tick_ms, 0.0, 1.0);
+      const double delay = p["run_delay_us"].get<double>() * 1e-3;
+      const double q = std::clamp((excess - delay) / tick_ms, 0.0, 1.0);
       excess_ms += excess;
-      delay_ms += p["run_delay_us"].get<double>() * 1e-3;
+      delay_ms += delay;
       steal_ms += static_cast<double>(p["steal_ticks_cpu"].get<std::int64_t>()) * tick_ms;
+      settled_ms += static_cast<double>(p["steal_ticks_cpu_settled"].get<std::int64_t>()) * tick_ms;
       variance += q * (1.0 - q) * tick_ms * tick_ms;
       ++periods;
     }
   }
+  const double unqueued_ms = excess_ms - delay_ms;
   json a = {{"periods_over_2ms", periods},
             {"ms_beyond_nominal", excess_ms},
             {"run_queue_delay_ms", delay_ms},
+            {"neither_running_nor_queued_ms", unqueued_ms},
             {"steal_counted_ms", steal_ms},
-            {"steal_expected_if_all_stolen_ms", excess_ms},
+            {"steal_counted_settled_ms", settled_ms},
             {"steal_spread_ms", std::sqrt(variance)}};
   if (periods == 0) {
     a["conclusion"] = "No loop period over 2 ms to attribute.";
     return a;
   }
   a["conclusion"] = Format(
-      "%lld periods over 2 ms, %.1f ms beyond the nominal period in all: the threads waited "
-      "%.2f ms of it on a run queue of this kernel (%.1f %%); the steal /proc/stat counted for "
-      "their CPU over those periods came to %.0f ms, against %.0f +- %.0f ms were all of the "
-      "excess taken by the host. Little run-queue delay with steal near the excess: the "
-      "virtual CPU itself was not running (the host's doing, out of the guest's reach).",
-      static_cast<long long>(periods), excess_ms, delay_ms, 100.0 * delay_ms / std::max(excess_ms, 1e-9),
-      steal_ms, excess_ms, std::sqrt(variance));
+      "%lld periods over 2 ms, %.1f ms beyond the nominal period in all. %.1f ms (%.0f %%) the "
+      "woken threads waited on a run queue of this kernel (a kernel path that does not yield, "
+      "or a higher-priority thread). %.1f ms (%.0f %%) passed with them neither running nor "
+      "queued: the wake-up itself came late, no guest thread could have run then. Steal "
+      "counted for their CPU from each period's start to 20 ms after its end: %.0f ms (%.0f +- "
+      "%.0f ms were all of the unqueued time stolen by the host).",
+      static_cast<long long>(periods), excess_ms, delay_ms,
+      100.0 * delay_ms / std::max(excess_ms, 1e-9), unqueued_ms,
+      100.0 * unqueued_ms / std::max(excess_ms, 1e-9), settled_ms, unqueued_ms, std::sqrt(variance));
   return a;
 }
 
@@ -548,6 +566,35 @@ json FloorConclusion(const json& variants, const ClockSpinVariant& spin) {
   return floor;
 }
 
+/// The spinning thread's long periods between witness samples (every 100 µs of spinning): a
+/// thread that never sleeps is either running, queued, or stopped where this kernel cannot
+/// see it. Run time close to the period means the kernel believed it ran all along: only
+/// the host (or firmware) can have taken that time.
+json SpinAttribution(const json& spin) {
+  if (!spin.contains("gap_witness")) return json::object();
+  double period_ms = 0.0, exec_ms = 0.0, delay_ms = 0.0;
+  std::int64_t periods = 0;
+  for (const json& p : spin["gap_witness"]["periods"]) {
+    period_ms += p["period_us"].get<double>() * 1e-3;
+    exec_ms += p["exec_us"].get<double>() * 1e-3;
+    delay_ms += p["run_delay_us"].get<double>() * 1e-3;
+    ++periods;
+  }
+  json a = {{"periods_over_2ms", periods}, {"period_ms", period_ms}, {"exec_ms", exec_ms},
+            {"run_queue_delay_ms", delay_ms}};
+  a["conclusion"] =
+      periods == 0
+          ? std::string("The spinning thread had no period over 2 ms between its samples.")
+          : Format("The spinning thread had %lld periods over 2 ms between its 100 us samples, "
+                   "%.1f ms in all; this kernel counted %.1f ms of them as its run time (%.0f "
+                   "%%) and %.2f ms as waiting on a run queue: where run time covers the period, "
+                   "the kernel believed the thread was running while it was not, i.e. the "
+                   "virtual CPU was stopped by the host.",
+                   static_cast<long long>(periods), period_ms, exec_ms,
+                   100.0 * exec_ms / std::max(period_ms, 1e-9), delay_ms);
+  return a;
+}
+
 /// One case of the loop part: the real loop with both pacers and the floor (a bare thread
 /// with both pacers, a thread spinning on the clock), taking turns in rounds of about
 /// `round_seconds` so that a burst of load falls on all of them alike; each gets `seconds`.
@@ -576,7 +623,7 @@ json LoopCase(const LoopCaseOptions& o) {
   if (o.with_floor) {
     loops["bare_sleep"] = variant(nullptr, 0);
     loops["bare_hybrid"] = variant(nullptr, spin_margin);
-    spin = std::make_unique<ClockSpinVariant>(priority);
+    spin = std::make_unique<ClockSpinVariant>(priority, o.attribute_gaps);
   }
   std::vector<std::function<void(double)>> turns;
   for (auto& [name, loop] : loops) turns.push_back([&loop](double s) { loop->Segment(s); });
@@ -618,6 +665,7 @@ json LoopCase(const LoopCaseOptions& o) {
   }
   result["side_by_side"] = side_by_side;
   if (o.attribute_gaps) result["gap_attribution"] = GapAttribution(result, 1.0);
+  if (o.attribute_gaps && spin) result["clock_spin_attribution"] = SpinAttribution(result["clock_spin"]);
   result["real_tick_both_pacers"] = RealTickCounters(real);
   if (spin) result["machine_floor"] = FloorConclusion(result, *spin);
   return result;

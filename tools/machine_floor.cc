@@ -162,7 +162,8 @@ std::vector<std::int64_t> ClockGaps::longest() const {
   return gaps;
 }
 
-GapWitness::GapWitness(std::int64_t threshold_ns, std::size_t capacity) : threshold_(threshold_ns) {
+GapWitness::GapWitness(std::int64_t threshold_ns, std::size_t capacity, std::int64_t settle_ns)
+    : threshold_(threshold_ns), settle_(settle_ns) {
   records_.reserve(capacity);
 }
 
@@ -171,12 +172,17 @@ GapWitness::~GapWitness() {
   if (stat_fd_ >= 0) ::close(stat_fd_);
 }
 
+void GapWitness::Break() {
+  if (settle_at_ >= 0) Settle();  // with the last sample: the pause is not the period's
+  have_last_ = false;
+}
+
 void GapWitness::Reopen() {
+  Break();
   if (schedstat_fd_ >= 0) ::close(schedstat_fd_);
   if (stat_fd_ < 0) stat_fd_ = ::open("/proc/stat", O_RDONLY | O_CLOEXEC);
   schedstat_fd_ = ::open("/proc/thread-self/schedstat", O_RDONLY | O_CLOEXEC);
   available_ = available_ && schedstat_fd_ >= 0 && stat_fd_ >= 0;
-  have_last_ = false;
 }
 
 bool GapWitness::Read(std::int64_t now, Reading* reading) {
@@ -208,7 +214,9 @@ void GapWitness::Sample(std::int64_t now) {
     available_ = false;
     return;
   }
-  if (have_last_ && current_.now - last_.now > threshold_) {
+  const bool is_long = have_last_ && current_.now - last_.now > threshold_;
+  if (settle_at_ >= 0 && (current_.now >= settle_at_ || is_long)) Settle();
+  if (is_long) {
     ++num_long_;
     if (records_.size() < records_.capacity()) {
       GapRecord record;
@@ -221,10 +229,22 @@ void GapWitness::Sample(std::int64_t now) {
       record.cpu_before = last_.cpu;
       record.cpu_after = current_.cpu;
       records_.push_back(record);
+      settle_from_ = last_;
+      settle_at_ = current_.now + settle_;
+      Settle();  // what is counted already; completed when the settling time has passed
+      settle_at_ = current_.now + settle_;
     }
   }
   last_ = current_;
   have_last_ = true;
+}
+
+void GapWitness::Settle() {
+  GapRecord& record = records_.back();
+  const int cpu = std::clamp(settle_from_.cpu, 0, kMaxCpus - 1);
+  record.steal_ticks_cpu_settled = current_.steal[cpu] - settle_from_.steal[cpu];
+  record.steal_ticks_all_settled = current_.steal_total - settle_from_.steal_total;
+  settle_at_ = -1;
 }
 
 ClockSpinResult SpinOnTheClock(const ClockSpinOptions& options) {
@@ -240,17 +260,25 @@ ClockSpinResult SpinOnTheClock(const ClockSpinOptions& options) {
     const std::int64_t total = to_ns(options.seconds);
     const std::int64_t burst = std::max<std::int64_t>(1, to_ns(options.burst));
     ClockGaps& gaps = result.gaps;
+    GapWitness* witness = options.witness;
+    const std::int64_t witness_interval = to_ns(options.witness_interval);
     while (gaps.spin_ns() < total) {
       const std::int64_t start = MonotonicNs();
       const std::int64_t end = start + std::min(burst, total - gaps.spin_ns());
       std::int64_t previous = start;
       std::int64_t now = start;
+      std::int64_t next_sample = start;
       while (now < end) {
         now = MonotonicNs();
         gaps.Add(now - previous);
         previous = now;
+        if (witness != nullptr && now >= next_sample) {
+          witness->Sample(now);
+          next_sample = now + witness_interval;
+        }
       }
       gaps.AddSpinTime(now - start);
+      if (witness != nullptr) witness->Break();  // the rest is no gap
       if (gaps.spin_ns() < total) sim::SleepUntilNs(MonotonicNs() + to_ns(options.rest));
     }
   });

@@ -61,6 +61,11 @@ struct GapRecord {
   /// summed over many periods it estimates the stolen time (its expectation is exact).
   std::int64_t steal_ticks_cpu = 0;
   std::int64_t steal_ticks_all = 0;
+  /// The same from the period's start to the first tick `settle` [ns] after its end: the
+  /// guest adds stolen time to /proc/stat at its next scheduler tick, not when it wakes, so
+  /// steal taken during a period shows up in the counter shortly after it.
+  std::int64_t steal_ticks_cpu_settled = 0;
+  std::int64_t steal_ticks_all_settled = 0;
   /// CPU at the tick before and at the tick after the period (sched_getcpu).
   int cpu_before = -1;
   int cpu_after = -1;
@@ -73,7 +78,8 @@ struct GapRecord {
 /// new thread (a loop restarted on another thread), without a record across the change.
 class GapWitness {
  public:
-  GapWitness(std::int64_t threshold_ns, std::size_t capacity);
+  /// `settle` [ns]: how long after a long period its steal keeps being counted.
+  GapWitness(std::int64_t threshold_ns, std::size_t capacity, std::int64_t settle_ns = 20'000'000);
   ~GapWitness();
   GapWitness(const GapWitness&) = delete;
   GapWitness& operator=(const GapWitness&) = delete;
@@ -81,7 +87,7 @@ class GapWitness {
   /// One tick, `now` [ns, CLOCK_MONOTONIC] its wake-up.
   void Sample(std::int64_t now);
   /// Forget the last sample (the loop paused): the next Sample starts a new run of periods.
-  void Break() { have_last_ = false; }
+  void Break();
 
   const std::vector<GapRecord>& records() const { return records_; }
   /// Long periods seen, kept or not.
@@ -101,8 +107,15 @@ class GapWitness {
   };
   bool Read(std::int64_t now, Reading* reading);
   void Reopen();
+  /// Completes the settled steal of the last record, if it waits, from `current_`.
+  void Settle();
 
   std::int64_t threshold_;
+  std::int64_t settle_;
+  /// The last record waits for its settled steal until this time [ns] (−1: none waits).
+  std::int64_t settle_at_ = -1;
+  /// Steal at the start of the period of the record that waits.
+  Reading settle_from_;
   std::vector<GapRecord> records_;
   std::int64_t num_long_ = 0;
   bool available_ = true;
@@ -163,6 +176,11 @@ struct ClockSpinOptions {
   /// every 1 s by default), which would show as a 50 ms gap of our own making every second.
   double burst = 0.4;
   double rest = 0.1;
+  /// If set, sampled (GapWitness::Sample) every `witness_interval` [s] of spinning, from the
+  /// spinning thread: a gap shows as a long period whose run time tells whether this kernel
+  /// believed the thread was running all along (then only the host can have taken the time).
+  GapWitness* witness = nullptr;
+  double witness_interval = 100e-6;
 };
 
 /// Result of SpinOnTheClock.

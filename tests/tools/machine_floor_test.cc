@@ -81,6 +81,11 @@ TEST(GapWitness, RecordsALongPeriodWithWhatTheThreadDidInIt) {
   EXPECT_GE(r.steal_ticks_cpu, 0);
   EXPECT_GE(r.steal_ticks_all, r.steal_ticks_cpu);
   EXPECT_GE(r.cpu_before, 0);
+  // The settled count runs on past the period's end: never less than the period's own.
+  std::this_thread::sleep_for(std::chrono::milliseconds(3));
+  witness.Break();
+  EXPECT_GE(witness.records().at(0).steal_ticks_cpu_settled, r.steal_ticks_cpu);
+  EXPECT_GE(witness.records().at(0).steal_ticks_all_settled, r.steal_ticks_all);
 }
 
 TEST(GapWitness, KeepsNoPeriodAcrossABreakOrAThreadChange) {
