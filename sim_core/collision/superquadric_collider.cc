@@ -518,28 +518,38 @@ std::vector<std::array<double, 6>> Burial(const Avatar& avatar) {
   return burial;
 }
 
-/// Per segment, the segments next to it in the H-Anim hierarchy as far as it is fitted: the
-/// nearest fitted ancestor, the segments whose nearest fitted ancestor it is, and, for
-/// segments without a fitted ancestor (the pelvis and the torso under an unfitted root),
-/// each other.
-std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>& segments) {
+/// Per segment its nearest fitted H-Anim ancestor's index (−1: none; the pelvis and the
+/// torso under an unfitted root).
+std::vector<int> FittedParents(const std::vector<SuperquadricSegment>& segments) {
   std::array<int, kNumHAnimJoints> index;
   index.fill(-1);
   for (std::size_t s = 0; s < segments.size(); ++s) {
     index[static_cast<int>(segments[s].segment)] = static_cast<int>(s);
   }
-  const auto fitted_ancestor = [&](HAnimJoint joint) {
-    for (std::optional<HAnimJoint> up = HAnimParent(joint); up; up = HAnimParent(*up)) {
-      if (index[static_cast<int>(*up)] >= 0) return index[static_cast<int>(*up)];
+  std::vector<int> parents(segments.size(), -1);
+  for (std::size_t s = 0; s < segments.size(); ++s) {
+    for (std::optional<HAnimJoint> up = HAnimParent(segments[s].segment); up; up = HAnimParent(*up)) {
+      if (index[static_cast<int>(*up)] >= 0) {
+        parents[s] = index[static_cast<int>(*up)];
+        break;
+      }
     }
-    return -1;
-  };
+  }
+  return parents;
+}
+
+/// Per segment, the segments next to it in the H-Anim hierarchy as far as it is fitted: the
+/// nearest fitted ancestor, the segments whose nearest fitted ancestor it is, and, for
+/// segments without a fitted ancestor (the pelvis and the torso under an unfitted root),
+/// each other.
+std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>& segments) {
+  const std::vector<int> parents = FittedParents(segments);
   std::vector<std::vector<int>> neighbours(segments.size());
   for (std::size_t s = 0; s < segments.size(); ++s) {
-    const int up = fitted_ancestor(segments[s].segment);
+    const int up = parents[s];
     for (std::size_t o = 0; o < segments.size(); ++o) {
       if (o == s) continue;
-      const int other_up = fitted_ancestor(segments[o].segment);
+      const int other_up = parents[o];
       const bool parent = static_cast<int>(o) == up, child = other_up == static_cast<int>(s);
       if (parent || child || (up < 0 && other_up < 0)) {
         neighbours[s].push_back(static_cast<int>(o));
@@ -559,11 +569,11 @@ constexpr double kViewerCosine = 0.3;
 /// alone give the underside of the pelvis to the thighs, whose centres below see it from
 /// inside. Triangles wholly inside other pieces of the body (by their burial samples) are
 /// left out.
-void AssignSkin(const Avatar& avatar, std::vector<SuperquadricSegment>& segments) {
+void AssignSkin(const Avatar& avatar, const std::vector<std::array<double, 6>>& burial,
+                std::vector<SuperquadricSegment>& segments) {
   const std::array<int, kNumHAnimJoints> owner = MapOwners(segments);
   const std::vector<std::vector<int>> neighbours = Neighbours(segments);
   const auto& of = avatar.vertex_segments();
-  const std::vector<std::array<double, 6>> burial = Burial(avatar);
   std::vector<std::vector<int>> local(segments.size());
   std::vector<char> chosen(segments.size(), 0);
   const Points& rest = avatar.rest_vertices();
@@ -634,6 +644,89 @@ constexpr double kEdgeStretch = 1.5;
 /// beyond, the neighbours' shells hold the skin, and a thigh's shell need not follow its
 /// rays down the calf.
 constexpr double kReachMargin = 0.06;
+
+/// A joint shell holds the skin within this many times the child segment's girth (the
+/// middle of its superquadric's half sizes) of the joint [-].
+constexpr double kJointHoldFactor = 1.5;
+
+/// Appends a joint shell per fitted segment with a fitted parent: a sphere centred on the
+/// segment's joint, in the joint's frame, whose map holds the skin of the segment, its parent
+/// and their neighbours near the joint, and whose rays start at the joint. The joint lies
+/// inside the skin at the bend, so its rays see the bottom of the crease a bent joint folds
+/// (the back of a bent knee), which neither segment's centre sees. The held skin is that of
+/// the two segments within kJointHoldFactor girths of the joint.
+void AddJointShells(const Avatar& avatar, const std::vector<std::array<double, 6>>& burial,
+                    std::vector<SuperquadricSegment>& segments) {
+  const std::size_t fitted = segments.size();
+  const std::vector<int> parents = FittedParents(segments);
+  const std::vector<std::vector<int>> neighbours = Neighbours(segments);
+  const std::array<int, kNumHAnimJoints> owner = MapOwners(segments);
+  const auto& of = avatar.vertex_segments();
+  const Points& rest = avatar.rest_vertices();
+  std::vector<char> allowed(fitted, 0);
+  for (std::size_t s = 0; s < fitted; ++s) {
+    const int p = parents[s];
+    if (p < 0) continue;
+    const Superquadric& child = segments[s].superquadric;
+    std::array<double, 3> sizes{child.a1, child.a2, child.a3};
+    std::sort(sizes.begin(), sizes.end());
+    const double hold = kJointHoldFactor * sizes[1];
+    const Eigen::Vector3d centre = avatar.skeleton().rest_world()[segments[s].joint].translation();
+    std::fill(allowed.begin(), allowed.end(), 0);
+    for (int k : {static_cast<int>(s), p}) {
+      allowed[k] = 1;
+      for (int n : neighbours[k]) allowed[n] = 1;
+    }
+    const auto owned_by = [&](int v) {
+      return of[v] ? owner[static_cast<int>(*of[v])] : -1;
+    };
+    SuperquadricSegment shell;
+    shell.segment = segments[s].segment;
+    shell.joint = segments[s].joint;
+    shell.joint_shell = true;
+    shell.superquadric.a1 = shell.superquadric.a2 = shell.superquadric.a3 = sizes[1];
+    shell.inverse_size = Eigen::Vector3d::Constant(1.0 / sizes[1]);
+    for (int v = 0; v < avatar.num_vertices(); ++v) {
+      const int o = owned_by(v);
+      if ((o == static_cast<int>(s) || o == p) &&
+          (rest.row(v).transpose() - centre).norm() <= hold) {
+        shell.viewed.push_back(v);
+      }
+    }
+    if (shell.viewed.empty()) continue;
+    shell.num_vertices = static_cast<int>(shell.viewed.size());
+    // The skin near the joint (PrepareMap trims it to the reach).
+    const double keep = hold + kReachMargin + kReachSlack;
+    std::vector<int> local(avatar.num_vertices(), -1);
+    SegmentSkin& skin = shell.skin;
+    for (std::size_t t = 0; t < avatar.triangles().size(); ++t) {
+      const Eigen::Vector3i& tri = avatar.triangles()[t];
+      const std::array<double, 6>& b = burial[t];
+      if (*std::max_element(b.begin(), b.end()) < 0.0) continue;
+      bool mine = false;
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int c = 0; c < 3; ++c) {
+        const int o = owned_by(tri[c]);
+        mine = mine || (o >= 0 && allowed[o]);
+        nearest = std::min(nearest, (rest.row(tri[c]).transpose() - centre).norm());
+      }
+      if (!mine || nearest > keep) continue;
+      Eigen::Vector3i corners;
+      for (int m = 0; m < 3; ++m) {
+        int& index = local[tri[m]];
+        if (index < 0) {
+          index = static_cast<int>(skin.vertices.size());
+          skin.vertices.push_back(tri[m]);
+        }
+        corners[m] = index;
+      }
+      skin.triangles.push_back(corners);
+      skin.burial.push_back(b);
+      skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
+    }
+    segments.push_back(std::move(shell));
+  }
+}
 
 /// Sizes a segment's map and scratch: the grid spans the box of the skin it holds (its own
 /// vertices, `own`, and the triangles it sees most squarely, segment.viewed) in the
@@ -777,10 +870,14 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
       skipped_.push_back(fit.segment);
     }
   }
-  AssignSkin(*avatar_, segments_);
+  const std::vector<std::array<double, 6>> burial = Burial(*avatar_);
+  AssignSkin(*avatar_, burial, segments_);
+  AddJointShells(*avatar_, burial, segments_);
   const SegmentGroups groups = GroupVertices(*avatar_);
   for (SuperquadricSegment& segment : segments_) {
-    PrepareMap(*avatar_, groups[static_cast<int>(segment.segment)], options.map_spacing, segment);
+    // A joint shell holds the skin listed in `viewed`, none of its own.
+    PrepareMap(*avatar_, segment.joint_shell ? std::vector<int>{} : groups[static_cast<int>(segment.segment)],
+               options.map_spacing, segment);
   }
   const std::size_t n = segments_.size();
   start_.resize(n);
@@ -932,8 +1029,9 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
     best = probe;
   }
   if (deepest < 0) return false;
+  // A joint shell is a sphere: its gradient says nothing of the skin.
   const Eigen::Vector3d local_normal =
-      skin_normals_ ? best.skin_normal
+      skin_normals_ || segments_[deepest].joint_shell ? best.skin_normal
                     : InsideOutsideGradient(segments_[deepest].superquadric, best.direction)
                           .normalized();
   normal = placement[deepest].to_world.linear() * local_normal;

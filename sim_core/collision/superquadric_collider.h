@@ -178,6 +178,10 @@ struct SegmentSkin {
 struct SuperquadricSegment {
   HAnimJoint segment = HAnimJoint::kHumanoidRoot;
   int joint = -1;
+  /// A joint shell: a sphere centred on `joint` (the joint between `segment` and its
+  /// nearest fitted ancestor) whose map holds both segments' skin near the joint, seen from
+  /// the joint (docs/collision.md, "Bent joints"). Its contact normal is the skin's.
+  bool joint_shell = false;
   Superquadric superquadric;  ///< frame relative to the joint's frame
   /// 1/a1, 1/a2, 1/a3 [1/m]: the map's scaling.
   Eigen::Vector3d inverse_size = Eigen::Vector3d::Ones();
