@@ -279,12 +279,13 @@ TEST_F(Fixture, ContactsFollowTheMovingBodyAndCarryItsNormalVelocity) {
   collider.Update(world, unused_skin, dt);
   // Particle 0: 1 cm outside the old skin on the +x side, so 1 cm inside the new one.
   // Particle 1: 5 mm inside the old skin on the −x side, left 4.5 cm behind by a body that
-  // moves away from it.
+  // moves away from it: inside the shell, it is held to the receding surface (as the mesh
+  // collider holds cloth inside its shell), however its velocity would carry it.
   Points positions = At({SidePoint(0.0, 0.0, 0.01), SidePoint(0.0, kPi, -0.005)}, arm);
   Points velocities = Points::Zero(2, 3);
   std::vector<Contact> contacts;
   collider.FindContacts(positions, velocities, h, 0.001, contacts);
-  ASSERT_EQ(contacts.size(), 1u);
+  ASSERT_EQ(contacts.size(), 2u);
   const Contact& c = contacts[0];
   EXPECT_EQ(c.particle, 0);
   EXPECT_GT(c.normal.dot(axis_x), 0.999);
@@ -292,6 +293,12 @@ TEST_F(Fixture, ContactsFollowTheMovingBodyAndCarryItsNormalVelocity) {
   // (1 cm − thickness) closed within h: 2 − 0.006/0.01 = 1.4 m/s.
   const double expected = 0.02 / dt - (0.01 - kThickness) / h;
   EXPECT_NEAR(c.target_normal_velocity, expected, 0.05);
+  // Particle 1: normal −x, the body's normal velocity −2 m/s, plus the start depth
+  // (5 mm + thickness) made good within h: −2 + 0.009/0.01 = −1.1 m/s.
+  const Contact& behind = contacts[1];
+  EXPECT_EQ(behind.particle, 1);
+  EXPECT_GT(behind.normal.dot(-axis_x), 0.999);
+  EXPECT_NEAR(behind.target_normal_velocity, -0.02 / dt + (0.005 + kThickness) / h, 0.05);
 
   // Projection uses the end pose: particle 0 lands on the moved shell and takes the body's
   // normal velocity; particle 1 is outside the moved body and stays.
