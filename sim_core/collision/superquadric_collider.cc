@@ -154,6 +154,7 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
   map.skin_radius = map.surface_radius;
   map.skin_normal = map.ray;
   map.skin_plane = map.surface_radius;
+  map.capped.assign(map.num_nodes(), 0);
   map.silhouette_jump = kSilhouetteSlope * spacing;
   map.spacing = spacing;
   map.size = size;
@@ -171,7 +172,7 @@ double PlaneRadius(const SkinDistanceMap& map, int node, const Eigen::Vector3d& 
 /// The map read on the unit ray `d` (superquadric frame): the skin's radius [m] and its
 /// (unnormalised) normal, bilinear in the four nodes around `d`.
 void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
-            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal) {
+            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal, bool& capped) {
   int face = 0;
   double s = 0.0, t = 0.0;
   LocateOnBox(d.cwiseProduct(inverse_size), face, s, t);
@@ -184,6 +185,7 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
   const int n[4] = {row[0], row[1], row[nk + 1], row[nk + 2]};
   const auto& r = map.skin_radius;
   const auto& m = map.skin_normal;
+  capped = map.capped[n[0]] || map.capped[n[1]] || map.capped[n[2]] || map.capped[n[3]];
   if (std::max({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) -
           std::min({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) > map.silhouette_jump) {
     // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
@@ -346,7 +348,9 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
 /// Gives the nodes no triangle reached (rays leaving through skin that is not in the map:
 /// the open ends of a segment's skin) the smallest skin radius of their reached (or already
 /// filled) neighbours, ring by ring outwards (breadth first), with the ray as the normal: a
-/// cap that never reaches beyond the skin around it. Returns how many nodes were filled.
+/// cap that never reaches beyond the skin around it, marked capped (no skin seen: triangles
+/// beyond the reach are not drawn, so rays running on inside the body end here too).
+/// Returns how many nodes were filled.
 int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
   constexpr char kUnknown = 0, kKnown = 1, kQueued = 2;
   std::vector<char>& state = skin.state;
@@ -372,6 +376,7 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
       map.skin_radius[node] = std::min(map.surface_radius[node], reach);
     }
     map.skin_normal = map.ray;
+    std::fill(map.capped.begin(), map.capped.end(), 1);
     return num_nodes;
   }
   for (std::size_t head = 0; head < queue.size(); ++head) {
@@ -388,6 +393,7 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
     }
     map.skin_radius[node] = std::min(smallest, reach);
     map.skin_normal[node] = map.ray[node];
+    map.capped[node] = 1;
     state[node] = kKnown;
   }
   return static_cast<int>(queue.size());
@@ -429,11 +435,13 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     }
   }
   for (int node = 0; node < map.num_nodes(); ++node) {
+    map.capped[node] = 0;
     if (skin.hit_radius[node] <= 0.0) continue;
     if (skin.hit_radius[node] >= segment.reach) {
       // The ray runs on inside the body beyond the segment's reach: the shell stops there.
       map.skin_radius[node] = segment.reach;
       map.skin_normal[node] = map.ray[node];
+      map.capped[node] = 1;
     } else {
       map.skin_radius[node] = skin.hit_radius[node];
       map.skin_normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
@@ -645,6 +653,57 @@ constexpr double kEdgeStretch = 1.5;
 /// rays down the calf.
 constexpr double kReachMargin = 0.06;
 
+/// A map's rays start at its centre and stop where they first leave the skin: a centre must
+/// lie this far inside the skin [m], or its first exits can bound air.
+constexpr double kMinCentreDepth = 0.005;
+
+/// The rest skin's signed distance field, for a body whose mesh is closed and consistently
+/// oriented (null otherwise: inside is undefined).
+std::unique_ptr<MeshDistance> RestSkin(const Avatar& avatar) {
+  const SurfacePseudonormals topology(avatar.num_vertices(), avatar.triangles());
+  if (topology.num_open_edges() > 0) return nullptr;
+  return std::make_unique<MeshDistance>("avatar '" + avatar.name() + "'",
+                                        avatar.rest_vertices(), avatar.triangles());
+}
+
+/// Moves each superquadric whose centre lies less than kMinCentreDepth inside the rest skin
+/// to the point, among points sampled on its three axes within its sizes and its joint, that
+/// is nearest its fitted centre and at least that deep (failing any, the deepest): a fit's
+/// centre is the middle of its vertices, which for a hand with curled fingers lies outside
+/// (MakeHuman: 2 mm), and the first exits of rays starting outside bound air (hand shells up
+/// to 6 cm out). Records the move in `centre_shift`.
+void CentreInsideSkin(const Avatar& avatar, const MeshDistance& skin,
+                      std::vector<SuperquadricSegment>& segments) {
+  constexpr int kSamples = 16;  // intervals per axis
+  constexpr double kSearch = 0.5;
+  for (SuperquadricSegment& segment : segments) {
+    const Eigen::Isometry3d& joint = avatar.skeleton().rest_world()[segment.joint];
+    Superquadric& sq = segment.superquadric;
+    const Eigen::Vector3d fitted = sq.frame.translation();
+    if (skin.SignedDistance(joint * fitted, kSearch) <= -kMinCentreDepth) continue;
+    std::vector<Eigen::Vector3d> candidates{Eigen::Vector3d::Zero()};  // the joint
+    const double size[3] = {sq.a1, sq.a2, sq.a3};
+    for (int axis = 0; axis < 3; ++axis) {
+      for (int k = 0; k <= kSamples; ++k) {
+        const double t = -1.0 + 2.0 * k / kSamples;
+        candidates.push_back(fitted + t * size[axis] * sq.frame.linear().col(axis));
+      }
+    }
+    Eigen::Vector3d nearest = fitted, deepest = fitted;
+    double nearest_distance = std::numeric_limits<double>::infinity();
+    double deepest_depth = -skin.SignedDistance(joint * fitted, kSearch);
+    for (const Eigen::Vector3d& c : candidates) {
+      const double depth = -skin.SignedDistance(joint * c, kSearch);
+      if (depth > deepest_depth) deepest_depth = depth, deepest = c;
+      if (depth >= kMinCentreDepth && (c - fitted).norm() < nearest_distance) {
+        nearest_distance = (c - fitted).norm(), nearest = c;
+      }
+    }
+    sq.frame.translation() = std::isfinite(nearest_distance) ? nearest : deepest;
+    segment.centre_shift = (sq.frame.translation() - fitted).norm();
+  }
+}
+
 /// A joint shell holds the skin within this many times the child segment's girth (the
 /// middle of its superquadric's half sizes) of the joint [-].
 constexpr double kJointHoldFactor = 1.5;
@@ -656,7 +715,7 @@ constexpr double kJointHoldFactor = 1.5;
 /// (the back of a bent knee), which neither segment's centre sees. The held skin is that of
 /// the two segments within kJointHoldFactor girths of the joint.
 void AddJointShells(const Avatar& avatar, const std::vector<std::array<double, 6>>& burial,
-                    std::vector<SuperquadricSegment>& segments) {
+                    const MeshDistance* rest_skin, std::vector<SuperquadricSegment>& segments) {
   const std::size_t fitted = segments.size();
   const std::vector<int> parents = FittedParents(segments);
   const std::vector<std::vector<int>> neighbours = Neighbours(segments);
@@ -672,6 +731,8 @@ void AddJointShells(const Avatar& avatar, const std::vector<std::array<double, 6
     std::sort(sizes.begin(), sizes.end());
     const double hold = kJointHoldFactor * sizes[1];
     const Eigen::Vector3d centre = avatar.skeleton().rest_world()[segments[s].joint].translation();
+    // Rays from a joint outside the skin would bound air.
+    if (rest_skin && rest_skin->SignedDistance(centre, 0.5) > -kMinCentreDepth) continue;
     std::fill(allowed.begin(), allowed.end(), 0);
     for (int k : {static_cast<int>(s), p}) {
       allowed[k] = 1;
@@ -841,7 +902,7 @@ void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, do
   probe.direction = length > 0.0 ? Eigen::Vector3d(q / length) : Eigen::Vector3d::UnitZ();
   double radius = 0.0;
   Eigen::Vector3d skin_normal;
-  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal);
+  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal, probe.capped);
   const double norm = skin_normal.norm();
   probe.skin_normal = norm > 0.0 ? Eigen::Vector3d(skin_normal / norm) : probe.direction;
   probe.cosine = std::max(probe.direction.dot(probe.skin_normal), kMinSkinCosine);
@@ -870,9 +931,11 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
       skipped_.push_back(fit.segment);
     }
   }
+  const std::unique_ptr<MeshDistance> rest_skin = RestSkin(*avatar_);
+  if (rest_skin) CentreInsideSkin(*avatar_, *rest_skin, segments_);
   const std::vector<std::array<double, 6>> burial = Burial(*avatar_);
   AssignSkin(*avatar_, burial, segments_);
-  AddJointShells(*avatar_, burial, segments_);
+  AddJointShells(*avatar_, burial, rest_skin.get(), segments_);
   const SegmentGroups groups = GroupVertices(*avatar_);
   for (SuperquadricSegment& segment : segments_) {
     // A joint shell holds the skin listed in `viewed`, none of its own.
@@ -1023,6 +1086,10 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
     }
     ShellProbe probe;
     ProbeShell(segment, q, settings_.thickness, probe);
+    // Inside a shell where its rays run on inside the body beyond the segment's reach, the
+    // depth is unknown (a ray grazing the skin may leave it between nodes: 7 cm claimed for
+    // a particle on MakeHuman's knee); the neighbours' shells hold the skin there.
+    if (probe.capped && probe.normal_gap < 0.0) continue;
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
     deepest = s;

@@ -115,6 +115,10 @@ struct SkinDistanceMap {
   std::vector<Eigen::Vector3d> skin_normal;
   /// Per node: the distance of the skin's tangent plane there from the centre [m].
   std::vector<double> skin_plane;
+  /// Per node: its ray met no skin within the segment's reach (it runs on inside the body,
+  /// where the neighbours' shells hold the skin, or leaves through an open end); its radius
+  /// is the reach or filled from its neighbours, its normal the ray [-].
+  std::vector<char> capped;
   /// A cell whose nodes' radii, and their tangent planes' predictions on the ray, differ by
   /// more than this [m] straddles a silhouette seen from the centre and is read as its
   /// nearest skin, not blended.
@@ -201,6 +205,9 @@ struct SuperquadricSegment {
   Eigen::AlignedBox3d shell_box;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
+  /// How far the superquadric was moved from its fit so that its centre, where the map's
+  /// rays start, lies inside the skin [m] (0 for most segments; MakeHuman's hands).
+  double centre_shift = 0.0;
   int num_vertices = 0;
 };
 
@@ -218,6 +225,8 @@ struct ShellProbe {
   double shell_radius = 0.0;
   /// The skin's outward unit normal (bilinear in the map, normalised), superquadric frame [-].
   Eigen::Vector3d skin_normal = Eigen::Vector3d::UnitZ();
+  /// A node around the ray is capped at the segment's reach (SkinDistanceMap::capped).
+  bool capped = false;
 };
 
 /// Probes the shell of `segment` at `q` (superquadric frame) [m]. Never throws or allocates.
