@@ -172,7 +172,8 @@ double PlaneRadius(const SkinDistanceMap& map, int node, const Eigen::Vector3d& 
 /// The map read on the unit ray `d` (superquadric frame): the skin's radius [m] and its
 /// (unnormalised) normal, bilinear in the four nodes around `d`.
 void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
-            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal, bool& capped) {
+            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal, bool& capped,
+            bool& blind) {
   int face = 0;
   double s = 0.0, t = 0.0;
   LocateOnBox(d.cwiseProduct(inverse_size), face, s, t);
@@ -185,7 +186,6 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
   const int n[4] = {row[0], row[1], row[nk + 1], row[nk + 2]};
   const auto& r = map.skin_radius;
   const auto& m = map.skin_normal;
-  capped = map.capped[n[0]] || map.capped[n[1]] || map.capped[n[2]] || map.capped[n[3]];
   if (std::max({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) -
           std::min({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) > map.silhouette_jump) {
     // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
@@ -205,9 +205,13 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
     if (hi - lo > map.silhouette_jump) {
       radius = lo;
       normal = m[nearest];
+      capped = blind = map.capped[nearest];
       return;
     }
   }
+  const int num_capped = map.capped[n[0]] + map.capped[n[1]] + map.capped[n[2]] + map.capped[n[3]];
+  capped = num_capped > 0;
+  blind = num_capped == 4;
   const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
   radius = w00 * r[n[0]] + w01 * r[n[1]] + w10 * r[n[2]] + w11 * r[n[3]];
   normal = w00 * m[n[0]] + w01 * m[n[1]] + w10 * m[n[2]] + w11 * m[n[3]];
@@ -902,7 +906,8 @@ void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, do
   probe.direction = length > 0.0 ? Eigen::Vector3d(q / length) : Eigen::Vector3d::UnitZ();
   double radius = 0.0;
   Eigen::Vector3d skin_normal;
-  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal, probe.capped);
+  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal, probe.capped,
+         probe.blind);
   const double norm = skin_normal.norm();
   probe.skin_normal = norm > 0.0 ? Eigen::Vector3d(skin_normal / norm) : probe.direction;
   probe.cosine = std::max(probe.direction.dot(probe.skin_normal), kMinSkinCosine);
@@ -1020,6 +1025,7 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
   if (usable) has_pose_ = true;
   if (!moving) start_ = end_;
   inverse_dt_ = moving ? 1.0 / dt : 0.0;
+  step_ = moving ? dt : 0.0;
   for (std::size_t s = 0; s < segments_.size(); ++s) {
     motion_[s] = end_[s].to_world * start_[s].to_local;
     const double angle = Eigen::AngleAxisd(motion_[s].linear()).angle();
@@ -1059,7 +1065,8 @@ void BoundingBox(const Points& positions, Eigen::Vector3d& lo, Eigen::Vector3d& 
 
 }  // namespace
 
-bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
+bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end,
+                                        double reach,
                                         double& gap, Eigen::Vector3d& normal,
                                         Eigen::Vector3d& body_velocity) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
@@ -1086,10 +1093,18 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
     }
     ShellProbe probe;
     ProbeShell(segment, q, settings_.thickness, probe);
-    // Inside a shell where its rays run on inside the body beyond the segment's reach, the
-    // depth is unknown (a ray grazing the skin may leave it between nodes: 7 cm claimed for
-    // a particle on MakeHuman's knee); the neighbours' shells hold the skin there.
-    if (probe.capped && probe.normal_gap < 0.0) continue;
+    // A reading from map nodes that saw no skin within the reach is uncertain: a ray
+    // grazing the skin may leave it between nodes (7–20 cm claimed for particles on
+    // MakeHuman's knee, which ProjectOut then threw). Read from such nodes alone it says
+    // nothing of the depth (the neighbours' shells hold the skin there); blended with nodes
+    // that saw skin, it counts only as deep as the particle and the body can have come
+    // within the step from outside the shell.
+    if (probe.normal_gap < 0.0 &&
+        (probe.blind ||
+         (probe.capped && -probe.normal_gap > settings_.thickness +
+                                                  step_ * (speed + BodyVelocity(s, x, at_end).norm())))) {
+      continue;
+    }
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
     deepest = s;
@@ -1119,7 +1134,9 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
     const Eigen::Vector3d v = velocities.row(i).transpose();
     double gap;
     Eigen::Vector3d normal, body_velocity;
-    if (!DeepestShell(x, false, margin + h * v.norm(), gap, normal, body_velocity)) continue;
+    if (!DeepestShell(x, v.norm(), false, margin + h * v.norm(), gap, normal, body_velocity)) {
+      continue;
+    }
     const double body_normal_velocity = body_velocity.dot(normal);
     // Cloth within the margin stays constrained whatever its start velocity, as cloth
     // inside the mesh collider's shell does: the solve may turn back a particle that the
@@ -1154,7 +1171,8 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
       const Eigen::Vector3d x = positions.row(i).transpose();
       double gap;
       Eigen::Vector3d normal, body_velocity;
-      if (!DeepestShell(x, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) break;
+      const double speed = velocities.row(i).norm();
+      if (!DeepestShell(x, speed, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) break;
       if (pass == 0) deepest = std::max(deepest, -gap);
       positions.row(i) = (x - gap * normal).transpose();
       const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);

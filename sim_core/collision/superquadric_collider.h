@@ -225,8 +225,11 @@ struct ShellProbe {
   double shell_radius = 0.0;
   /// The skin's outward unit normal (bilinear in the map, normalised), superquadric frame [-].
   Eigen::Vector3d skin_normal = Eigen::Vector3d::UnitZ();
-  /// A node around the ray is capped at the segment's reach (SkinDistanceMap::capped).
+  /// The reading came from capped map nodes (SkinDistanceMap::capped): `capped` when a
+  /// blend includes one or a silhouette cell's nearest skin is one, `blind` when all four
+  /// around the ray are (or that nearest one is) [-].
   bool capped = false;
+  bool blind = false;
 };
 
 /// Probes the shell of `segment` at `q` (superquadric frame) [m]. Never throws or allocates.
@@ -303,10 +306,12 @@ class SuperquadricCollider : public BodyCollider {
   void RefreshMap(int s);
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
-  /// than `reach` [m] plus their own motion over the step are skipped; returns false when
-  /// every shell was.
-  bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach, double& gap,
-                    Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+  /// than `reach` [m] plus their own motion over the step are skipped; so are blind readings
+  /// inside a shell and capped ones (ShellProbe) deeper than the thickness plus what the
+  /// particle (at `speed` [m/s]) and the body can have travelled in the step. Returns false
+  /// when every shell was.
+  bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
+                    double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;
@@ -325,6 +330,7 @@ class SuperquadricCollider : public BodyCollider {
   std::vector<Eigen::Isometry3d> motion_;
   std::vector<double> sweep_;
   double inverse_dt_ = 0.0;
+  double step_ = 0.0;  ///< the last Update's dt while moving, else 0 [s]
   bool has_pose_ = false;
   std::vector<int> active_;
   BodyCollisionStats stats_;
