@@ -212,9 +212,17 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
   const int num_capped = map.capped[n[0]] + map.capped[n[1]] + map.capped[n[2]] + map.capped[n[3]];
   capped = num_capped > 0;
   blind = num_capped == 4;
-  const double w00 = (1 - wu) * (1 - wv), w01 = (1 - wu) * wv, w10 = wu * (1 - wv), w11 = wu * wv;
-  radius = w00 * r[n[0]] + w01 * r[n[1]] + w10 * r[n[2]] + w11 * r[n[3]];
-  normal = w00 * m[n[0]] + w01 * m[n[1]] + w10 * m[n[2]] + w11 * m[n[3]];
+  double w[4] = {(1 - wu) * (1 - wv), (1 - wu) * wv, wu * (1 - wv), wu * wv};
+  // A capped node's radius is the reach, not skin: where nodes around it saw skin, they
+  // alone are blended (blending the reach in raised a thigh's shell 1.6 cm out of
+  // MakeHuman's hip).
+  double seen = 0.0;
+  for (int k = 0; k < 4; ++k) seen += map.capped[n[k]] ? 0.0 : w[k];
+  if (capped && !blind && seen > 0.0) {
+    for (int k = 0; k < 4; ++k) w[k] = map.capped[n[k]] ? 0.0 : w[k] / seen;
+  }
+  radius = w[0] * r[n[0]] + w[1] * r[n[1]] + w[2] * r[n[2]] + w[3] * r[n[3]];
+  normal = w[0] * m[n[0]] + w[1] * m[n[1]] + w[2] * m[n[2]] + w[3] * m[n[3]];
 }
 
 /// The quadratic (6-node Lagrange) interpolation of a triangle's burial samples at the
