@@ -238,7 +238,8 @@ int main(int argc, char** argv) {
   Options options;
   app.add_option("--walk", options.walk_seconds, "Seconds of the clip measured after fitting")
       ->check(CLI::Range(0.1, 60.0));
-  app.add_option("--clip", options.clip, "Built-in clip the avatar plays (retargeted onto MakeHuman)")
+  app.add_option("--clip", options.clip,
+                 "Built-in clip the avatar plays (retargeted onto MakeHuman)")
       ->check(CLI::IsMember(sim::BuiltInClipNames()));
   app.add_option("--resolution", options.resolution, "Garment particles around its circumference")
       ->check(CLI::Range(8, 1024));

@@ -548,7 +548,8 @@ std::vector<int> FittedParents(const std::vector<SuperquadricSegment>& segments)
   }
   std::vector<int> parents(segments.size(), -1);
   for (std::size_t s = 0; s < segments.size(); ++s) {
-    for (std::optional<HAnimJoint> up = HAnimParent(segments[s].segment); up; up = HAnimParent(*up)) {
+    for (std::optional<HAnimJoint> up = HAnimParent(segments[s].segment); up;
+         up = HAnimParent(*up)) {
       if (index[static_cast<int>(*up)] >= 0) {
         parents[s] = index[static_cast<int>(*up)];
         break;
@@ -952,7 +953,9 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   const SegmentGroups groups = GroupVertices(*avatar_);
   for (SuperquadricSegment& segment : segments_) {
     // A joint shell holds the skin listed in `viewed`, none of its own.
-    PrepareMap(*avatar_, segment.joint_shell ? std::vector<int>{} : groups[static_cast<int>(segment.segment)],
+    const std::vector<int> none;
+    PrepareMap(*avatar_,
+               segment.joint_shell ? none : groups[static_cast<int>(segment.segment)],
                options.map_spacing, segment);
   }
   const std::size_t n = segments_.size();
@@ -1044,6 +1047,12 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
   }
 }
 
+double SuperquadricCollider::PlausibleDepth(int segment, const Eigen::Vector3d& x, double speed,
+                                           bool at_end) const {
+  return settings_.thickness + segments_[segment].map.spacing +
+         step_ * (speed + BodyVelocity(segment, x, at_end).norm());
+}
+
 Eigen::Vector3d SuperquadricCollider::BodyVelocity(int segment, const Eigen::Vector3d& x,
                                                    bool at_end) const {
   if (inverse_dt_ == 0.0) return Eigen::Vector3d::Zero();
@@ -1106,13 +1115,11 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
     // MakeHuman's knee, which ProjectOut then threw). Read from such nodes alone it says
     // nothing of the depth (the neighbours' shells hold the skin there); blended with nodes
     // that saw skin, it counts only as deep as the particle and the body can have come
-    // within the step from outside the shell.
-    if (probe.normal_gap < 0.0 &&
-        (probe.blind ||
-         (probe.capped && -probe.normal_gap > settings_.thickness +
-                                                  step_ * (speed + BodyVelocity(s, x, at_end).norm())))) {
-      continue;
-    }
+    // within the step from outside the shell, give or take the thickness and a node spacing.
+    const bool uncertain =
+        probe.blind ||
+        (probe.capped && -probe.normal_gap > PlausibleDepth(s, x, speed, at_end));
+    if (probe.normal_gap < 0.0 && uncertain) continue;
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
     deepest = s;

@@ -307,11 +307,14 @@ class SuperquadricCollider : public BodyCollider {
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
   /// than `reach` [m] plus their own motion over the step are skipped; so are blind readings
-  /// inside a shell and capped ones (ShellProbe) deeper than the thickness plus what the
-  /// particle (at `speed` [m/s]) and the body can have travelled in the step. Returns false
+  /// inside a shell and capped ones (ShellProbe) deeper than PlausibleDepth. Returns false
   /// when every shell was.
   bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
                     double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+  /// How deep [m] a particle at `x` moving at `speed` [m/s] can have come into the shell of
+  /// `segment` within the step from outside it: what it and the body travelled, plus the
+  /// thickness and a node spacing for the map's own error.
+  double PlausibleDepth(int segment, const Eigen::Vector3d& x, double speed, bool at_end) const;
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;
