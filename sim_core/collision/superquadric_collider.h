@@ -9,11 +9,16 @@
 /// the rigid segments (hips, knees, elbows). docs/collision.md has the measurements.
 ///
 /// Approximations, all deliberate:
-/// - Each segment's shell is star-shaped from its superquadric's centre: along every ray it
-///   reaches the first place where the ray leaves the skin, among the triangles of the
-///   segment and of its H-Anim neighbours, and at most the segment's reach (the farthest
-///   skin it holds plus 6 cm); the neighbours' shells hold the skin beyond. Skin hidden from
-///   every centre behind other skin (the bottom of a deep crease) is held by no shell.
+/// - Each segment's shell is star-shaped from its superquadric's centre (moved inside the
+///   skin where the fit leaves it outside): along every ray it reaches the first place where
+///   the ray leaves the skin, among the triangles of the segment and of its H-Anim
+///   neighbours, and at most the segment's reach (the farthest skin it holds plus 6 cm); the
+///   neighbours' shells hold the skin beyond. A joint shell per joint between two fitted
+///   segments, star-shaped from the joint, holds the creases of bent joints, which no
+///   segment's centre sees. Skin that neither any centre nor any joint sees is held by no
+///   shell.
+/// - Where a map's rays saw no skin within the reach, a reading inside the shell is trusted
+///   only as deep as the step's motion allows (none when all four nodes are such).
 /// - A body made of overlapping closed pieces (the built-in humanoid) has surfaces inside
 ///   other pieces; the parts of them more than 1.5 mm inside another piece in the rest pose
 ///   are not skin. The pieces' overlap is taken from the rest pose.
