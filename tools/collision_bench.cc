@@ -1,6 +1,6 @@
 /// @file
 /// collision_bench: the garment scene of docs/BENCHMARKS.md — a garment on an avatar walking
-/// for 4 s after it has been fitted — once per collision method (paper §4), printing one JSON
+/// (or playing another built-in clip, --clip) for 4 s after it has been fitted — once per collision method (paper §4), printing one JSON
 /// object per run: collision and total ms per frame (medians), penetration of the cloth into
 /// the true skinned mesh (not the collider's proxy), measured every frame with MeshDistance.
 /// Avatars: the built-in humanoid, and the MakeHuman body from ../shared/data when present.
@@ -36,6 +36,7 @@ using nlohmann::json;
 
 struct Options {
   double walk_seconds = 4.0;
+  std::string clip = "walk";
   int resolution = 64;
   std::string garment = "skirt";
   std::string data_dir = "../shared/data";
@@ -137,7 +138,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     const double cpu = ThreadCpuMs() - cpu_start;
     rolled_back += report.rolled_back_steps;
     unconverged += report.converged ? 0 : 1;
-    if (f < fit_frames) continue;  // the walk is measured, not the fitting
+    if (f < fit_frames) continue;  // the clip is measured, not the fitting
     total_ms.push_back(report.wall_ms);
     cpu_ms.push_back(cpu);
     collision_ms.push_back(report.collision_ms);
@@ -204,8 +205,11 @@ void RunAvatar(const std::string& name, MakeScene make_scene) {
 int main(int argc, char** argv) {
   CLI::App app{"collision_bench: the garment scene per collision method (docs/BENCHMARKS.md)"};
   Options options;
-  app.add_option("--walk", options.walk_seconds, "Seconds of walking measured after fitting")
+  app.add_option("--walk", options.walk_seconds, "Seconds of the clip measured after fitting")
       ->check(CLI::Range(0.1, 60.0));
+  app.add_option("--clip", options.clip,
+                 "Built-in clip the avatar plays (retargeted onto MakeHuman)")
+      ->check(CLI::IsMember(sim::BuiltInClipNames()));
   app.add_option("--resolution", options.resolution, "Garment particles around its circumference")
       ->check(CLI::Range(8, 1024));
   app.add_option("--garment", options.garment, "Built-in garment")
@@ -223,10 +227,10 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     auto humanoid = sim::MakeHumanoid();
-    auto walk = std::make_shared<const sim::Clip>(
-        sim::MakeBuiltInClip("walk", humanoid->shared_skeleton()));
+    auto clip = std::make_shared<const sim::Clip>(
+        sim::MakeBuiltInClip(options.clip, humanoid->shared_skeleton()));
     RunAvatar("builtin humanoid", [&](sim::BodyCollisionMethod method) {
-      return GarmentScene(humanoid, walk, method, options);
+      return GarmentScene(humanoid, clip, method, options);
     });
     const std::filesystem::path mh = std::filesystem::path(options.data_dir) / "makehuman";
     if (options.makehuman && std::filesystem::exists(mh / "body" / "base.obj")) {
@@ -234,13 +238,13 @@ int main(int argc, char** argv) {
                                               (mh / "body" / "default.mhskel").string(),
                                               (mh / "body" / "default_weights.mhw").string());
       RunAvatar("makehuman", [&](sim::BodyCollisionMethod method) {
-        return GarmentScene(body, walk, method, options);
+        return GarmentScene(body, clip, method, options);
       });
       const std::filesystem::path mhclo = mh / "clothes" / options.makehuman_garment /
                                           (options.makehuman_garment + ".mhclo");
       const assets::ObjMesh base_obj = assets::ReadObj((mh / "body" / "base.obj").string());
       RunAvatar("makehuman + " + options.makehuman_garment, [&](sim::BodyCollisionMethod method) {
-        return MakeHumanGarmentScene(body, walk, method, base_obj, mhclo, options);
+        return MakeHumanGarmentScene(body, clip, method, base_obj, mhclo, options);
       });
     } else if (options.makehuman) {
       std::cerr << "MakeHuman body not found under " << mh << "; skipped\n";

@@ -9,11 +9,16 @@
 /// the rigid segments (hips, knees, elbows). docs/collision.md has the measurements.
 ///
 /// Approximations, all deliberate:
-/// - Each segment's shell is star-shaped from its superquadric's centre: along every ray it
-///   reaches the first place where the ray leaves the skin, among the triangles of the
-///   segment and of its H-Anim neighbours, and at most the segment's reach (the farthest
-///   skin it holds plus 6 cm); the neighbours' shells hold the skin beyond. Skin hidden from
-///   every centre behind other skin (the bottom of a deep crease) is held by no shell.
+/// - Each segment's shell is star-shaped from its superquadric's centre (moved inside the
+///   skin where the fit leaves it outside): along every ray it reaches the first place where
+///   the ray leaves the skin, among the triangles of the segment and of its H-Anim
+///   neighbours, and at most the segment's reach (the farthest skin it holds plus 6 cm); the
+///   neighbours' shells hold the skin beyond. A joint shell per joint between two fitted
+///   segments, star-shaped from the joint, holds the creases of bent joints, which no
+///   segment's centre sees. Skin that neither any centre nor any joint sees is held by no
+///   shell.
+/// - Where a map's rays saw no skin within the reach, a reading inside the shell is trusted
+///   only as deep as the step's motion allows (none when all four nodes are such).
 /// - A body made of overlapping closed pieces (the built-in humanoid) has surfaces inside
 ///   other pieces; the parts of them more than 1.5 mm inside another piece in the rest pose
 ///   are not skin. The pieces' overlap is taken from the rest pose.
@@ -115,6 +120,10 @@ struct SkinDistanceMap {
   std::vector<Eigen::Vector3d> skin_normal;
   /// Per node: the distance of the skin's tangent plane there from the centre [m].
   std::vector<double> skin_plane;
+  /// Per node: its ray met no skin within the segment's reach (it runs on inside the body,
+  /// where the neighbours' shells hold the skin, or leaves through an open end); its radius
+  /// is the reach or filled from its neighbours, its normal the ray [-].
+  std::vector<char> capped;
   /// A cell whose nodes' radii, and their tangent planes' predictions on the ray, differ by
   /// more than this [m] straddles a silhouette seen from the centre and is read as its
   /// nearest skin, not blended.
@@ -178,6 +187,10 @@ struct SegmentSkin {
 struct SuperquadricSegment {
   HAnimJoint segment = HAnimJoint::kHumanoidRoot;
   int joint = -1;
+  /// A joint shell: a sphere centred on `joint` (the joint between `segment` and its
+  /// nearest fitted ancestor) whose map holds both segments' skin near the joint, seen from
+  /// the joint (docs/collision.md, "Bent joints"). Its contact normal is the skin's.
+  bool joint_shell = false;
   Superquadric superquadric;  ///< frame relative to the joint's frame
   /// 1/a1, 1/a2, 1/a3 [1/m]: the map's scaling.
   Eigen::Vector3d inverse_size = Eigen::Vector3d::Ones();
@@ -197,6 +210,9 @@ struct SuperquadricSegment {
   Eigen::AlignedBox3d shell_box;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
+  /// How far the superquadric was moved from its fit so that its centre, where the map's
+  /// rays start, lies inside the skin [m] (0 for most segments; MakeHuman's hands).
+  double centre_shift = 0.0;
   int num_vertices = 0;
 };
 
@@ -214,6 +230,11 @@ struct ShellProbe {
   double shell_radius = 0.0;
   /// The skin's outward unit normal (bilinear in the map, normalised), superquadric frame [-].
   Eigen::Vector3d skin_normal = Eigen::Vector3d::UnitZ();
+  /// The reading came from capped map nodes (SkinDistanceMap::capped): `capped` when a
+  /// blend includes one or a silhouette cell's nearest skin is one, `blind` when all four
+  /// around the ray are (or that nearest one is) [-].
+  bool capped = false;
+  bool blind = false;
 };
 
 /// Probes the shell of `segment` at `q` (superquadric frame) [m]. Never throws or allocates.
@@ -239,10 +260,12 @@ class SuperquadricCollider : public BodyCollider {
               double dt) override;
 
   /// See BodyCollider. The test is against the body's shell at the start of the step (the
-  /// pose before the last Update) carrying the map of its end, the particle's predicted
-  /// normal gap being gap + h·(v − v_body)·n; the target normal velocity is
-  /// v_body·n − gap/h, the body surface's normal velocity plus the correction that brings the
-  /// particle onto the shell within the step (as sphere_contacts.cc, for a moving surface).
+  /// pose before the last Update) carrying the map of its end: a particle is in contact
+  /// when its normal gap is within the margin (whatever its velocity: cloth resting on a
+  /// swinging limb stays constrained), or its predicted gap gap + h·(v − v_body)·n is.
+  /// The target normal velocity is v_body·n − gap/h, the body surface's normal velocity plus
+  /// the correction that brings the particle onto the shell within the step (as
+  /// sphere_contacts.cc, for a moving surface).
   /// One contact per particle: its most penetrating segment. Segments whose bounding sphere
   /// (grown by the motion of the step) misses the particles' bounding box are skipped;
   /// stats().num_tests counts the particle-segment pairs examined. Preconditions: h > 0,
@@ -288,10 +311,15 @@ class SuperquadricCollider : public BodyCollider {
   void RefreshMap(int s);
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
-  /// than `reach` [m] plus their own motion over the step are skipped; returns false when
-  /// every shell was.
-  bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach, double& gap,
-                    Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+  /// than `reach` [m] plus their own motion over the step are skipped; so are blind readings
+  /// inside a shell and capped ones (ShellProbe) deeper than PlausibleDepth. Returns false
+  /// when every shell was.
+  bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
+                    double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+  /// How deep [m] a particle at `x` moving at `speed` [m/s] can have come into the shell of
+  /// `segment` within the step from outside it: what it and the body travelled, plus the
+  /// thickness and a node spacing for the map's own error.
+  double PlausibleDepth(int segment, const Eigen::Vector3d& x, double speed, bool at_end) const;
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;
@@ -310,6 +338,7 @@ class SuperquadricCollider : public BodyCollider {
   std::vector<Eigen::Isometry3d> motion_;
   std::vector<double> sweep_;
   double inverse_dt_ = 0.0;
+  double step_ = 0.0;  ///< the last Update's dt while moving, else 0 [s]
   bool has_pose_ = false;
   std::vector<int> active_;
   BodyCollisionStats stats_;

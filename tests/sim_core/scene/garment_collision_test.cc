@@ -81,13 +81,18 @@ TEST(GarmentCollision, MeshMethodKeepsTheSkirtOutOfTheWalkingAndKickingBody) {
 }
 
 // The fast method too keeps every particle within 2 mm of the true skin while the avatar
-// walks: its distance maps are redrawn from the skinned triangles every frame
-// (docs/collision.md, "Fast method"). On the kick it does not yet (29 mm measured, at the
-// back of the bent knee), so the kick is asserted for the mesh method only.
-TEST(GarmentCollision, SuperquadricMethodKeepsTheSkirtOutOfTheWalkingBody) {
-  const RunResult run = RunSkirt(BodyCollisionMethod::kSuperquadric, "walk", 2.0);
-  EXPECT_LE(run.max_depth, 0.002);
-  EXPECT_EQ(run.rolled_back, 0);
+// walks and kicks: its distance maps are redrawn from the skinned triangles every frame,
+// joint shells hold the creases of bent joints, and cloth resting on a limb stays
+// constrained (docs/collision.md, "Fast method"). The kick's strain is bounded loosely (the
+// mesh method's is 66 %): above 100 % the leg has threaded through the skirt (843 % when
+// only the predicted gap made contacts).
+TEST(GarmentCollision, SuperquadricMethodKeepsTheSkirtOutOfTheWalkingAndKickingBody) {
+  for (const char* clip : {"walk", "kick"}) {
+    const RunResult run = RunSkirt(BodyCollisionMethod::kSuperquadric, clip, 2.0);
+    EXPECT_LE(run.max_depth, 0.002) << clip;
+    EXPECT_LT(run.max_strain, std::string(clip) == "walk" ? 0.4 : 1.0) << clip;
+    EXPECT_EQ(run.rolled_back, 0) << clip;
+  }
 }
 
 // Fitting (mode A starts from it): on the standing avatar the skirt settles within the fit
