@@ -1157,16 +1157,20 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
       UsesMemory() &&
       memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    const Eigen::Vector3d x = positions.row(i).transpose();
-    if (!x.allFinite()) continue;
-    const Nearest nearest =
-        Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
-    if (!nearest.found || nearest.signed_distance >= shell) continue;
-    deepest = std::max(deepest, shell - nearest.signed_distance);
-    positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
-    const double inward =
-        (velocities.row(i).transpose() - nearest.surface_velocity).dot(nearest.normal);
-    if (inward < 0.0) velocities.row(i) -= inward * nearest.normal.transpose();
+    // In a crease between two pieces (the back of a bent knee) moving out of one can move a
+    // particle into the other: a few alternating passes, as the superquadric collider does.
+    for (int pass = 0; pass < kMeshProjectionPasses; ++pass) {
+      const Eigen::Vector3d x = positions.row(i).transpose();
+      if (!x.allFinite()) break;
+      const Nearest nearest =
+          Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
+      if (!nearest.found || nearest.signed_distance >= shell) break;
+      if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
+      positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
+      const double inward =
+          (velocities.row(i).transpose() - nearest.surface_velocity).dot(nearest.normal);
+      if (inward < 0.0) velocities.row(i) -= inward * nearest.normal.transpose();
+    }
   }
   return deepest;
 }
