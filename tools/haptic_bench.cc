@@ -608,29 +608,25 @@ struct LoopCaseOptions {
 };
 
 json LoopCase(const LoopCaseOptions& o) {
-  const double seconds = o.seconds;
-  const double round_seconds = o.round_seconds;
-  const int priority = o.priority;
   const auto variant = [&o](RealTick* real, std::int64_t margin) {
     return std::make_unique<LoopVariant>(real, margin, o.priority, o.seconds, o.attribute_gaps);
   };
-  const std::int64_t spin_margin = o.spin_margin;
   RealTick real;
   std::map<std::string, std::unique_ptr<LoopVariant>> loops;
   loops["real_sleep"] = variant(&real, 0);
-  loops["real_hybrid"] = variant(&real, spin_margin);
+  loops["real_hybrid"] = variant(&real, o.spin_margin);
   std::unique_ptr<ClockSpinVariant> spin;
   if (o.with_floor) {
     loops["bare_sleep"] = variant(nullptr, 0);
-    loops["bare_hybrid"] = variant(nullptr, spin_margin);
-    spin = std::make_unique<ClockSpinVariant>(priority, o.attribute_gaps);
+    loops["bare_hybrid"] = variant(nullptr, o.spin_margin);
+    spin = std::make_unique<ClockSpinVariant>(o.priority, o.attribute_gaps);
   }
   std::vector<std::function<void(double)>> turns;
   for (auto& [name, loop] : loops) turns.push_back([&loop](double s) { loop->Segment(s); });
   if (spin) turns.push_back([&spin](double s) { spin->Segment(s); });
 
-  const int rounds = std::max(1, static_cast<int>(std::lround(seconds / round_seconds)));
-  const double segment = seconds / rounds;
+  const int rounds = std::max(1, static_cast<int>(std::lround(o.seconds / o.round_seconds)));
+  const double segment = o.seconds / rounds;
   const costume::tools::StealTicks steal_before = costume::tools::ReadStealTicks();
   const auto start = std::chrono::steady_clock::now();
   for (int r = 0; r < rounds; ++r) {
@@ -640,8 +636,8 @@ json LoopCase(const LoopCaseOptions& o) {
 
   json result;
   result["rounds"] = rounds;
-  result["seconds_each"] = seconds;
-  result["spin_us"] = Us(spin_margin);
+  result["seconds_each"] = o.seconds;
+  result["spin_us"] = Us(o.spin_margin);
   result["steal_over_the_case"] = StealJson(
       costume::tools::StealDelta(steal_before, costume::tools::ReadStealTicks()), wall);
   json side_by_side;
