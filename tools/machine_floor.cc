@@ -23,18 +23,6 @@ namespace {
 using sim::kNanosPerSecond;
 using sim::MonotonicNs;
 
-/// The steal column of one "cpu..." line, or −1 when it has fewer than 8 numbers.
-std::int64_t StealOfLine(std::string_view line) {
-  std::istringstream fields{std::string(line)};
-  std::string name;
-  fields >> name;
-  std::int64_t value = 0;
-  for (int column = 1; column <= 8; ++column) {
-    if (!(fields >> value)) return -1;
-  }
-  return value;
-}
-
 /// The next unsigned decimal number in `*text` (skipping spaces), consumed; −1 if none.
 std::int64_t ParseNumber(std::string_view* text) {
   std::size_t i = 0;
@@ -51,48 +39,50 @@ std::int64_t ParseNumber(std::string_view* text) {
   return value;
 }
 
-}  // namespace
-
-StealTicks ParseStealTicks(std::string_view proc_stat) {
-  StealTicks ticks;
-  while (!proc_stat.empty()) {
-    const std::size_t end = std::min(proc_stat.find('\n'), proc_stat.size());
-    const std::string_view line = proc_stat.substr(0, end);
-    proc_stat.remove_prefix(std::min(end + 1, proc_stat.size()));
-    if (line.substr(0, 3) != "cpu") continue;
-    const std::int64_t steal = StealOfLine(line);
-    if (steal < 0) continue;
-    if (line.size() > 3 && line[3] == ' ') {
-      ticks.total = steal;
-      ticks.available = true;
-    } else {
-      ticks.per_cpu.push_back(steal);
-    }
-  }
-  return ticks;
-}
-
-int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
-                   std::int64_t* total) {
-  int count = 0;
+/// Calls `take(cpu, steal)` for each "cpu..." line of /proc/stat text that has a steal column
+/// (the 8th number): cpu −1 for the aggregate "cpu" line, N for "cpuN". Never allocates.
+template <class Take>
+void ForEachCpuSteal(std::string_view proc_stat, Take take) {
   while (!proc_stat.empty()) {
     const std::size_t end = std::min(proc_stat.find('\n'), proc_stat.size());
     std::string_view line = proc_stat.substr(0, end);
     proc_stat.remove_prefix(std::min(end + 1, proc_stat.size()));
     if (line.substr(0, 3) != "cpu") continue;
     line.remove_prefix(3);
-    int cpu = -1;  // −1: the aggregate line
+    int cpu = -1;
     if (!line.empty() && line[0] != ' ') cpu = static_cast<int>(ParseNumber(&line));
     std::int64_t value = -1;
     for (int column = 1; column <= 8; ++column) value = ParseNumber(&line);
-    if (value < 0) continue;
+    if (value >= 0) take(cpu, value);
+  }
+}
+
+}  // namespace
+
+StealTicks ParseStealTicks(std::string_view proc_stat) {
+  StealTicks ticks;
+  ForEachCpuSteal(proc_stat, [&ticks](int cpu, std::int64_t steal) {
     if (cpu < 0) {
-      *total = value;
+      ticks.total = steal;
+      ticks.available = true;
+    } else {
+      ticks.per_cpu.push_back(steal);
+    }
+  });
+  return ticks;
+}
+
+int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
+                   std::int64_t* total) {
+  int count = 0;
+  ForEachCpuSteal(proc_stat, [&](int cpu, std::int64_t steal) {
+    if (cpu < 0) {
+      *total = steal;
     } else if (cpu < max_cpus) {
-      per_cpu[cpu] = value;
+      per_cpu[cpu] = steal;
       ++count;
     }
-  }
+  });
   return count;
 }
 

@@ -584,6 +584,24 @@ std::vector<std::vector<int>> Neighbours(const std::vector<SuperquadricSegment>&
 /// between the triangle's normal and the ray to it reaches this [-].
 constexpr double kViewerCosine = 0.3;
 
+/// Appends the avatar triangle `tri` (with its burial `b`) to `skin`, numbering corners the
+/// skin has not seen yet through `local` (avatar vertex -> skin vertex, -1: not yet).
+void AddSkinTriangle(const Eigen::Vector3i& tri, const std::array<double, 6>& b,
+                     std::vector<int>& local, SegmentSkin& skin) {
+  Eigen::Vector3i corners;
+  for (int m = 0; m < 3; ++m) {
+    int& index = local[tri[m]];
+    if (index < 0) {
+      index = static_cast<int>(skin.vertices.size());
+      skin.vertices.push_back(tri[m]);
+    }
+    corners[m] = index;
+  }
+  skin.triangles.push_back(corners);
+  skin.burial.push_back(b);
+  skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
+}
+
 /// Gives every skin triangle to the maps of the segments of its corners and of their
 /// neighbours (Neighbours). A map's ray stops where it first leaves the skin, so a
 /// segment's map must hold the skin around it, not only its own: the skinning weights
@@ -636,20 +654,8 @@ void AssignSkin(const Avatar& avatar, const std::vector<std::array<double, 6>>& 
     }
     for (std::size_t s = 0; s < segments.size(); ++s) {
       if (!chosen[s]) continue;
-      SegmentSkin& skin = segments[s].skin;
       if (local[s].empty()) local[s].assign(avatar.num_vertices(), -1);
-      Eigen::Vector3i corners;
-      for (int m = 0; m < 3; ++m) {
-        int& index = local[s][tri[m]];
-        if (index < 0) {
-          index = static_cast<int>(skin.vertices.size());
-          skin.vertices.push_back(tri[m]);
-        }
-        corners[m] = index;
-      }
-      skin.triangles.push_back(corners);
-      skin.burial.push_back(b);
-      skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
+      AddSkinTriangle(tri, b, local[s], segments[s].skin);
     }
   }
 }
@@ -785,18 +791,7 @@ void AddJointShells(const Avatar& avatar, const std::vector<std::array<double, 6
         nearest = std::min(nearest, (rest.row(tri[c]).transpose() - centre).norm());
       }
       if (!mine || nearest > keep) continue;
-      Eigen::Vector3i corners;
-      for (int m = 0; m < 3; ++m) {
-        int& index = local[tri[m]];
-        if (index < 0) {
-          index = static_cast<int>(skin.vertices.size());
-          skin.vertices.push_back(tri[m]);
-        }
-        corners[m] = index;
-      }
-      skin.triangles.push_back(corners);
-      skin.burial.push_back(b);
-      skin.partly_buried.push_back(*std::min_element(b.begin(), b.end()) < 0.0 ? 1 : 0);
+      AddSkinTriangle(tri, b, local, skin);
     }
     segments.push_back(std::move(shell));
   }

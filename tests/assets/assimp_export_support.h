@@ -51,6 +51,18 @@ inline const char* ConversionName(Conversion conversion) {
   return "?";
 }
 
+/// Every conversion, in the order the tests run them.
+inline constexpr Conversion kConversions[] = {Conversion::kFbxBinaryCentimetres,
+                                              Conversion::kFbxAsciiMetresZUp,
+                                              Conversion::kColladaCentimetres};
+
+/// The converted file's name (its extension tells assimp the format).
+inline std::string ConvertedName(Conversion conversion) {
+  return conversion == Conversion::kColladaCentimetres
+             ? "man.dae"
+             : (conversion == Conversion::kFbxBinaryCentimetres ? "man.fbx" : "man_ascii.fbx");
+}
+
 namespace detail {
 
 inline std::string ReadBytes(const std::filesystem::path& path) {

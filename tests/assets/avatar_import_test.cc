@@ -86,16 +86,6 @@ TEST(AvatarImport, SkinningTheRestPoseGivesTheRestSurface) {
   EXPECT_LT((skinned - avatar->rest_vertices()).cwiseAbs().maxCoeff(), 1e-9);
 }
 
-constexpr Conversion kConversions[] = {Conversion::kFbxBinaryCentimetres,
-                                       Conversion::kFbxAsciiMetresZUp,
-                                       Conversion::kColladaCentimetres};
-
-std::string ConvertedName(Conversion conversion) {
-  return conversion == Conversion::kColladaCentimetres
-             ? "man.dae"
-             : (conversion == Conversion::kFbxBinaryCentimetres ? "man.fbx" : "man_ascii.fbx");
-}
-
 /// The largest distance from a point of `points` to its nearest point of `reference` [m].
 double FarthestFromNearest(const sim::Points& points, const sim::Points& reference) {
   double farthest = 0.0;

@@ -166,16 +166,6 @@ TEST(ClipImport, CesiumManWalkIsTwoSeconds) {
   EXPECT_TRUE(clip.loops);
 }
 
-constexpr Conversion kConversions[] = {Conversion::kFbxBinaryCentimetres,
-                                       Conversion::kFbxAsciiMetresZUp,
-                                       Conversion::kColladaCentimetres};
-
-std::string ConvertedName(Conversion conversion) {
-  return conversion == Conversion::kColladaCentimetres
-             ? "man.dae"
-             : (conversion == Conversion::kFbxBinaryCentimetres ? "man.fbx" : "man_ascii.fbx");
-}
-
 /// Each frame's world positions of the root and both ankles [m].
 std::vector<std::array<Eigen::Vector3d, 3>> RootAndAnkles(const sim::Clip& clip) {
   const sim::Skeleton& s = *clip.skeleton;
