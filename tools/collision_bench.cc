@@ -23,6 +23,7 @@
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/scene/garment_fit.h"
 #include "sim_core/scene/simulation.h"
@@ -43,6 +44,9 @@ struct Options {
   std::string solver = "pcg";
   std::string makehuman_garment = "female_casualsuit02";
   bool makehuman = true;
+  /// The collision methods run, in this order ("superquadric", "mesh"); the speed ratio is
+  /// printed only when both run.
+  std::vector<std::string> methods{"superquadric", "mesh"};
   /// Calls per mode of the cloth-side regions' comparison (0: skip it).
   int regions_reps = 100;
 };
@@ -119,6 +123,12 @@ sim::SceneDescription MakeHumanGarmentScene(std::shared_ptr<const sim::Avatar> b
   return scene;
 }
 
+/// Memory the superquadric collider's stored map drawings use [MB] (0 for the mesh method).
+double MapCacheMegabytes(const sim::Simulation& simulation) {
+  const auto* collider = dynamic_cast<const sim::SuperquadricCollider*>(simulation.body_collider());
+  return collider ? collider->map_cache_stats().bytes_used / 1048576.0 : 0.0;
+}
+
 /// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 json Measure(const std::string& avatar_name, const sim::SceneDescription& scene) {
   auto simulation = sim::Simulation::Build(scene);
@@ -132,6 +142,13 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   int rolled_back = 0, unconverged = 0;
   const int fit_frames = static_cast<int>(scene.avatar->motion.fit_time * scene.frame_rate);
   sim::Points cloth;
+  // The first pass through the clip draws every map; later passes may reuse the drawings
+  // (SuperquadricColliderOptions::map_cache_bytes), so it is reported apart.
+  const auto& clip = scene.avatar->clip;
+  const int first_pass_frames =
+      clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
+  std::vector<double> first_pass_collision_ms;
+  long long maps_drawn = 0, maps_reused = 0;
   for (int f = 0; f < simulation->num_frames(); ++f) {
     const double cpu_start = ThreadCpuMs();
     const sim::FrameReport report = simulation->AdvanceFrame();
@@ -139,6 +156,11 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     rolled_back += report.rolled_back_steps;
     unconverged += report.converged ? 0 : 1;
     if (f < fit_frames) continue;  // the clip is measured, not the fitting
+    if (static_cast<int>(total_ms.size()) < first_pass_frames) {
+      first_pass_collision_ms.push_back(report.collision_ms);
+    }
+    maps_drawn += report.maps_drawn;
+    maps_reused += report.maps_reused;
     total_ms.push_back(report.wall_ms);
     cpu_ms.push_back(cpu);
     collision_ms.push_back(report.collision_ms);
@@ -162,6 +184,10 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"avatar_vertices", motion.avatar().num_vertices()},
           {"frames_measured", total_ms.size()},
           {"collision_ms_median", Median(collision_ms)},
+          {"collision_ms_median_first_pass", Median(first_pass_collision_ms)},
+          {"maps_drawn", maps_drawn},
+          {"maps_reused", maps_reused},
+          {"map_cache_mb", MapCacheMegabytes(*simulation)},
           {"total_ms_median", Median(total_ms)},
           {"total_cpu_ms_median", Median(cpu_ms)},
           {"faster_than_real_time_60hz", Median(total_ms) < 1000.0 / 60.0},
@@ -174,9 +200,13 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
 
 /// Both methods on one avatar, side by side; `make_scene` builds the scene per method.
 template <typename MakeScene>
-void RunAvatar(const std::string& name, MakeScene make_scene) {
+void RunAvatar(const std::string& name, const std::vector<std::string>& methods,
+               MakeScene make_scene) {
   json runs = json::array();
-  for (auto method : {sim::BodyCollisionMethod::kSuperquadric, sim::BodyCollisionMethod::kMesh}) {
+  for (const std::string& method_name : methods) {
+    const sim::BodyCollisionMethod method = method_name == "mesh"
+                                                ? sim::BodyCollisionMethod::kMesh
+                                                : sim::BodyCollisionMethod::kSuperquadric;
     try {
       json run = Measure(name, make_scene(method));
       std::cout << run.dump() << std::endl;
@@ -191,6 +221,7 @@ void RunAvatar(const std::string& name, MakeScene make_scene) {
       return;
     }
   }
+  if (runs.size() != 2) return;
   const double fast = runs[0]["collision_ms_median"], accurate = runs[1]["collision_ms_median"];
   std::cout << json{{"avatar", name},
                     {"superquadric_speedup_over_mesh", fast > 0 ? accurate / fast : 0.0},
@@ -218,6 +249,10 @@ int main(int argc, char** argv) {
   app.add_option("--data", options.data_dir, "Folder of the shared assets (MakeHuman)");
   app.add_option("--makehuman-garment", options.makehuman_garment,
                  "MakeHuman garment folder under makehuman/clothes");
+  app.add_option("--methods", options.methods,
+                 "Collision methods to run, in order (the speed ratio needs both)")
+      ->check(CLI::IsMember({"superquadric", "mesh"}))
+      ->capture_default_str();
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
   app.add_option("--regions-reps", options.regions_reps,
                  "Calls per mode of the adaptive regions' comparison on a flat and a folded "
@@ -229,7 +264,7 @@ int main(int argc, char** argv) {
     auto humanoid = sim::MakeHumanoid();
     auto clip = std::make_shared<const sim::Clip>(
         sim::MakeBuiltInClip(options.clip, humanoid->shared_skeleton()));
-    RunAvatar("builtin humanoid", [&](sim::BodyCollisionMethod method) {
+    RunAvatar("builtin humanoid", options.methods, [&](sim::BodyCollisionMethod method) {
       return GarmentScene(humanoid, clip, method, options);
     });
     const std::filesystem::path mh = std::filesystem::path(options.data_dir) / "makehuman";
@@ -237,13 +272,13 @@ int main(int argc, char** argv) {
       auto body = assets::LoadMakeHumanAvatar((mh / "body" / "base.obj").string(),
                                               (mh / "body" / "default.mhskel").string(),
                                               (mh / "body" / "default_weights.mhw").string());
-      RunAvatar("makehuman", [&](sim::BodyCollisionMethod method) {
+      RunAvatar("makehuman", options.methods, [&](sim::BodyCollisionMethod method) {
         return GarmentScene(body, clip, method, options);
       });
       const std::filesystem::path mhclo = mh / "clothes" / options.makehuman_garment /
                                           (options.makehuman_garment + ".mhclo");
       const assets::ObjMesh base_obj = assets::ReadObj((mh / "body" / "base.obj").string());
-      RunAvatar("makehuman + " + options.makehuman_garment, [&](sim::BodyCollisionMethod method) {
+      RunAvatar("makehuman + " + options.makehuman_garment, options.methods, [&](sim::BodyCollisionMethod method) {
         return MakeHumanGarmentScene(body, clip, method, base_obj, mhclo, options);
       });
     } else if (options.makehuman) {

@@ -26,6 +26,10 @@ struct BodyCollisionStats {
   /// triangle), the work the paper's adaptive regions save.
   long long num_tests = 0;
   int num_contacts = 0;
+  /// Superquadric method: distance maps drawn from the skin, and maps that reused a stored
+  /// drawing of the same skin (skin_map_cache.h), since the last FindContacts began.
+  int num_maps_drawn = 0;
+  int num_maps_reused = 0;
 };
 
 class BodyCollider {

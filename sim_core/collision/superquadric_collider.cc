@@ -43,6 +43,7 @@ void ValidateOptions(const SuperquadricColliderOptions& options, const std::stri
   }
   // Below 2 mm a torso's map would hold hundreds of thousands of nodes.
   RequireInRange(where + ": map_spacing", options.map_spacing, 0.002, 0.2, "m");
+  RequireInRange(where + ": map_cache_quantum", options.map_cache_quantum, 1e-9, 0.001, "m");
 }
 
 std::vector<SegmentSuperquadricFit> FitGroups(const Avatar& avatar, const SegmentGroups& groups,
@@ -473,6 +474,42 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
   const double shell = thickness / kMinSkinCosine;
   segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
   segment.bounding_radius = farthest + shell;
+}
+
+/// Stores the map of `segment` as drawn: its nodes into `nodes` and its counters and
+/// bounds into `stored`.
+void SaveDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored,
+                 StoredMapNode* nodes) {
+  const SkinDistanceMap& map = segment.map;
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    const auto radius = static_cast<float>(map.skin_radius[node]);
+    nodes[node].radius = map.capped[node] ? -radius : radius;
+    for (int a = 0; a < 3; ++a) {
+      nodes[node].normal[a] = static_cast<std::int16_t>(
+          std::lround(map.skin_normal[node][a] * StoredMapNode::kNormalScale));
+    }
+  }
+  stored.num_filled_nodes = map.num_filled_nodes;
+  stored.shell_box = segment.shell_box;
+  stored.bounding_radius = segment.bounding_radius;
+}
+
+/// Puts a stored drawing back into the map of `segment`: what DrawMap drew from the same
+/// skin, within the stored precision.
+void RestoreDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
+                    SuperquadricSegment& segment) {
+  SkinDistanceMap& map = segment.map;
+  for (int node = 0; node < map.num_nodes(); ++node) {
+    const StoredMapNode& n = nodes[node];
+    map.capped[node] = std::signbit(n.radius);
+    map.skin_radius[node] = std::abs(n.radius);
+    map.skin_normal[node] = Eigen::Vector3d(n.normal[0], n.normal[1], n.normal[2]) /
+                            StoredMapNode::kNormalScale;
+    map.skin_plane[node] = map.skin_radius[node] * map.skin_normal[node].dot(map.ray[node]);
+  }
+  map.num_filled_nodes = stored.num_filled_nodes;
+  segment.shell_box = stored.shell_box;
+  segment.bounding_radius = stored.bounding_radius;
 }
 
 /// Per H-Anim joint the index of the segment whose map its vertices are drawn into: its
@@ -933,6 +970,7 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   RequireNonNegative(where + ": thickness", settings.thickness, "m");
   RequireNonNegative(where + ": friction", settings.friction, "");
   ValidateOptions(options, where);
+  map_cache_ = SkinMapCache(options.map_cache_bytes, options.map_cache_quantum);
   for (const SegmentSuperquadricFit& fit : FitGroups(*avatar_, GroupVertices(*avatar_), options)) {
     if (fit.fitted) {
       segments_.push_back(MakeSegment(fit));
@@ -960,6 +998,8 @@ SuperquadricCollider::SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
   motion_.assign(n, Eigen::Isometry3d::Identity());
   sweep_.assign(n, 0.0);
   active_.reserve(n);
+  active_centre_.resize(n);
+  active_bound_.resize(n);
   SetPose(avatar_->skeleton().rest_world(), end_);
   start_ = end_;
   MoveSkin(avatar_->rest_vertices());
@@ -1008,8 +1048,20 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
 }
 
 void SuperquadricCollider::RefreshMap(int s) {
-  DrawMap(segments_[s], settings_.thickness);
+  SuperquadricSegment& segment = segments_[s];
   stale_[s] = 0;
+  const std::uint64_t key = map_cache_.enabled() ? map_cache_.Key(s, segment.skin.local) : 0;
+  if (const StoredMapDrawing* stored = map_cache_.Find(key)) {
+    RestoreDrawing(*stored, map_cache_.Nodes(*stored), segment);
+    ++stats_.num_maps_reused;
+    return;
+  }
+  DrawMap(segment, settings_.thickness);
+  ++stats_.num_maps_drawn;
+  StoredMapNode* nodes = nullptr;
+  if (StoredMapDrawing* stored = map_cache_.Reserve(key, segment.map.num_nodes(), nodes)) {
+    SaveDrawing(segment, *stored, nodes);
+  }
 }
 
 void SuperquadricCollider::RefreshAllMaps() {
@@ -1064,7 +1116,10 @@ void SuperquadricCollider::CullSegments(const std::vector<Placement>& placements
     const Eigen::Vector3d centre = placements[s].to_world.translation();
     const Eigen::Vector3d nearest = centre.cwiseMax(lo).cwiseMin(hi);
     const double bound = segments_[s].bounding_radius + reach + sweep_[s];
-    if ((centre - nearest).squaredNorm() <= bound * bound) active_.push_back(static_cast<int>(s));
+    if ((centre - nearest).squaredNorm() > bound * bound) continue;
+    active_.push_back(static_cast<int>(s));
+    active_centre_[active_.size() - 1] = centre;
+    active_bound_[active_.size() - 1] = segments_[s].bounding_radius + sweep_[s];
   }
 }
 
@@ -1085,12 +1140,15 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
   gap = std::numeric_limits<double>::infinity();
   int deepest = -1;
   ShellProbe best;
-  for (int s : active_) {
-    ++stats_.num_tests;
+  stats_.num_tests += static_cast<long long>(active_.size());
+  for (std::size_t a = 0; a < active_.size(); ++a) {
+    // The active segments' centres and bounds sit in two small arrays: most particles are
+    // far from most segments, and this test is all they cost.
+    const double bound = active_bound_[a] + reach;
+    if ((x - active_centre_[a]).squaredNorm() > bound * bound) continue;
+    const int s = active_[a];
     const SuperquadricSegment& segment = segments_[s];
     const double grow = reach + sweep_[s];
-    const double bound = segment.bounding_radius + grow;
-    if ((x - placement[s].to_world.translation()).squaredNorm() > bound * bound) continue;
     const Eigen::Vector3d q = placement[s].to_local * x;
     const auto outside = [&] {
       return (q.array() < segment.shell_box.min().array() - grow).any() ||
@@ -1101,6 +1159,7 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
       // The first particle near a segment since the last Update redraws its map, which
       // tightens its box.
       RefreshMap(s);
+      active_bound_[a] = segment.bounding_radius + sweep_[s];
       if (outside()) continue;
     }
     ShellProbe probe;

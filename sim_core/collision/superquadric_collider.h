@@ -49,6 +49,7 @@
 #include "sim_core/avatar/avatar.h"
 #include "sim_core/avatar/hanim.h"
 #include "sim_core/collision/body_collider.h"
+#include "sim_core/collision/skin_map_cache.h"
 #include "sim_core/collision/superquadric.h"
 
 namespace costume::sim {
@@ -65,6 +66,13 @@ struct SuperquadricColliderOptions {
   /// Where contact normals come from (see the file comment).
   enum class ContactNormal { kSuperquadricGradient, kSkin };
   ContactNormal contact_normal = ContactNormal::kSuperquadricGradient;
+  /// Memory for drawings of the maps kept for reuse when a segment's skin comes back
+  /// (skin_map_cache.h: a looping clip on the simulation's frame grid) [bytes]; 0 draws
+  /// every map afresh. Reserved at construction, used as drawings are stored.
+  std::size_t map_cache_bytes = std::size_t{256} << 20;
+  /// A stored drawing is reused for a skin whose every corner, in the segment's frame, lies
+  /// within this of the skin it was drawn from [m] in (0, 0.001].
+  double map_cache_quantum = 1e-5;
 };
 
 /// The superquadric fit of one H-Anim segment of an avatar.
@@ -293,6 +301,8 @@ class SuperquadricCollider : public BodyCollider {
   /// A segment's superquadric frame in the world at the start / end of the coming step.
   const Eigen::Isometry3d& start_frame(int segment) const { return start_[segment].to_world; }
   const Eigen::Isometry3d& end_frame(int segment) const { return end_[segment].to_world; }
+  /// The stored drawings' counters (SuperquadricColliderOptions::map_cache_bytes).
+  const SkinMapCacheStats& map_cache_stats() const { return map_cache_.stats(); }
 
  private:
   /// A segment's superquadric frame in the world and its inverse.
@@ -307,7 +317,8 @@ class SuperquadricCollider : public BodyCollider {
                     const Eigen::Vector3d& hi, double reach);
   /// Moves every segment's skin corners into its end-of-step frame and marks its map stale.
   void MoveSkin(const Points& skinned);
-  /// Redraws the map of segment `s` from its skin corners.
+  /// Brings the map of segment `s` up to its skin corners: a stored drawing of the same
+  /// skin, or a new drawing (stored while the cache has room).
   void RefreshMap(int s);
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
@@ -340,7 +351,12 @@ class SuperquadricCollider : public BodyCollider {
   double inverse_dt_ = 0.0;
   double step_ = 0.0;  ///< the last Update's dt while moving, else 0 [s]
   bool has_pose_ = false;
+  /// The segments CullSegments kept, and per entry its centre in the placement culled
+  /// [m] and bounding radius plus sweep [m] (tightened when its map is redrawn).
   std::vector<int> active_;
+  std::vector<Eigen::Vector3d> active_centre_;
+  std::vector<double> active_bound_;
+  SkinMapCache map_cache_;
   BodyCollisionStats stats_;
 };
 

@@ -329,6 +329,8 @@ void Simulation::StepOnce(FrameReport& report) {
       state_.positions.row(a.particle) = (avatar_->joint_world()[a.joint] * a.local).transpose();
     }
     report.collision_ms += MillisecondsSince(start);
+    report.maps_drawn += body_->stats().num_maps_drawn;
+    report.maps_reused += body_->stats().num_maps_reused;
   }
   if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
   if (self_collision_) {

@@ -59,6 +59,10 @@ struct FrameReport {
   double max_penetration = 0.0;
   /// Time spent finding contacts with the avatar and correcting positions [ms].
   double collision_ms = 0.0;
+  /// Superquadric method: distance maps drawn from the skin, and maps that reused a stored
+  /// drawing of the same skin, summed over the frame's steps (BodyCollisionStats).
+  int maps_drawn = 0;
+  int maps_reused = 0;
   /// Time spent on self-collision [ms] (0 when the scene switches it off).
   double self_collision_ms = 0.0;
   /// Cloth–cloth collisions self-collision could not resolve, summed over the steps.

@@ -262,6 +262,66 @@ TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
   }
 }
 
+/// The capsule's skin swollen by `swell` [m] along its outward normal.
+Points SwollenSkin(const Avatar& avatar, const Eigen::Isometry3d& arm, double swell) {
+  Points skinned = avatar.rest_vertices();
+  const Eigen::Isometry3d to_arm = arm.inverse();
+  for (Eigen::Index v = 0; v < skinned.rows(); ++v) {
+    const Eigen::Vector3d local = to_arm * skinned.row(v).transpose();
+    const Eigen::Vector3d p = local - kCentre;
+    const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
+    const Eigen::Vector3d radial = p - Eigen::Vector3d(0, s, 0);
+    const Eigen::Vector3d out = radial.norm() < 1e-9
+                                    ? Eigen::Vector3d(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0)
+                                    : Eigen::Vector3d(radial.normalized());
+    skinned.row(v) = (arm * (local + swell * out)).transpose();
+  }
+  return skinned;
+}
+
+// Drawings are stored for reuse (skin_map_cache.h). The skin swollen by 1 cm, then 2 cm,
+// then 1 cm again: the third map comes from the store, the second (another skin) does not,
+// and each time the points are projected onto the swollen capsule's shell (closed form).
+TEST_F(Fixture, AStoredDrawingIsReusedOnlyForTheSameSkin) {
+  const std::vector<Eigen::Vector3d> local = {SidePoint(0.02, 0.9, 0.0),
+                                              SidePoint(-0.05, -2.0, 0.0)};
+  const auto project = [&](double swell, int expect_drawn, int expect_reused) {
+    collider.Update(avatar->skeleton().rest_world(), SwollenSkin(*avatar, arm, swell), 0.01);
+    Points positions = At(local, arm);
+    Points velocities = Points::Zero(2, 3);
+    std::vector<Contact> contacts;
+    collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
+    collider.ProjectOut(positions, velocities);
+    EXPECT_EQ(collider.stats().num_maps_drawn, expect_drawn) << swell;
+    EXPECT_EQ(collider.stats().num_maps_reused, expect_reused) << swell;
+    for (int i = 0; i < 2; ++i) {
+      const Eigen::Vector3d moved = arm.inverse() * positions.row(i).transpose();
+      EXPECT_NEAR(CapsuleDistance(moved), swell + kThickness, 0.001) << swell << " " << i;
+    }
+  };
+  project(0.01, 1, 0);
+  project(0.02, 1, 0);
+  project(0.01, 0, 1);
+  EXPECT_EQ(collider.map_cache_stats().num_hits, 1);
+  // Without a store every map is drawn, and the shells agree.
+  SuperquadricColliderOptions options;
+  options.map_cache_bytes = 0;
+  SuperquadricCollider fresh(avatar, settings, options);
+  fresh.Update(avatar->skeleton().rest_world(), SwollenSkin(*avatar, arm, 0.01), 0.01);
+  const Points positions = At(local, arm);
+  const Points velocities = Points::Zero(2, 3);
+  std::vector<Contact> stored_contacts, fresh_contacts;
+  collider.FindContacts(positions, velocities, 0.01, 0.001, stored_contacts);
+  fresh.FindContacts(positions, velocities, 0.01, 0.001, fresh_contacts);
+  EXPECT_EQ(fresh.stats().num_maps_reused, 0);
+  ASSERT_EQ(stored_contacts.size(), fresh_contacts.size());
+  for (std::size_t c = 0; c < fresh_contacts.size(); ++c) {
+    EXPECT_NEAR(stored_contacts[c].target_normal_velocity,
+                fresh_contacts[c].target_normal_velocity, 1e-4);  // 1 µm over 10 ms
+    EXPECT_LT((stored_contacts[c].normal - fresh_contacts[c].normal).norm(), 1e-4);
+  }
+}
+
 TEST_F(Fixture, AParticleFiveCentimetresOutsideGetsNoContactAndStays) {
   collider.Update(avatar->skeleton().rest_world(), unused_skin, 0.01);
   Points positions = At({SidePoint(0.0, 1.0, 0.05), SidePoint(0.1, -2.0, 0.05)}, arm);
@@ -361,6 +421,12 @@ TEST_F(Fixture, FindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
   collider.ProjectOut(positions, velocities);
   collider.RefreshAllMaps();
+  // The same skin again: its stored drawing is put back, without allocating.
+  collider.Update(world, skinned, 0.01);
+  contacts.clear();
+  collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
+  collider.ProjectOut(positions, velocities);
+  EXPECT_GE(collider.stats().num_maps_reused, 1);
   g_count_allocations = false;
   EXPECT_EQ(g_num_allocations, 0);
 }
@@ -421,6 +487,9 @@ TEST(SuperquadricCollider, RefusesBadInput) {
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), settings), InputError);
   SuperquadricColliderOptions options;
   options.map_spacing = 0.001;  // below 2 mm
+  EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), {}, options), InputError);
+  options = {};
+  options.map_cache_quantum = 0.0;
   EXPECT_THROW(SuperquadricCollider(MakeCapsuleAvatar(), {}, options), InputError);
 }
 
