@@ -39,13 +39,15 @@ struct StoredMapDrawing {
   double bounding_radius = 0.0;
 };
 
-/// One node of a drawing as stored, 12 bytes: the skin's radius along the node's ray in
-/// single precision (6 nm at 10 cm), negative when the node is capped (its ray saw no
-/// skin), and the skin's unit normal in steps of 1/32767 (0.002°). The tangent plane's
-/// distance is the radius times the normal's cosine with the ray, and is not stored.
+/// One node of a drawing as stored and read, 16 bytes: the skin's radius along the node's
+/// ray [m] in single precision (6 nm at 10 cm), negative when the node is capped (its ray
+/// saw no skin), the distance of the skin's tangent plane there from the centre [m], and the
+/// skin's unit normal in steps of 1/32767 (0.002°).
 struct StoredMapNode {
   float radius = 0.0f;
+  float plane = 0.0f;
   std::array<std::int16_t, 3> normal{};
+  std::int16_t unused = 0;
   static constexpr double kNormalScale = 32767.0;
 };
 

@@ -152,43 +152,53 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
     map.neighbours.insert(map.neighbours.end(), list.begin(), list.end());
     map.neighbour_start.push_back(static_cast<int>(map.neighbours.size()));
   }
-  map.skin_radius = map.surface_radius;
-  map.skin_normal = map.ray;
-  map.skin_plane = map.surface_radius;
-  map.capped.assign(map.num_nodes(), 0);
+  for (int f = 0; f < 6; ++f) {
+    map.face_offset[f] = map.num_face_points;
+    map.num_face_points += static_cast<int>(map.face_nodes[f].size());
+  }
   map.silhouette_jump = kSilhouetteSlope * spacing;
   map.spacing = spacing;
   map.size = size;
   return map;
 }
 
-/// The skin's radius along the unit ray `d` as node `node` predicts it: where `d` meets the
-/// skin's tangent plane at the node (its own radius where that plane nearly contains `d`)
-/// [m].
-double PlaneRadius(const SkinDistanceMap& map, int node, const Eigen::Vector3d& d) {
-  const double cosine = map.skin_normal[node].dot(d);
-  return cosine > kMinSkinCosine ? map.skin_plane[node] / cosine : map.skin_radius[node];
+/// A stored node's skin radius [m] and whether it is capped (its ray saw no skin).
+double NodeRadius(const StoredMapNode& node) { return std::abs(node.radius); }
+bool NodeCapped(const StoredMapNode& node) { return std::signbit(node.radius); }
+Eigen::Vector3d NodeNormal(const StoredMapNode& node) {
+  return Eigen::Vector3d(node.normal[0], node.normal[1], node.normal[2]) *
+         (1.0 / StoredMapNode::kNormalScale);
 }
 
-/// The map read on the unit ray `d` (superquadric frame): the skin's radius [m] and its
-/// (unnormalised) normal, bilinear in the four nodes around `d`.
-void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
-            const Eigen::Vector3d& d, double& radius, Eigen::Vector3d& normal, bool& capped,
-            bool& blind) {
+/// The skin's radius along the unit ray `d` as `node` predicts it: where `d` meets the
+/// skin's tangent plane at the node (its own radius where that plane nearly contains `d`)
+/// [m].
+double PlaneRadius(const StoredMapNode& node, const Eigen::Vector3d& d) {
+  const double cosine = NodeNormal(node).dot(d);
+  return cosine > kMinSkinCosine ? node.plane / cosine : NodeRadius(node);
+}
+
+/// The map of `segment` read on the unit ray `d` (superquadric frame): the skin's radius
+/// [m] and its (unnormalised) normal, bilinear in the four nodes around `d`.
+void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double& radius,
+            Eigen::Vector3d& normal, bool& capped, bool& blind) {
+  const SkinDistanceMap& map = segment.map;
   int face = 0;
   double s = 0.0, t = 0.0;
-  LocateOnBox(d.cwiseProduct(inverse_size), face, s, t);
+  LocateOnBox(d.cwiseProduct(segment.inverse_size), face, s, t);
   const int i = face / 2, nj = map.intervals[(i + 1) % 3], nk = map.intervals[(i + 2) % 3];
   const double fu = 0.5 * (s + 1.0) * nj, fv = 0.5 * (t + 1.0) * nk;
   const int u = std::clamp(static_cast<int>(fu), 0, nj - 1);
   const int v = std::clamp(static_cast<int>(fv), 0, nk - 1);
   const double wu = fu - u, wv = fv - v;
-  const int* row = map.face_nodes[face].data() + u * (nk + 1) + v;
-  const int n[4] = {row[0], row[1], row[nk + 1], row[nk + 2]};
-  const auto& r = map.skin_radius;
-  const auto& m = map.skin_normal;
-  if (std::max({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) -
-          std::min({r[n[0]], r[n[1]], r[n[2]], r[n[3]]}) > map.silhouette_jump) {
+  // The face's grid points are stored row by row: the cell's four nodes are two pairs of
+  // neighbours in memory.
+  const StoredMapNode* row = segment.nodes + map.face_offset[face] + u * (nk + 1) + v;
+  const StoredMapNode* n[4] = {row, row + 1, row + nk + 1, row + nk + 2};
+  const double r[4] = {NodeRadius(*n[0]), NodeRadius(*n[1]), NodeRadius(*n[2]),
+                       NodeRadius(*n[3])};
+  if (std::max({r[0], r[1], r[2], r[3]}) - std::min({r[0], r[1], r[2], r[3]}) >
+      map.silhouette_jump) {
     // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
     // from the calf's centre), and each node's tangent plane predicts the others' radii, or
     // the cell straddles a silhouette seen from the centre, some rays leaving the skin near,
@@ -197,20 +207,21 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
     // the node nearest the ray instead left the skin as near at the crease but made the
     // shell a step that snagged cloth: 280 % strain on the walk.)
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    int nearest = n[0];
+    int nearest = 0;
     for (int k = 0; k < 4; ++k) {
-      const double predicted = PlaneRadius(map, n[k], d);
+      const double predicted = PlaneRadius(*n[k], d);
       hi = std::max(hi, predicted);
-      if (predicted < lo) lo = predicted, nearest = n[k];
+      if (predicted < lo) lo = predicted, nearest = k;
     }
     if (hi - lo > map.silhouette_jump) {
       radius = lo;
-      normal = m[nearest];
-      capped = blind = map.capped[nearest];
+      normal = NodeNormal(*n[nearest]);
+      capped = blind = NodeCapped(*n[nearest]);
       return;
     }
   }
-  const int num_capped = map.capped[n[0]] + map.capped[n[1]] + map.capped[n[2]] + map.capped[n[3]];
+  const bool c[4] = {NodeCapped(*n[0]), NodeCapped(*n[1]), NodeCapped(*n[2]), NodeCapped(*n[3])};
+  const int num_capped = c[0] + c[1] + c[2] + c[3];
   capped = num_capped > 0;
   blind = num_capped == 4;
   double w[4] = {(1 - wu) * (1 - wv), (1 - wu) * wv, wu * (1 - wv), wu * wv};
@@ -218,12 +229,13 @@ void LookUp(const SkinDistanceMap& map, const Eigen::Vector3d& inverse_size,
   // alone are blended (blending the reach in raised a thigh's shell 1.6 cm out of
   // MakeHuman's hip).
   double seen = 0.0;
-  for (int k = 0; k < 4; ++k) seen += map.capped[n[k]] ? 0.0 : w[k];
+  for (int k = 0; k < 4; ++k) seen += c[k] ? 0.0 : w[k];
   if (capped && !blind && seen > 0.0) {
-    for (int k = 0; k < 4; ++k) w[k] = map.capped[n[k]] ? 0.0 : w[k] / seen;
+    for (int k = 0; k < 4; ++k) w[k] = c[k] ? 0.0 : w[k] / seen;
   }
-  radius = w[0] * r[n[0]] + w[1] * r[n[1]] + w[2] * r[n[2]] + w[3] * r[n[3]];
-  normal = w[0] * m[n[0]] + w[1] * m[n[1]] + w[2] * m[n[2]] + w[3] * m[n[3]];
+  radius = w[0] * r[0] + w[1] * r[1] + w[2] * r[2] + w[3] * r[3];
+  normal = w[0] * NodeNormal(*n[0]) + w[1] * NodeNormal(*n[1]) + w[2] * NodeNormal(*n[2]) +
+           w[3] * NodeNormal(*n[3]);
 }
 
 /// The quadratic (6-node Lagrange) interpolation of a triangle's burial samples at the
@@ -386,10 +398,10 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
   if (queue.empty() && num_nodes > 0 && state[0] == kUnknown) {
     // Nothing reached at all: the superquadric itself.
     for (int node = 0; node < num_nodes; ++node) {
-      map.skin_radius[node] = std::min(map.surface_radius[node], reach);
+      skin.radius[node] = std::min(map.surface_radius[node], reach);
     }
-    map.skin_normal = map.ray;
-    std::fill(map.capped.begin(), map.capped.end(), 1);
+    skin.normal = map.ray;
+    std::fill(skin.capped.begin(), skin.capped.end(), 1);
     return num_nodes;
   }
   for (std::size_t head = 0; head < queue.size(); ++head) {
@@ -398,15 +410,15 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
     for (int e = map.neighbour_start[node]; e < map.neighbour_start[node + 1]; ++e) {
       const int other = map.neighbours[e];
       if (state[other] == kKnown) {
-        smallest = std::min(smallest, map.skin_radius[other]);
+        smallest = std::min(smallest, skin.radius[other]);
       } else if (state[other] == kUnknown) {
         state[other] = kQueued;
         queue.push_back(other);
       }
     }
-    map.skin_radius[node] = std::min(smallest, reach);
-    map.skin_normal[node] = map.ray[node];
-    map.capped[node] = 1;
+    skin.radius[node] = std::min(smallest, reach);
+    skin.normal[node] = map.ray[node];
+    skin.capped[node] = 1;
     state[node] = kKnown;
   }
   return static_cast<int>(queue.size());
@@ -448,66 +460,68 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     }
   }
   for (int node = 0; node < map.num_nodes(); ++node) {
-    map.capped[node] = 0;
+    skin.capped[node] = 0;
     if (skin.hit_radius[node] <= 0.0) continue;
     if (skin.hit_radius[node] >= segment.reach) {
       // The ray runs on inside the body beyond the segment's reach: the shell stops there.
-      map.skin_radius[node] = segment.reach;
-      map.skin_normal[node] = map.ray[node];
-      map.capped[node] = 1;
+      skin.radius[node] = segment.reach;
+      skin.normal[node] = map.ray[node];
+      skin.capped[node] = 1;
     } else {
-      map.skin_radius[node] = skin.hit_radius[node];
-      map.skin_normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
+      skin.radius[node] = skin.hit_radius[node];
+      skin.normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
     }
   }
   map.num_filled_nodes = FillMissedNodes(map, skin, segment.reach);
   for (int node = 0; node < map.num_nodes(); ++node) {
-    map.skin_plane[node] = map.skin_radius[node] * map.skin_normal[node].dot(map.ray[node]);
+    skin.plane[node] = skin.radius[node] * skin.normal[node].dot(map.ray[node]);
   }
   // The shell lies within thickness over the least cosine of the skin points.
   Eigen::AlignedBox3d box(Eigen::Vector3d::Zero());
   double farthest = 0.0;
   for (int node = 0; node < map.num_nodes(); ++node) {
-    box.extend(map.skin_radius[node] * map.ray[node]);
-    farthest = std::max(farthest, map.skin_radius[node]);
+    box.extend(skin.radius[node] * map.ray[node]);
+    farthest = std::max(farthest, skin.radius[node]);
   }
   const double shell = thickness / kMinSkinCosine;
   segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
   segment.bounding_radius = farthest + shell;
 }
 
-/// Stores the map of `segment` as drawn: its nodes into `nodes` and its counters and
-/// bounds into `stored`.
-void SaveDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored,
-                 StoredMapNode* nodes) {
+/// Packs the map of `segment` as just drawn (SegmentSkin's drawing fields) into `nodes`,
+/// one per grid point of each face in turn (SkinDistanceMap::face_offset), and points the
+/// segment's queries at them.
+void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
   const SkinDistanceMap& map = segment.map;
-  for (int node = 0; node < map.num_nodes(); ++node) {
-    const auto radius = static_cast<float>(map.skin_radius[node]);
-    nodes[node].radius = map.capped[node] ? -radius : radius;
-    for (int a = 0; a < 3; ++a) {
-      nodes[node].normal[a] = static_cast<std::int16_t>(
-          std::lround(map.skin_normal[node][a] * StoredMapNode::kNormalScale));
+  const SegmentSkin& skin = segment.skin;
+  StoredMapNode* out = nodes;
+  for (int f = 0; f < 6; ++f) {
+    for (int node : map.face_nodes[f]) {
+      const auto radius = static_cast<float>(skin.radius[node]);
+      out->radius = skin.capped[node] ? -radius : radius;
+      out->plane = static_cast<float>(skin.plane[node]);
+      for (int a = 0; a < 3; ++a) {
+        out->normal[a] = static_cast<std::int16_t>(
+            std::lround(skin.normal[node][a] * StoredMapNode::kNormalScale));
+      }
+      ++out;
     }
   }
-  stored.num_filled_nodes = map.num_filled_nodes;
+  segment.nodes = nodes;
+}
+
+/// The record of the drawing `segment` reads, for storing it.
+void RecordDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored) {
+  stored.num_filled_nodes = segment.map.num_filled_nodes;
   stored.shell_box = segment.shell_box;
   stored.bounding_radius = segment.bounding_radius;
 }
 
-/// Puts a stored drawing back into the map of `segment`: what DrawMap drew from the same
-/// skin, within the stored precision.
-void RestoreDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
-                    SuperquadricSegment& segment) {
-  SkinDistanceMap& map = segment.map;
-  for (int node = 0; node < map.num_nodes(); ++node) {
-    const StoredMapNode& n = nodes[node];
-    map.capped[node] = std::signbit(n.radius);
-    map.skin_radius[node] = std::abs(n.radius);
-    map.skin_normal[node] = Eigen::Vector3d(n.normal[0], n.normal[1], n.normal[2]) /
-                            StoredMapNode::kNormalScale;
-    map.skin_plane[node] = map.skin_radius[node] * map.skin_normal[node].dot(map.ray[node]);
-  }
-  map.num_filled_nodes = stored.num_filled_nodes;
+/// Points the queries of `segment` at a stored drawing of its current skin.
+void UseDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
+                SuperquadricSegment& segment) {
+  segment.nodes = nodes;
+  segment.map.num_filled_nodes = stored.num_filled_nodes;
   segment.shell_box = stored.shell_box;
   segment.bounding_radius = stored.bounding_radius;
 }
@@ -916,6 +930,11 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   }
   skin.state.assign(nodes, 0);
   skin.queue.reserve(nodes);
+  skin.radius = segment.map.surface_radius;
+  skin.normal = segment.map.ray;
+  skin.plane = segment.map.surface_radius;
+  skin.capped.assign(nodes, 0);
+  segment.own_nodes.resize(segment.map.num_face_points);
 }
 
 SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
@@ -947,8 +966,7 @@ void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, do
   probe.direction = length > 0.0 ? Eigen::Vector3d(q / length) : Eigen::Vector3d::UnitZ();
   double radius = 0.0;
   Eigen::Vector3d skin_normal;
-  LookUp(segment.map, segment.inverse_size, probe.direction, radius, skin_normal, probe.capped,
-         probe.blind);
+  LookUp(segment, probe.direction, radius, skin_normal, probe.capped, probe.blind);
   const double norm = skin_normal.norm();
   probe.skin_normal = norm > 0.0 ? Eigen::Vector3d(skin_normal / norm) : probe.direction;
   probe.cosine = std::max(probe.direction.dot(probe.skin_normal), kMinSkinCosine);
@@ -1052,16 +1070,16 @@ void SuperquadricCollider::RefreshMap(int s) {
   stale_[s] = 0;
   const std::uint64_t key = map_cache_.enabled() ? map_cache_.Key(s, segment.skin.local) : 0;
   if (const StoredMapDrawing* stored = map_cache_.Find(key)) {
-    RestoreDrawing(*stored, map_cache_.Nodes(*stored), segment);
+    UseDrawing(*stored, map_cache_.Nodes(*stored), segment);
     ++stats_.num_maps_reused;
     return;
   }
   DrawMap(segment, settings_.thickness);
   ++stats_.num_maps_drawn;
   StoredMapNode* nodes = nullptr;
-  if (StoredMapDrawing* stored = map_cache_.Reserve(key, segment.map.num_nodes(), nodes)) {
-    SaveDrawing(segment, *stored, nodes);
-  }
+  StoredMapDrawing* stored = map_cache_.Reserve(key, segment.map.num_face_points, nodes);
+  PackDrawing(segment, stored ? nodes : segment.own_nodes.data());
+  if (stored) RecordDrawing(segment, *stored);
 }
 
 void SuperquadricCollider::RefreshAllMaps() {

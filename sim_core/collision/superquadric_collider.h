@@ -120,18 +120,10 @@ struct SkinDistanceMap {
   std::vector<double> box_length;
   /// The box's half sizes: the superquadric's a1, a2, a3 [m].
   Eigen::Vector3d size = Eigen::Vector3d::Ones();
-  /// Per node: the distance from the centre to the skin along the ray [m] (where the ray
-  /// first leaves the skin the map holds, at most the segment's reach; skin_radius −
-  /// surface_radius is the paper's mapped distance) and the skin's outward unit normal
-  /// there (the ray at filled nodes) [-].
-  std::vector<double> skin_radius;
-  std::vector<Eigen::Vector3d> skin_normal;
-  /// Per node: the distance of the skin's tangent plane there from the centre [m].
-  std::vector<double> skin_plane;
-  /// Per node: its ray met no skin within the segment's reach (it runs on inside the body,
-  /// where the neighbours' shells hold the skin, or leaves through an open end); its radius
-  /// is the reach or filled from its neighbours, its normal the ray [-].
-  std::vector<char> capped;
+  /// Where each face's grid points start in a drawing's packed nodes (StoredMapNode, one
+  /// per grid point of each face in turn, shared edge nodes repeated), and their number.
+  std::array<int, 6> face_offset{};
+  int num_face_points = 0;
   /// A cell whose nodes' radii, and their tangent planes' predictions on the ray, differ by
   /// more than this [m] straddles a silhouette seen from the centre and is read as its
   /// nearest skin, not blended.
@@ -145,8 +137,6 @@ struct SkinDistanceMap {
   std::vector<int> neighbours;
 
   int num_nodes() const { return static_cast<int>(ray.size()); }
-  /// The skin's signed radial distance from the superquadric at `node` [m] (> 0: outside).
-  double skin_offset(int node) const { return skin_radius[node] - surface_radius[node]; }
 };
 
 /// The skin a segment's map is drawn from: the triangles having a corner in the segment or
@@ -186,6 +176,18 @@ struct SegmentSkin {
   /// point's distance from the centre (< 0: none) and its triangle.
   std::array<std::vector<double>, 6> face_hit;
   std::array<std::vector<int>, 6> face_triangle;
+  /// The drawing, per node: the distance from the centre to the skin along the ray [m]
+  /// (where the ray first leaves the skin the map holds, at most the segment's reach;
+  /// minus SkinDistanceMap::surface_radius it is the paper's mapped distance), the skin's
+  /// outward unit normal there (the ray at capped nodes) [-], the distance of the skin's
+  /// tangent plane there from the centre [m], and whether the node is capped: its ray met
+  /// no skin within the segment's reach (it runs on inside the body, where the neighbours'
+  /// shells hold the skin, or leaves through an open end), its radius the reach or filled
+  /// from its neighbours. Queries read the drawing packed (SuperquadricSegment::nodes).
+  std::vector<double> radius;
+  std::vector<Eigen::Vector3d> normal;
+  std::vector<double> plane;
+  std::vector<char> capped;
   /// Scratch of the filling: per node unknown / known / queued, and the queue.
   std::vector<char> state;
   std::vector<int> queue;
@@ -204,6 +206,10 @@ struct SuperquadricSegment {
   Eigen::Vector3d inverse_size = Eigen::Vector3d::Ones();
   SkinDistanceMap map;
   SegmentSkin skin;
+  /// The drawing the queries read, packed (SkinDistanceMap::face_offset): a stored drawing
+  /// of the current skin (SkinMapCache), or `own_nodes` when the store had no room.
+  const StoredMapNode* nodes = nullptr;
+  std::vector<StoredMapNode> own_nodes;
   /// How far from the centre the map's rays may reach [m]: the farthest vertex of the skin
   /// the segment holds (SegmentSkin::held) in the last pose, and a margin; beyond, the
   /// neighbours' shells hold the skin.
@@ -256,6 +262,9 @@ class SuperquadricCollider : public BodyCollider {
   SuperquadricCollider(std::shared_ptr<const Avatar> avatar,
                        const BodyCollisionSettings& settings = {},
                        const SuperquadricColliderOptions& options = {});
+  /// Segments point into the collider's own store of drawings: not copyable.
+  SuperquadricCollider(const SuperquadricCollider&) = delete;
+  SuperquadricCollider& operator=(const SuperquadricCollider&) = delete;
 
   /// See BodyCollider. `joint_world` has one frame per skeleton joint; a call with fewer
   /// frames, or a non-positive or non-finite dt after the first call, keeps the previous pose
