@@ -645,8 +645,9 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
 
 /// [avatar]: the built-in humanoid, the clip it plays, how cloth collides with it.
 sim::AvatarSpec ParseAvatar(const TableView& table) {
-  table.RefuseUnknownKeys({"model", "clip", "collision", "thickness", "friction", "fit_time",
-                           "blend_time", "position", "heading", "posture"});
+  table.RefuseUnknownKeys({"model", "clip", "collision", "superquadric_map_mb", "thickness",
+                           "friction", "fit_time", "blend_time", "position", "heading",
+                           "posture"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
   if (const std::optional<Field> model = table.Find("model")) ReadChoice(*model, {"builtin"});
@@ -659,6 +660,8 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
                            ? sim::BodyCollisionMethod::kMesh
                            : sim::BodyCollisionMethod::kSuperquadric;
   }
+  avatar.superquadric_map_mb = NumberOr(table, "superquadric_map_mb", avatar.superquadric_map_mb,
+                                        {0.0, 16384.0, false, false}, "MB");
   avatar.thickness = NumberOr(table, "thickness", avatar.thickness, {0.0, 0.05, false, false}, "m");
   avatar.friction = NumberOr(table, "friction", avatar.friction, {0.0, 2.0, false, false}, "");
   avatar.motion.fit_time =

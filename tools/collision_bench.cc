@@ -47,6 +47,8 @@ struct Options {
   /// The collision methods run, in this order ("superquadric", "mesh"); the speed ratio is
   /// printed only when both run.
   std::vector<std::string> methods{"superquadric", "mesh"};
+  /// Memory for the superquadric method's stored map drawings [MB] (0: draw every map).
+  double superquadric_map_mb = 256.0;
   /// Calls per mode of the cloth-side regions' comparison (0: skip it).
   int regions_reps = 100;
 };
@@ -82,6 +84,7 @@ sim::SceneDescription GarmentScene(std::shared_ptr<const sim::Avatar> avatar,
   spec.avatar = std::move(avatar);
   spec.clip = std::move(clip);
   spec.collision = method;
+  spec.superquadric_map_mb = options.superquadric_map_mb;
   scene.avatar = spec;
   scene.duration = spec.motion.fit_time + options.walk_seconds;
   sim::Material cotton;
@@ -252,6 +255,11 @@ int main(int argc, char** argv) {
   app.add_option("--methods", options.methods,
                  "Collision methods to run, in order (the speed ratio needs both)")
       ->check(CLI::IsMember({"superquadric", "mesh"}))
+      ->capture_default_str();
+  app.add_option("--superquadric-map-mb", options.superquadric_map_mb,
+                 "Memory for the superquadric method's stored map drawings, reused when the "
+                 "skin comes back (0: draw every map every frame)")
+      ->check(CLI::Range(0.0, 16384.0))
       ->capture_default_str();
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
   app.add_option("--regions-reps", options.regions_reps,

@@ -103,9 +103,14 @@ struct AvatarSpec {
   std::shared_ptr<const Clip> clip;
   /// Posture, placement, fitting and blend times.
   AvatarMotionSettings motion;
-  /// The mesh method by default: measured both faster and more exact than the superquadric
-  /// one on every body and clip here (docs/collision.md, "Figures").
+  /// The mesh method by default: more exact than the superquadric one, and faster on the
+  /// first pass through a clip on every body here; the superquadric one is faster on later
+  /// passes on the built-in humanoid only (docs/collision.md, "Figures").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;
+  /// Superquadric method: memory for its maps' drawings kept for reuse when the skin comes
+  /// back, as a looping clip brings it every pass [MB] in [0, 16384]; 0 draws every map
+  /// afresh.
+  double superquadric_map_mb = 256.0;
   /// Cloth thickness kept off the skin [m] in [0, 0.05].
   double thickness = 0.004;
   /// Coulomb friction between cloth and skin [-] in [0, 2].

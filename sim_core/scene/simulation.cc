@@ -170,7 +170,8 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
 
 std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                std::shared_ptr<const Avatar> avatar,
-                                               const BodyCollisionSettings& settings) {
+                                               const BodyCollisionSettings& settings,
+                                               double map_memory_mb) {
   if (method == BodyCollisionMethod::kMesh) {
     // The collider's default search reach (5 cm below the skin). 1.5 cm cut the method's
     // time by half but lost cloth that the kicking leg drove 2.6 cm deep in one step
@@ -181,6 +182,7 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
   // gradient, which is up to 23° off at the rounded ends of limbs (docs/collision.md).
   SuperquadricColliderOptions options;
   options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
+  options.map_cache_bytes = static_cast<std::size_t>(std::max(0.0, map_memory_mb) * 1048576.0);
   return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
 }
 
@@ -227,7 +229,7 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     BodyCollisionSettings contact;
     contact.thickness = spec.thickness;
     contact.friction = scene_.effects.friction ? spec.friction : 0.0;
-    body_ = MakeBodyCollider(spec.collision, spec.avatar, contact);
+    body_ = MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
     body_->Update(avatar_->joint_world(), avatar_->vertices(), step());
     attachments_ = std::move(attachments);
   }

@@ -230,9 +230,12 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
                                                   std::vector<GarmentRange>* garments,
                                                   std::vector<BodyAttachment>* attachments);
 
-/// The collider `method` builds around `avatar` (superquadric_collider.h, mesh_collider.h).
+/// The collider `method` builds around `avatar` (superquadric_collider.h, mesh_collider.h);
+/// the superquadric one keeps up to `map_memory_mb` [MB] of its maps' drawings for reuse
+/// (SuperquadricColliderOptions::map_cache_bytes).
 std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                std::shared_ptr<const Avatar> avatar,
-                                               const BodyCollisionSettings& settings);
+                                               const BodyCollisionSettings& settings,
+                                               double map_memory_mb = 256.0);
 
 }  // namespace costume::sim

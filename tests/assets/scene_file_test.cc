@@ -432,6 +432,17 @@ TEST(ParseSceneText, ReadsThePostureInDegreesAndRefusesUnknownJoints) {
                        "avatar.posture.l_shoulde"));
 }
 
+TEST(ParseSceneText, ReadsTheSuperquadricMapMemoryAndRefusesItOutOfRange) {
+  const std::string base = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\n";
+  EXPECT_EQ(ParseSceneText(base, "test.toml", "").avatar->superquadric_map_mb, 256.0);
+  EXPECT_EQ(ParseSceneText(base + "superquadric_map_mb = 0\n", "test.toml", "")
+                .avatar->superquadric_map_mb,
+            0.0);
+  const std::string message = ErrorOf(base + "superquadric_map_mb = -1\n");
+  EXPECT_TRUE(Contains(message, "avatar.superquadric_map_mb = -1")) << message;
+  EXPECT_TRUE(Contains(message, "16384")) << message;
+}
+
 TEST(ParseSceneText, RefusesAPatternWithoutAvatarAndAnUnknownClip) {
   const std::string pattern = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   EXPECT_TRUE(Contains(ErrorOf(pattern), "test.toml:1: garment[0].pattern = \"skirt\": a pattern "
