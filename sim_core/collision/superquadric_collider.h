@@ -6,7 +6,9 @@
 ///
 /// The map is redrawn every frame from the skinned triangles (lazily, when cloth first comes
 /// near the segment), so it follows linear blend skinning where it bends the skin away from
-/// the rigid segments (hips, knees, elbows). docs/collision.md has the measurements.
+/// the rigid segments (hips, knees, elbows); a drawing of a skin seen before (a looping clip's
+/// later passes) is reused from a store (skin_map_cache.h). docs/collision.md has the
+/// measurements.
 ///
 /// Approximations, all deliberate:
 /// - Each segment's shell is star-shaped from its superquadric's centre (moved inside the
