@@ -218,22 +218,28 @@ TEST_F(Fixture, SkinNormalsFromTheMapFollowTheTrueSkin) {
 // The map is redrawn from the skinned vertices Update is given, not kept from the rest
 // pose: a skin inflated by 1 cm about the capsule's axis (as skinning swells a bent joint)
 // moves the shell out by 1 cm, which the inflated capsule's closed form checks.
-TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
-  constexpr double kSwell = 0.01;
-  Points skinned = avatar->rest_vertices();
+/// The capsule's skin swollen by `swell` [m] along its outward normal (along the axis at
+/// the poles).
+Points SwollenSkin(const Avatar& avatar, const Eigen::Isometry3d& arm, double swell) {
+  Points skinned = avatar.rest_vertices();
   const Eigen::Isometry3d to_arm = arm.inverse();
   for (Eigen::Index v = 0; v < skinned.rows(); ++v) {
     const Eigen::Vector3d local = to_arm * skinned.row(v).transpose();
     const Eigen::Vector3d p = local - kCentre;
     const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
     const Eigen::Vector3d radial = p - Eigen::Vector3d(0, s, 0);
-    if (radial.norm() < 1e-9) {  // a pole: push it out along the axis
-      const Eigen::Vector3d along(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0);
-      skinned.row(v) = (arm * (local + kSwell * along)).transpose();
-    } else {
-      skinned.row(v) = (arm * (local + kSwell * radial.normalized())).transpose();
-    }
+    const Eigen::Vector3d out = radial.norm() < 1e-9
+                                    ? Eigen::Vector3d(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0)
+                                    : Eigen::Vector3d(radial.normalized());
+    skinned.row(v) = (arm * (local + swell * out)).transpose();
   }
+  return skinned;
+}
+
+TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
+  constexpr double kSwell = 0.01;
+  const Points skinned = SwollenSkin(*avatar, arm, kSwell);
+  const Eigen::Isometry3d to_arm = arm.inverse();
   collider.Update(avatar->skeleton().rest_world(), skinned, 0.01);
   // 5 mm outside the rest skin is 5 mm inside the swollen one: a contact whose target
   // closes 5 mm + thickness in the step, and a projection onto the swollen shell.
@@ -260,23 +266,6 @@ TEST_F(Fixture, TheMapFollowsTheSkinnedVertices) {
     // Within the margin of the thin-shell test only, never pushed inwards.
     EXPECT_LT(c.target_normal_velocity, (kThickness - 0.005) / h + 0.05) << c.particle;
   }
-}
-
-/// The capsule's skin swollen by `swell` [m] along its outward normal.
-Points SwollenSkin(const Avatar& avatar, const Eigen::Isometry3d& arm, double swell) {
-  Points skinned = avatar.rest_vertices();
-  const Eigen::Isometry3d to_arm = arm.inverse();
-  for (Eigen::Index v = 0; v < skinned.rows(); ++v) {
-    const Eigen::Vector3d local = to_arm * skinned.row(v).transpose();
-    const Eigen::Vector3d p = local - kCentre;
-    const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
-    const Eigen::Vector3d radial = p - Eigen::Vector3d(0, s, 0);
-    const Eigen::Vector3d out = radial.norm() < 1e-9
-                                    ? Eigen::Vector3d(0.0, p.y() > 0 ? 1.0 : -1.0, 0.0)
-                                    : Eigen::Vector3d(radial.normalized());
-    skinned.row(v) = (arm * (local + swell * out)).transpose();
-  }
-  return skinned;
 }
 
 // Drawings are stored for reuse (skin_map_cache.h). The skin swollen by 1 cm, then 2 cm,
