@@ -10,7 +10,7 @@ namespace costume::sim {
 namespace {
 
 /// The drawings a cache may hold: one per 4 kB of budget (the smallest maps have a few
-/// hundred nodes of 12 bytes).
+/// hundred nodes of 16 bytes).
 constexpr std::size_t kBytesPerDrawingSlot = 4096;
 
 constexpr std::uint64_t kPrime1 = 0x9E3779B185EBCA87ULL, kPrime2 = 0xC2B2AE3D27D4EB4FULL;

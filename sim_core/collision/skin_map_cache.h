@@ -33,8 +33,7 @@ struct StoredMapDrawing {
   /// Offset of its nodes in the cache's arena; its node count.
   std::size_t offset = 0;
   int num_nodes = 0;
-  /// The map's counters and bounds at the drawing (SkinDistanceMap, SuperquadricSegment).
-  int num_filled_nodes = 0;
+  /// The shell's bounds at the drawing (SuperquadricSegment).
   Eigen::AlignedBox3d shell_box;
   double bounding_radius = 0.0;
 };

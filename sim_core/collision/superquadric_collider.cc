@@ -375,8 +375,7 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
 /// filled) neighbours, ring by ring outwards (breadth first), with the ray as the normal: a
 /// cap that never reaches beyond the skin around it, marked capped (no skin seen: triangles
 /// beyond the reach are not drawn, so rays running on inside the body end here too).
-/// Returns how many nodes were filled.
-int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
+void FillMissedNodes(const SkinDistanceMap& map, SegmentSkin& skin, double reach) {
   constexpr char kUnknown = 0, kKnown = 1, kQueued = 2;
   std::vector<char>& state = skin.state;
   std::vector<int>& queue = skin.queue;
@@ -402,7 +401,7 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
     }
     skin.normal = map.ray;
     std::fill(skin.capped.begin(), skin.capped.end(), 1);
-    return num_nodes;
+    return;
   }
   for (std::size_t head = 0; head < queue.size(); ++head) {
     const int node = queue[head];
@@ -421,7 +420,6 @@ int FillMissedNodes(SkinDistanceMap& map, SegmentSkin& skin, double reach) {
     skin.capped[node] = 1;
     state[node] = kKnown;
   }
-  return static_cast<int>(queue.size());
 }
 
 /// Redraws the map of `segment` from its skin's corners in the superquadric frame
@@ -472,7 +470,7 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
       skin.normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
     }
   }
-  map.num_filled_nodes = FillMissedNodes(map, skin, segment.reach);
+  FillMissedNodes(map, skin, segment.reach);
   for (int node = 0; node < map.num_nodes(); ++node) {
     skin.plane[node] = skin.radius[node] * skin.normal[node].dot(map.ray[node]);
   }
@@ -512,7 +510,6 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
 
 /// The record of the drawing `segment` reads, for storing it.
 void RecordDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored) {
-  stored.num_filled_nodes = segment.map.num_filled_nodes;
   stored.shell_box = segment.shell_box;
   stored.bounding_radius = segment.bounding_radius;
 }
@@ -527,7 +524,6 @@ void UseDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
     __builtin_prefetch(nodes + node);
   }
   segment.nodes = nodes;
-  segment.map.num_filled_nodes = stored.num_filled_nodes;
   segment.shell_box = stored.shell_box;
   segment.bounding_radius = stored.bounding_radius;
 }

@@ -130,9 +130,6 @@ struct SkinDistanceMap {
   /// more than this [m] straddles a silhouette seen from the centre and is read as its
   /// nearest skin, not blended.
   double silhouette_jump = 0.03;
-  /// Nodes whose ray met none of the segment's triangles at the last refresh (the open ends
-  /// of a segment's skin), filled from their neighbours [-].
-  int num_filled_nodes = 0;
   /// Node adjacency over the box's surface (compressed rows: the neighbours of node n are
   /// neighbours[neighbour_start[n] .. neighbour_start[n + 1])), for the filling.
   std::vector<int> neighbour_start;
