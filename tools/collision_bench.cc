@@ -132,6 +132,18 @@ double MapCacheMegabytes(const sim::Simulation& simulation) {
   return collider ? collider->map_cache_stats().bytes_used / 1048576.0 : 0.0;
 }
 
+/// The joint of `motion`'s skeleton nearest `x` (world) [m].
+int NearestJoint(const sim::AvatarMotion& motion, const Eigen::Vector3d& x) {
+  int nearest = 0;
+  for (int j = 1; j < static_cast<int>(motion.joint_world().size()); ++j) {
+    if ((motion.joint_world()[j].translation() - x).squaredNorm() <
+        (motion.joint_world()[nearest].translation() - x).squaredNorm()) {
+      nearest = j;
+    }
+  }
+  return nearest;
+}
+
 /// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 json Measure(const std::string& avatar_name, const sim::SceneDescription& scene) {
   auto simulation = sim::Simulation::Build(scene);
@@ -142,6 +154,9 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
 
   std::vector<double> total_ms, collision_ms, cpu_ms, frame_max_depth;
   double max_depth = 0.0, max_strain = 0.0;
+  // Where the deepest penetration was: the measured frame, the particle and the joint
+  // nearest it, for finding what let it in.
+  int deepest_frame = -1, deepest_particle = -1, deepest_joint = -1;
   int rolled_back = 0, unconverged = 0;
   const int fit_frames = static_cast<int>(scene.avatar->motion.fit_time * scene.frame_rate);
   sim::Points cloth;
@@ -151,7 +166,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
   std::vector<double> first_pass_collision_ms;
-  long long maps_drawn = 0, maps_reused = 0;
+  long long maps_drawn = 0, maps_reused = 0, skin_checks = 0;
   for (int f = 0; f < simulation->num_frames(); ++f) {
     const double cpu_start = ThreadCpuMs();
     const sim::FrameReport report = simulation->AdvanceFrame();
@@ -164,15 +179,26 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     }
     maps_drawn += report.maps_drawn;
     maps_reused += report.maps_reused;
+    skin_checks += report.skin_checks;
     total_ms.push_back(report.wall_ms);
     cpu_ms.push_back(cpu);
     collision_ms.push_back(report.collision_ms);
     skin.Update(motion.vertices());
     double deepest = 0.0;
+    int deepest_here = -1;
     const sim::Points& x = simulation->state().positions;
     for (Eigen::Index p = 0; p < x.rows(); ++p) {
       if (attached[p]) continue;
-      deepest = std::max(deepest, -skin.SignedDistance(x.row(p).transpose(), 0.1));
+      const double depth = -skin.SignedDistance(x.row(p).transpose(), 0.1);
+      if (depth > deepest) {
+        deepest = depth;
+        deepest_here = static_cast<int>(p);
+      }
+    }
+    if (deepest_here >= 0 && deepest > max_depth) {
+      deepest_frame = static_cast<int>(total_ms.size()) - 1;
+      deepest_particle = deepest_here;
+      deepest_joint = NearestJoint(motion, x.row(deepest_here).transpose());
     }
     frame_max_depth.push_back(std::max(0.0, deepest));
     max_depth = std::max(max_depth, deepest);
@@ -190,12 +216,17 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"collision_ms_median_first_pass", Median(first_pass_collision_ms)},
           {"maps_drawn", maps_drawn},
           {"maps_reused", maps_reused},
+          {"skin_checks", skin_checks},
           {"map_cache_mb", MapCacheMegabytes(*simulation)},
           {"total_ms_median", Median(total_ms)},
           {"total_cpu_ms_median", Median(cpu_ms)},
           {"faster_than_real_time_60hz", Median(total_ms) < 1000.0 / 60.0},
           {"penetration_max_mm", 1e3 * std::max(0.0, max_depth)},
           {"penetration_p99_mm", 1e3 * Percentile(frame_max_depth, 0.99)},
+          {"penetration_max_frame", deepest_frame},
+          {"penetration_max_particle", deepest_particle},
+          {"penetration_max_near",
+           deepest_joint < 0 ? "" : motion.avatar().skeleton().joint(deepest_joint).name},
           {"max_strain", max_strain},
           {"rolled_back_steps", rolled_back},
           {"unconverged_frames", unconverged}};

@@ -30,6 +30,10 @@ struct BodyCollisionStats {
   /// drawing of the same skin (skin_map_cache.h), since the last FindContacts began.
   int num_maps_drawn = 0;
   int num_maps_reused = 0;
+  /// Superquadric method: ProjectOut's searches that no map could decide (only uncertain
+  /// readings inside a shell), which the segment's skin triangles then decided, since the
+  /// last FindContacts began.
+  int num_skin_checks = 0;
 };
 
 class BodyCollider {

@@ -64,8 +64,6 @@ const std::vector<Eigen::Vector3i>& Validated(const std::string& name, const Poi
 struct MeshDistance::Trees {
   /// One tree per piece, so each piece's closest point (and thus its sign) is found.
   std::vector<std::unique_ptr<btDbvt>> pieces;
-  /// The leaf of each triangle.
-  std::vector<btDbvtNode*> leaves;
   /// Traversal scratch, sized for the worst case at construction.
   mutable std::vector<const btDbvtNode*> stack;
 };
@@ -85,9 +83,8 @@ MeshDistance::MeshDistance(std::string name, const Points& vertices,
   }
   trees_->pieces.resize(num_pieces());
   for (auto& tree : trees_->pieces) tree = std::make_unique<btDbvt>();
-  trees_->leaves.resize(num_triangles());
   for (int t = 0; t < num_triangles(); ++t) {
-    trees_->leaves[t] = trees_->pieces[normals_.piece_of(t)]->insert(
+    trees_->pieces[normals_.piece_of(t)]->insert(
         TriangleBox(vertices_, normals_.triangles()[t]),
         reinterpret_cast<void*>(static_cast<std::intptr_t>(t)));
   }
@@ -106,12 +103,32 @@ bool MeshDistance::Update(const Points& vertices) {
   return true;
 }
 
-void MeshDistance::Refit(const Points& vertices) {
-  for (int t = 0; t < num_triangles(); ++t) {
-    btDbvtVolume box = TriangleBox(vertices, normals_.triangles()[t]);
-    trees_->pieces[normals_.piece_of(t)]->update(trees_->leaves[t], box);
+namespace {
+
+/// Sets the boxes under `node` bottom up: a leaf's to its triangle's, an internal node's to
+/// its children's union. The tree keeps the structure it was built with, which skinning
+/// deforms smoothly; reinserting every leaf (btDbvt::update) made an update of MakeHuman's
+/// 26 k triangles take 14.7 ms, against 4.3 ms now.
+void RefitNode(btDbvtNode* node, const Points& vertices,
+               const std::vector<Eigen::Vector3i>& triangles) {
+  if (node->isleaf()) {
+    node->volume = TriangleBox(vertices, triangles[LeafTriangle(node)]);
+    return;
   }
-  normals_.Update(vertices);
+  RefitNode(node->childs[0], vertices, triangles);
+  RefitNode(node->childs[1], vertices, triangles);
+  Merge(node->childs[0]->volume, node->childs[1]->volume, node->volume);
+}
+
+}  // namespace
+
+void MeshDistance::Refit(const Points& vertices) {
+  for (auto& tree : trees_->pieces) {
+    if (tree->m_root != nullptr) RefitNode(tree->m_root, vertices, normals_.triangles());
+  }
+  // Vertex pseudonormals (three arc tangents a triangle, most of the cost) are computed
+  // for the few closest points that land on a vertex.
+  normals_.Update(vertices, /*vertex_normals=*/false);
 }
 
 void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
@@ -149,7 +166,7 @@ void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, doubl
     }
   }
   if (best_triangle < 0) return;
-  const Eigen::Vector3d pseudonormal = normals_.Of(best_triangle, best_point.feature);
+  const Eigen::Vector3d pseudonormal = normals_.Of(best_triangle, best_point.feature, vertices_);
   const Eigen::Vector3d offset = point - best_point.point;
   const double distance = std::sqrt(best_squared);
   const bool inside = offset.dot(pseudonormal) < 0.0;

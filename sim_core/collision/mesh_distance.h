@@ -2,8 +2,8 @@
 /// @file
 /// Exact signed distance from points to a closed, animated triangle mesh (the avatar's
 /// skin): the penetration measure of collision tests and benchmarks, and the yardstick of
-/// the fast superquadric method (paper §4). Triangles sit in Bullet btDbvt trees that are
-/// updated leaf by leaf when the mesh moves, not rebuilt; the sign comes from
+/// the fast superquadric method (paper §4). Triangles sit in Bullet btDbvt trees built on
+/// the first pose and refitted bottom up when the mesh moves; the sign comes from
 /// angle-weighted pseudonormals (Bærentzen & Aanæs 2005), so it is right at edges and
 /// vertices, not only on faces.
 
@@ -62,9 +62,9 @@ class MeshDistance {
   MeshDistance(const MeshDistance&) = delete;
   MeshDistance& operator=(const MeshDistance&) = delete;
 
-  /// Moves the mesh to `vertices` (n×3) [m], same topology: refits each triangle's leaf
-  /// in the trees (btDbvt::update) and recomputes the pseudonormals. Returns false, doing
-  /// nothing, when the row count differs from the mesh's. Never throws; never allocates.
+  /// Moves the mesh to `vertices` (n×3) [m], same topology: refits the trees' boxes bottom
+  /// up (their structure stays that of the first pose) and recomputes the face normals.
+  /// Returns false, doing nothing, when the row count differs from the mesh's. Never throws; never allocates.
   bool Update(const Points& vertices);
 
   /// The surface point closest to `point` [m] within `max_radius` [m] >= 0, with its

@@ -937,6 +937,11 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.plane = segment.map.surface_radius;
   skin.capped.assign(nodes, 0);
   segment.own_nodes.resize(segment.map.num_face_points);
+  skin.topology.emplace(static_cast<int>(skin.vertices.size()), skin.triangles);
+  skin.corners.resize(static_cast<Eigen::Index>(skin.vertices.size()), 3);
+  skin.piece_distance.resize(skin.topology->num_pieces());
+  skin.piece_triangle.resize(skin.topology->num_pieces());
+  skin.piece_point.resize(skin.topology->num_pieces());
 }
 
 SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
@@ -953,6 +958,10 @@ SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
 
 /// Position-correction passes per particle in ProjectOut.
 constexpr int kProjectionPasses = 8;
+
+/// How far from the skin SkinShell searches [m]: a point farther from every triangle of
+/// the segment's skin (deeper than a limb is thick) is left undecided.
+constexpr double kSkinCheckRadius = 0.1;
 
 }  // namespace
 
@@ -1047,6 +1056,7 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
     double farthest = 0.0;
     for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
     segment.reach = std::sqrt(farthest) + kReachMargin;
+    skin.corners_current = false;
     // Until the map is redrawn, the shell is known to lie within the reach and within the
     // box of the skin the rays can stop at (corners within the reach and an edge), grown by
     // the thickness term and a node spacing for the caps filled at open ends.
@@ -1155,10 +1165,12 @@ void BoundingBox(const Points& positions, Eigen::Vector3d& lo, Eigen::Vector3d& 
 bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end,
                                         double reach,
                                         double& gap, Eigen::Vector3d& normal,
-                                        Eigen::Vector3d& body_velocity) {
+                                        Eigen::Vector3d& body_velocity, int* undecided) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
   gap = std::numeric_limits<double>::infinity();
   int deepest = -1;
+  double undecided_gap = 0.0;
+  if (undecided) *undecided = -1;
   ShellProbe best;
   stats_.num_tests += static_cast<long long>(active_.size());
   for (std::size_t a = 0; a < active_.size(); ++a) {
@@ -1193,7 +1205,13 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
     const bool uncertain =
         probe.blind ||
         (probe.capped && -probe.normal_gap > PlausibleDepth(s, x, speed, at_end));
-    if (probe.normal_gap < 0.0 && uncertain) continue;
+    if (probe.normal_gap < 0.0 && uncertain) {
+      if (undecided && probe.normal_gap < undecided_gap) {
+        *undecided = s;
+        undecided_gap = probe.normal_gap;
+      }
+      continue;
+    }
     if (probe.normal_gap >= gap) continue;
     gap = probe.normal_gap;
     deepest = s;
@@ -1244,6 +1262,63 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
   }
 }
 
+bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& gap,
+                                     Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity) {
+  SegmentSkin& skin = segments_[s].skin;
+  const SurfacePseudonormals& topology = *skin.topology;
+  ++stats_.num_skin_checks;
+  const Eigen::Vector3d q = end_[s].to_local * x;
+  // The nearest point of each closed piece the skin holds, each signed by its own piece:
+  // the built-in humanoid's tubes overlap, and a point inside one lies outside the other's
+  // buried cap (the body is their union, as in MeshDistance).
+  std::fill(skin.piece_distance.begin(), skin.piece_distance.end(), kSkinCheckRadius);
+  std::fill(skin.piece_triangle.begin(), skin.piece_triangle.end(), -1);
+  for (int t = 0; t < topology.num_triangles(); ++t) {
+    const int piece = topology.piece_of(t);
+    const Eigen::Vector3i& c = skin.triangles[t];
+    // No point of a triangle is farther from a corner than its longest edge.
+    const double bound = skin.piece_distance[piece] + skin.edge[t];
+    if ((skin.local[c[0]] - q).squaredNorm() > bound * bound) continue;
+    const TrianglePoint p =
+        ClosestPointOnTriangle(q, skin.local[c[0]], skin.local[c[1]], skin.local[c[2]]);
+    const double distance = (q - p.point).norm();
+    if (distance >= skin.piece_distance[piece]) continue;
+    skin.piece_distance[piece] = distance;
+    skin.piece_triangle[piece] = t;
+    skin.piece_point[piece] = p;
+  }
+  if (!skin.corners_current) {
+    for (std::size_t k = 0; k < skin.local.size(); ++k) {
+      skin.corners.row(static_cast<Eigen::Index>(k)) = skin.local[k].transpose();
+    }
+    skin.topology->Update(skin.corners, /*vertex_normals=*/false);
+    skin.corners_current = true;
+  }
+  double signed_distance = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d local_normal = Eigen::Vector3d::UnitZ();
+  for (std::size_t piece = 0; piece < skin.piece_triangle.size(); ++piece) {
+    const int t = skin.piece_triangle[piece];
+    if (t < 0) continue;
+    // The sign from the angle-weighted pseudonormal of the closest feature, right at edges
+    // and corners too (Bærentzen & Aanæs 2005, as MeshDistance).
+    const TrianglePoint& p = skin.piece_point[piece];
+    const Eigen::Vector3d pseudonormal = topology.Of(t, p.feature, skin.corners);
+    const Eigen::Vector3d offset = q - p.point;
+    const double distance = skin.piece_distance[piece];
+    const bool inside = offset.dot(pseudonormal) < 0.0;
+    const double here = inside ? -distance : distance;
+    if (here >= signed_distance) continue;
+    signed_distance = here;
+    local_normal =
+        distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance) : pseudonormal;
+  }
+  if (!std::isfinite(signed_distance)) return false;
+  gap = signed_distance - settings_.thickness;
+  normal = end_[s].to_world.linear() * local_normal;
+  body_velocity = BodyVelocity(s, x, true);
+  return true;
+}
+
 double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
   if (positions.rows() == 0 || segments_.empty()) return 0.0;
   Eigen::Vector3d lo, hi;
@@ -1261,7 +1336,17 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
       double gap;
       Eigen::Vector3d normal, body_velocity;
       const double speed = velocities.row(i).norm();
-      if (!DeepestShell(x, speed, true, 0.0, gap, normal, body_velocity) || gap >= 0.0) break;
+      int undecided = -1;
+      const bool held = DeepestShell(x, speed, true, 0.0, gap, normal, body_velocity, &undecided) &&
+                        gap < 0.0;
+      // A point inside a shell that only uncertain readings see is decided by the skin
+      // itself: a ray along a limb's axis leaves the skin only at the limb's far end, beyond
+      // every shell's reach, so a point deep in the limb near its axis is held by no map
+      // (45 mm on MakeHuman's kick; docs/collision.md, "Nodes that saw no skin").
+      if (!held && (undecided < 0 || !SkinShell(x, undecided, gap, normal, body_velocity) ||
+                    gap >= 0.0)) {
+        break;
+      }
       if (pass == 0) deepest = std::max(deepest, -gap);
       positions.row(i) = (x - gap * normal).transpose();
       const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);

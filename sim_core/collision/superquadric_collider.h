@@ -45,6 +45,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,7 @@
 #include "sim_core/collision/body_collider.h"
 #include "sim_core/collision/skin_map_cache.h"
 #include "sim_core/collision/superquadric.h"
+#include "sim_core/collision/surface_geometry.h"
 
 namespace costume::sim {
 
@@ -169,6 +171,16 @@ struct SegmentSkin {
   std::vector<double> distance;
   std::vector<double> edge;
   double longest_edge = 0.0;
+  /// The triangles' adjacency and, after a skin check (SuperquadricCollider::SkinShell)
+  /// since the last refresh, their normals for `corners`, a matrix copy of `local`.
+  std::optional<SurfacePseudonormals> topology;
+  Points corners;
+  bool corners_current = false;
+  /// Scratch of a skin check, per piece of `topology`: the nearest distance [m], triangle
+  /// and point.
+  std::vector<double> piece_distance;
+  std::vector<int> piece_triangle;
+  std::vector<TrianglePoint> piece_point;
   std::vector<double> hit_radius;
   std::vector<int> hit_triangle;
   /// Per face grid point (duplicating shared nodes): the nearest hit in units of the
@@ -333,8 +345,17 @@ class SuperquadricCollider : public BodyCollider {
   /// than `reach` [m] plus their own motion over the step are skipped; so are blind readings
   /// inside a shell and capped ones (ShellProbe) deeper than PlausibleDepth. Returns false
   /// when every shell was.
+  /// `undecided` (when not null) gets the segment with the deepest skipped reading inside
+  /// its shell, -1 for none.
   bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
-                    double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+                    double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
+                    int* undecided = nullptr);
+  /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
+  /// step at `x` (world): its normal gap [m] (signed distance minus thickness), outward
+  /// normal and the velocity of the segment's body there. Returns false when no triangle
+  /// lies within kSkinCheckRadius of `x`.
+  bool SkinShell(const Eigen::Vector3d& x, int segment, double& gap, Eigen::Vector3d& normal,
+                 Eigen::Vector3d& body_velocity);
   /// How deep [m] a particle at `x` moving at `speed` [m/s] can have come into the shell of
   /// `segment` within the step from outside it: what it and the body travelled, plus the
   /// thickness and a node spacing for the map's own error.

@@ -333,6 +333,7 @@ void Simulation::StepOnce(FrameReport& report) {
     report.collision_ms += MillisecondsSince(start);
     report.maps_drawn += body_->stats().num_maps_drawn;
     report.maps_reused += body_->stats().num_maps_reused;
+    report.skin_checks += body_->stats().num_skin_checks;
   }
   if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
   if (self_collision_) {

@@ -63,6 +63,9 @@ struct FrameReport {
   /// drawing of the same skin, summed over the frame's steps (BodyCollisionStats).
   int maps_drawn = 0;
   int maps_reused = 0;
+  /// Superquadric method: position corrections that the skin triangles decided where no map
+  /// could (BodyCollisionStats::num_skin_checks), summed over the frame's steps.
+  int skin_checks = 0;
   /// Time spent on self-collision [ms] (0 when the scene switches it off).
   double self_collision_ms = 0.0;
   /// Cloth–cloth collisions self-collision could not resolve, summed over the steps.

@@ -469,6 +469,48 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
   }
 }
 
+// Points deep in a straight limb near its axis (docs/collision.md, "Nodes that saw no
+// skin"): seen from the thigh's, the shank's or the knee's centre, they lie on rays that run
+// along the leg and leave the skin only at its far end, beyond each shell's reach, so every
+// map reads them blind. ProjectOut hands them to the skin triangles themselves, which put
+// them on the shell: outside the true skin (MeshDistance) and within a few millimetres of
+// it. Before, they stayed where they were (45 mm deep near MakeHuman's kicking knee).
+TEST(SuperquadricCollider, PushesPointsDeepInALimbNearItsAxisOutOfIt) {
+  const std::shared_ptr<const Avatar> humanoid = MakeHumanoid();
+  const Skeleton& skeleton = humanoid->skeleton();
+  SuperquadricColliderOptions options;
+  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
+  BodyCollisionSettings settings;
+  settings.thickness = kThickness;
+  SuperquadricCollider collider(humanoid, settings, options);
+  const std::vector<Eigen::Isometry3d>& world = skeleton.rest_world();
+  collider.Update(world, humanoid->rest_vertices(), 0.01);
+  collider.Update(world, humanoid->rest_vertices(), 0.01);  // at rest
+  const MeshDistance truth("humanoid", humanoid->rest_vertices(), humanoid->triangles());
+  const Eigen::Vector3d hip = world[skeleton.Find(HAnimJoint::kRHip)].translation();
+  const Eigen::Vector3d knee = world[skeleton.Find(HAnimJoint::kRKnee)].translation();
+  const Eigen::Vector3d ankle = world[skeleton.Find(HAnimJoint::kRTalocrural)].translation();
+  std::vector<Eigen::Vector3d> deep;
+  for (int k = 1; k < 20; ++k) {
+    const double f = k / 20.0;
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(hip + f * (knee - hip)),
+                                     Eigen::Vector3d(knee + f * (ankle - knee))}) {
+      if (truth.SignedDistance(p, 0.2) < -0.02) deep.push_back(p);
+    }
+  }
+  ASSERT_GT(deep.size(), 25u);
+  Points positions(static_cast<Eigen::Index>(deep.size()), 3);
+  for (std::size_t i = 0; i < deep.size(); ++i) positions.row(i) = deep[i].transpose();
+  Points velocities = Points::Zero(positions.rows(), 3);
+  collider.ProjectOut(positions, velocities);
+  EXPECT_GT(collider.stats().num_skin_checks, 0);
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    const double distance = truth.SignedDistance(positions.row(i).transpose(), 0.2);
+    EXPECT_GE(distance, 0.0) << "point " << i << " of " << positions.rows();
+    EXPECT_LE(distance, kThickness + 0.003) << "point " << i << " of " << positions.rows();
+  }
+}
+
 TEST(SuperquadricCollider, RefusesBadInput) {
   EXPECT_THROW(SuperquadricCollider(nullptr), InputError);
   BodyCollisionSettings settings;
