@@ -7,7 +7,9 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <numbers>
+#include <utility>
 
 #include "sim_core/avatar/clip.h"
 #include "sim_core/avatar/pose.h"
@@ -420,6 +422,16 @@ TEST_F(Fixture, FindContactsAndProjectOutDoNotAllocateAfterTheFirstCall) {
   EXPECT_EQ(g_num_allocations, 0);
 }
 
+/// A collider for `avatar` as the simulation builds it: contact normals from the skin, the
+/// tests' cloth thickness.
+std::unique_ptr<SuperquadricCollider> SimulationCollider(std::shared_ptr<const Avatar> avatar) {
+  SuperquadricColliderOptions options;
+  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
+  BodyCollisionSettings settings;
+  settings.thickness = kThickness;
+  return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
+}
+
 // The creases of bent joints (docs/collision.md, "Joint shells"): the built-in humanoid in
 // two frames of its kick (the knee bent 55° behind, then hip 55° and knee 45° forward).
 // Points 3 mm inside the true skinned mesh (MeshDistance), within 15 cm of the kicking
@@ -430,11 +442,8 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
   const std::shared_ptr<const Avatar> humanoid = MakeHumanoid();
   const Clip kick = MakeBuiltInClip("kick", humanoid->shared_skeleton());
   const Skeleton& skeleton = humanoid->skeleton();
-  SuperquadricColliderOptions options;
-  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
-  BodyCollisionSettings settings;
-  settings.thickness = kThickness;
-  SuperquadricCollider collider(humanoid, settings, options);
+  const std::unique_ptr<SuperquadricCollider> owned = SimulationCollider(humanoid);
+  SuperquadricCollider& collider = *owned;
   for (double t : {0.42, 0.825}) {
     Pose pose;
     SampleClip(kick, t, pose);
@@ -478,11 +487,8 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
 TEST(SuperquadricCollider, PushesPointsDeepInALimbNearItsAxisOutOfIt) {
   const std::shared_ptr<const Avatar> humanoid = MakeHumanoid();
   const Skeleton& skeleton = humanoid->skeleton();
-  SuperquadricColliderOptions options;
-  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
-  BodyCollisionSettings settings;
-  settings.thickness = kThickness;
-  SuperquadricCollider collider(humanoid, settings, options);
+  const std::unique_ptr<SuperquadricCollider> owned = SimulationCollider(humanoid);
+  SuperquadricCollider& collider = *owned;
   const std::vector<Eigen::Isometry3d>& world = skeleton.rest_world();
   collider.Update(world, humanoid->rest_vertices(), 0.01);
   collider.Update(world, humanoid->rest_vertices(), 0.01);  // at rest
