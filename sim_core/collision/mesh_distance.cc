@@ -91,7 +91,7 @@ MeshDistance::MeshDistance(std::string name, const Points& vertices,
   for (auto& tree : trees_->pieces) tree->optimizeTopDown();
   // A binary tree's depth-first stack never holds more than one node per leaf plus one.
   trees_->stack.reserve(num_triangles() + 2);
-  normals_.Update(vertices_);
+  normals_.Update(vertices_, /*vertex_normals=*/false);  // as Refit
 }
 
 MeshDistance::~MeshDistance() = default;
@@ -166,16 +166,12 @@ void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, doubl
     }
   }
   if (best_triangle < 0) return;
-  const Eigen::Vector3d pseudonormal = normals_.Of(best_triangle, best_point.feature, vertices_);
-  const Eigen::Vector3d offset = point - best_point.point;
-  const double distance = std::sqrt(best_squared);
-  const bool inside = offset.dot(pseudonormal) < 0.0;
-  const double signed_distance = inside ? -distance : distance;
-  if (signed_distance >= best.signed_distance) return;
-  best.signed_distance = signed_distance;
+  const SurfaceSide side =
+      SideOf(point, best_point.point, normals_.Of(best_triangle, best_point.feature, vertices_));
+  if (side.signed_distance >= best.signed_distance) return;
+  best.signed_distance = side.signed_distance;
   best.closest_point = best_point.point;
-  best.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
-                               : pseudonormal;
+  best.normal = side.normal;
   best.triangle = best_triangle;
   best.feature = best_point.feature;
   best.barycentric = best_point.barycentric;

@@ -1294,27 +1294,20 @@ bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& ga
     skin.topology->Update(skin.corners, /*vertex_normals=*/false);
     skin.corners_current = true;
   }
-  double signed_distance = std::numeric_limits<double>::infinity();
-  Eigen::Vector3d local_normal = Eigen::Vector3d::UnitZ();
+  SurfaceSide deepest;
+  deepest.signed_distance = std::numeric_limits<double>::infinity();
   for (std::size_t piece = 0; piece < skin.piece_triangle.size(); ++piece) {
     const int t = skin.piece_triangle[piece];
     if (t < 0) continue;
     // The sign from the angle-weighted pseudonormal of the closest feature, right at edges
-    // and corners too (Bærentzen & Aanæs 2005, as MeshDistance).
+    // and corners too (as MeshDistance).
     const TrianglePoint& p = skin.piece_point[piece];
-    const Eigen::Vector3d pseudonormal = topology.Of(t, p.feature, skin.corners);
-    const Eigen::Vector3d offset = q - p.point;
-    const double distance = skin.piece_distance[piece];
-    const bool inside = offset.dot(pseudonormal) < 0.0;
-    const double here = inside ? -distance : distance;
-    if (here >= signed_distance) continue;
-    signed_distance = here;
-    local_normal =
-        distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance) : pseudonormal;
+    const SurfaceSide side = SideOf(q, p.point, topology.Of(t, p.feature, skin.corners));
+    if (side.signed_distance < deepest.signed_distance) deepest = side;
   }
-  if (!std::isfinite(signed_distance)) return false;
-  gap = signed_distance - settings_.thickness;
-  normal = end_[s].to_world.linear() * local_normal;
+  if (!std::isfinite(deepest.signed_distance)) return false;
+  gap = deepest.signed_distance - settings_.thickness;
+  normal = end_[s].to_world.linear() * deepest.normal;
   body_velocity = BodyVelocity(s, x, true);
   return true;
 }

@@ -173,6 +173,18 @@ void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
   for (Eigen::Vector3d& n : vertex_normals_) n = NormalisedOr(n, Eigen::Vector3d::UnitY());
 }
 
+SurfaceSide SideOf(const Eigen::Vector3d& point, const Eigen::Vector3d& closest,
+                   const Eigen::Vector3d& pseudonormal) {
+  const Eigen::Vector3d offset = point - closest;
+  const double distance = offset.norm();
+  const bool inside = offset.dot(pseudonormal) < 0.0;
+  SurfaceSide side;
+  side.signed_distance = inside ? -distance : distance;
+  side.normal =
+      distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance) : pseudonormal;
+  return side;
+}
+
 Eigen::Vector3d SurfacePseudonormals::VertexNormal(int vertex, const Points& vertices) const {
   // Update's sum, term by term in the same order (by triangle), so the same bits.
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();

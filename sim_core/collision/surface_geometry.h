@@ -41,6 +41,21 @@ struct TrianglePoint {
 TrianglePoint ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
+/// Where a point lies relative to a closed surface, from its closest surface point.
+struct SurfaceSide {
+  /// Distance to the closest point [m], negative inside.
+  double signed_distance = 0.0;
+  /// Unit outward normal at the point: the direction from the closest point to it
+  /// (reversed inside), the distance field's gradient; the pseudonormal on the surface.
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
+};
+
+/// The side of `point` [m] given its closest surface point `closest` [m] and the unit
+/// angle-weighted pseudonormal of the feature `closest` lies on: inside when the offset
+/// points against it (Bærentzen & Aanæs 2005). Never throws.
+SurfaceSide SideOf(const Eigen::Vector3d& point, const Eigen::Vector3d& closest,
+                   const Eigen::Vector3d& pseudonormal);
+
 /// Edge adjacency, connected pieces and angle-weighted pseudonormals of a triangle mesh.
 /// The topology is fixed at construction; Update recomputes the normals for new vertex
 /// positions. Triangles are counter-clockwise seen from outside.
