@@ -38,17 +38,23 @@ struct StoredMapDrawing {
   double bounding_radius = 0.0;
 };
 
-/// One node of a drawing as stored and read, 16 bytes: the skin's radius along the node's
+/// One node of a drawing as stored and read, 8 bytes: the skin's radius along the node's
 /// ray [m] in single precision (6 nm at 10 cm), negative when the node is capped (its ray
-/// saw no skin), the distance of the skin's tangent plane there from the centre [m], and the
-/// skin's unit normal in steps of 1/32767 (0.002°).
+/// saw no skin), and the skin's unit normal in octahedral coordinates (the normal scaled to
+/// |x| + |y| + |z| = 1, its lower half folded over the upper) in steps of 1/32767 (at most
+/// 0.01°). Queries read nodes scattered over a map the size of the caches, so half the
+/// bytes is half the memory they wait for (the tangent plane's distance, which a 16-byte
+/// node kept, is radius × normal·ray from the node's ray).
 struct StoredMapNode {
   float radius = 0.0f;
-  float plane = 0.0f;
-  std::array<std::int16_t, 3> normal{};
-  std::int16_t unused = 0;
+  std::array<std::int16_t, 2> normal{};
   static constexpr double kNormalScale = 32767.0;
 };
+
+/// A unit normal in a node's octahedral coordinates (StoredMapNode::normal), and back (a
+/// unit vector). Never throw or allocate.
+std::array<std::int16_t, 2> EncodeMapNormal(const Eigen::Vector3d& normal);
+Eigen::Vector3d DecodeMapNormal(const std::array<std::int16_t, 2>& code);
 
 /// Counters of a SkinMapCache [-], [bytes].
 struct SkinMapCacheStats {

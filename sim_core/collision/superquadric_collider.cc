@@ -165,17 +165,17 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
 /// A stored node's skin radius [m] and whether it is capped (its ray saw no skin).
 double NodeRadius(const StoredMapNode& node) { return std::abs(node.radius); }
 bool NodeCapped(const StoredMapNode& node) { return std::signbit(node.radius); }
-Eigen::Vector3d NodeNormal(const StoredMapNode& node) {
-  return Eigen::Vector3d(node.normal[0], node.normal[1], node.normal[2]) *
-         (1.0 / StoredMapNode::kNormalScale);
-}
+Eigen::Vector3d NodeNormal(const StoredMapNode& node) { return DecodeMapNormal(node.normal); }
 
-/// The skin's radius along the unit ray `d` as `node` predicts it: where `d` meets the
-/// skin's tangent plane at the node (its own radius where that plane nearly contains `d`)
-/// [m].
-double PlaneRadius(const StoredMapNode& node, const Eigen::Vector3d& d) {
-  const double cosine = NodeNormal(node).dot(d);
-  return cosine > kMinSkinCosine ? node.plane / cosine : NodeRadius(node);
+/// The skin's radius along the unit ray `d` as `node`, on the unit ray `ray`, predicts it:
+/// where `d` meets the skin's tangent plane at the node (its own radius where that plane
+/// nearly contains `d`) [m].
+double PlaneRadius(const StoredMapNode& node, const Eigen::Vector3d& ray,
+                   const Eigen::Vector3d& d) {
+  const Eigen::Vector3d normal = NodeNormal(node);
+  const double cosine = normal.dot(d);
+  return cosine > kMinSkinCosine ? NodeRadius(node) * normal.dot(ray) / cosine
+                                 : NodeRadius(node);
 }
 
 /// The map of `segment` read on the unit ray `d` (superquadric frame): the skin's radius
@@ -208,8 +208,11 @@ void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double
     // shell a step that snagged cloth: 280 % strain on the walk.)
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     int nearest = 0;
+    const std::vector<int>& table = map.face_nodes[face];
+    const int index = u * (nk + 1) + v;
+    const int at[4] = {index, index + 1, index + nk + 1, index + nk + 2};
     for (int k = 0; k < 4; ++k) {
-      const double predicted = PlaneRadius(*n[k], d);
+      const double predicted = PlaneRadius(*n[k], map.ray[table[at[k]]], d);
       hi = std::max(hi, predicted);
       if (predicted < lo) lo = predicted, nearest = k;
     }
@@ -471,9 +474,6 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     }
   }
   FillMissedNodes(map, skin, segment.reach);
-  for (int node = 0; node < map.num_nodes(); ++node) {
-    skin.plane[node] = skin.radius[node] * skin.normal[node].dot(map.ray[node]);
-  }
   // The shell lies within thickness over the least cosine of the skin points.
   Eigen::AlignedBox3d box(Eigen::Vector3d::Zero());
   double farthest = 0.0;
@@ -497,11 +497,7 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
     for (int node : map.face_nodes[f]) {
       const auto radius = static_cast<float>(skin.radius[node]);
       out->radius = skin.capped[node] ? -radius : radius;
-      out->plane = static_cast<float>(skin.plane[node]);
-      for (int a = 0; a < 3; ++a) {
-        out->normal[a] = static_cast<std::int16_t>(
-            std::lround(skin.normal[node][a] * StoredMapNode::kNormalScale));
-      }
+      out->normal = EncodeMapNormal(skin.normal[node]);
       ++out;
     }
   }
@@ -934,7 +930,6 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.queue.reserve(nodes);
   skin.radius = segment.map.surface_radius;
   skin.normal = segment.map.ray;
-  skin.plane = segment.map.surface_radius;
   skin.capped.assign(nodes, 0);
   segment.own_nodes.resize(segment.map.num_face_points);
   skin.topology.emplace(static_cast<int>(skin.vertices.size()), skin.triangles);

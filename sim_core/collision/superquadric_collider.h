@@ -190,14 +190,13 @@ struct SegmentSkin {
   /// The drawing, per node: the distance from the centre to the skin along the ray [m]
   /// (where the ray first leaves the skin the map holds, at most the segment's reach;
   /// minus SkinDistanceMap::surface_radius it is the paper's mapped distance), the skin's
-  /// outward unit normal there (the ray at capped nodes) [-], the distance of the skin's
-  /// tangent plane there from the centre [m], and whether the node is capped: its ray met
-  /// no skin within the segment's reach (it runs on inside the body, where the neighbours'
-  /// shells hold the skin, or leaves through an open end), its radius the reach or filled
-  /// from its neighbours. Queries read the drawing packed (SuperquadricSegment::nodes).
+  /// outward unit normal there (the ray at capped nodes) [-], and whether the node is
+  /// capped: its ray met no skin within the segment's reach (it runs on inside the body,
+  /// where the neighbours' shells hold the skin, or leaves through an open end), its radius
+  /// the reach or filled from its neighbours. Queries read the drawing packed
+  /// (SuperquadricSegment::nodes).
   std::vector<double> radius;
   std::vector<Eigen::Vector3d> normal;
-  std::vector<double> plane;
   std::vector<char> capped;
   /// Scratch of the filling: per node unknown / known / queued, and the queue.
   std::vector<char> state;
