@@ -40,31 +40,6 @@ std::int64_t RoundToInteger(double x) {
 
 }  // namespace
 
-std::array<std::int16_t, 2> EncodeMapNormal(const Eigen::Vector3d& normal) {
-  const Eigen::Vector3d o = normal / normal.cwiseAbs().sum();
-  double x = o.x(), y = o.y();
-  if (o.z() < 0.0) {  // the lower half folded over the upper
-    x = std::copysign(1.0 - std::abs(o.y()), o.x());
-    y = std::copysign(1.0 - std::abs(o.x()), o.y());
-  }
-  const auto step = [](double c) {
-    return static_cast<std::int16_t>(std::lround(c * StoredMapNode::kNormalScale));
-  };
-  return {step(x), step(y)};
-}
-
-Eigen::Vector3d DecodeMapNormal(const std::array<std::int16_t, 2>& code) {
-  double x = code[0] * (1.0 / StoredMapNode::kNormalScale);
-  double y = code[1] * (1.0 / StoredMapNode::kNormalScale);
-  const double z = 1.0 - std::abs(x) - std::abs(y);
-  if (z < 0.0) {
-    const double folded_x = std::copysign(1.0 - std::abs(y), x);
-    y = std::copysign(1.0 - std::abs(x), y);
-    x = folded_x;
-  }
-  return Eigen::Vector3d(x, y, z).normalized();
-}
-
 SkinMapCache::SkinMapCache(std::size_t budget_bytes, double quantum)
     : budget_bytes_(budget_bytes) {
   if (!(quantum > 0.0) || !std::isfinite(quantum)) {

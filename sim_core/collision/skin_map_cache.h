@@ -39,22 +39,18 @@ struct StoredMapDrawing {
 };
 
 /// One node of a drawing as stored and read, 8 bytes: the skin's radius along the node's
-/// ray [m] in single precision (6 nm at 10 cm), negative when the node is capped (its ray
-/// saw no skin), and the skin's unit normal in octahedral coordinates (the normal scaled to
-/// |x| + |y| + |z| = 1, its lower half folded over the upper) in steps of 1/32767 (at most
-/// 0.01°). Queries read nodes scattered over a map the size of the caches, so half the
-/// bytes is half the memory they wait for (the tangent plane's distance, which a 16-byte
-/// node kept, is radius × normal·ray from the node's ray).
+/// ray in steps of its map's radius step (SuperquadricSegment::radius_step, 10–30 µm),
+/// negative when the node is capped (its ray saw no skin), and the skin's unit normal in
+/// steps of 1/32767 (0.002°). Queries read nodes scattered over maps the size of the
+/// caches: half the bytes of a node holding the radius and the tangent plane's distance
+/// in single precision is half the memory they wait for (the plane is radius × normal·ray,
+/// from the node's ray).
 struct StoredMapNode {
-  float radius = 0.0f;
-  std::array<std::int16_t, 2> normal{};
+  std::int16_t radius = 0;
+  std::array<std::int16_t, 3> normal{};
   static constexpr double kNormalScale = 32767.0;
+  static constexpr int kMaxRadiusSteps = 32767;
 };
-
-/// A unit normal in a node's octahedral coordinates (StoredMapNode::normal), and back (a
-/// unit vector). Never throw or allocate.
-std::array<std::int16_t, 2> EncodeMapNormal(const Eigen::Vector3d& normal);
-Eigen::Vector3d DecodeMapNormal(const std::array<std::int16_t, 2>& code);
 
 /// Counters of a SkinMapCache [-], [bytes].
 struct SkinMapCacheStats {

@@ -162,20 +162,23 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
   return map;
 }
 
-/// A stored node's skin radius [m] and whether it is capped (its ray saw no skin).
-double NodeRadius(const StoredMapNode& node) { return std::abs(node.radius); }
-bool NodeCapped(const StoredMapNode& node) { return std::signbit(node.radius); }
-Eigen::Vector3d NodeNormal(const StoredMapNode& node) { return DecodeMapNormal(node.normal); }
+/// A stored node's skin radius [m] for its map's radius step [m], whether it is capped (its
+/// ray saw no skin), and its unit normal.
+double NodeRadius(const StoredMapNode& node, double step) { return std::abs(node.radius) * step; }
+bool NodeCapped(const StoredMapNode& node) { return node.radius < 0; }
+Eigen::Vector3d NodeNormal(const StoredMapNode& node) {
+  return Eigen::Vector3d(node.normal[0], node.normal[1], node.normal[2]) *
+         (1.0 / StoredMapNode::kNormalScale);
+}
 
-/// The skin's radius along the unit ray `d` as `node`, on the unit ray `ray`, predicts it:
-/// where `d` meets the skin's tangent plane at the node (its own radius where that plane
-/// nearly contains `d`) [m].
-double PlaneRadius(const StoredMapNode& node, const Eigen::Vector3d& ray,
+/// The skin's radius along the unit ray `d` as a node of radius `radius` [m] on the unit ray
+/// `ray` predicts it: where `d` meets the skin's tangent plane at the node (its own radius
+/// where that plane nearly contains `d`) [m].
+double PlaneRadius(const StoredMapNode& node, double radius, const Eigen::Vector3d& ray,
                    const Eigen::Vector3d& d) {
   const Eigen::Vector3d normal = NodeNormal(node);
   const double cosine = normal.dot(d);
-  return cosine > kMinSkinCosine ? NodeRadius(node) * normal.dot(ray) / cosine
-                                 : NodeRadius(node);
+  return cosine > kMinSkinCosine ? radius * normal.dot(ray) / cosine : radius;
 }
 
 /// The map of `segment` read on the unit ray `d` (superquadric frame): the skin's radius
@@ -195,8 +198,9 @@ void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double
   // neighbours in memory.
   const StoredMapNode* row = segment.nodes + map.face_offset[face] + u * (nk + 1) + v;
   const StoredMapNode* n[4] = {row, row + 1, row + nk + 1, row + nk + 2};
-  const double r[4] = {NodeRadius(*n[0]), NodeRadius(*n[1]), NodeRadius(*n[2]),
-                       NodeRadius(*n[3])};
+  const double step = segment.radius_step;
+  const double r[4] = {NodeRadius(*n[0], step), NodeRadius(*n[1], step),
+                       NodeRadius(*n[2], step), NodeRadius(*n[3], step)};
   if (std::max({r[0], r[1], r[2], r[3]}) - std::min({r[0], r[1], r[2], r[3]}) >
       map.silhouette_jump) {
     // The radii jump across the cell: either the ray grazes the skin (a leg's taper seen
@@ -212,7 +216,7 @@ void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double
     const int index = u * (nk + 1) + v;
     const int at[4] = {index, index + 1, index + nk + 1, index + nk + 2};
     for (int k = 0; k < 4; ++k) {
-      const double predicted = PlaneRadius(*n[k], map.ray[table[at[k]]], d);
+      const double predicted = PlaneRadius(*n[k], r[k], map.ray[table[at[k]]], d);
       hi = std::max(hi, predicted);
       if (predicted < lo) lo = predicted, nearest = k;
     }
@@ -495,9 +499,16 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
   StoredMapNode* out = nodes;
   for (int f = 0; f < 6; ++f) {
     for (int node : map.face_nodes[f]) {
-      const auto radius = static_cast<float>(skin.radius[node]);
-      out->radius = skin.capped[node] ? -radius : radius;
-      out->normal = EncodeMapNormal(skin.normal[node]);
+      // No radius exceeds the reach, which stays within the steps' range
+      // (kRadiusRangePerReach); 0 would lose the capped sign.
+      const auto steps = static_cast<std::int16_t>(
+          std::clamp<long>(std::lround(skin.radius[node] / segment.radius_step), 1,
+                           StoredMapNode::kMaxRadiusSteps));
+      out->radius = static_cast<std::int16_t>(skin.capped[node] ? -steps : steps);
+      for (int a = 0; a < 3; ++a) {
+        out->normal[a] = static_cast<std::int16_t>(
+            std::lround(skin.normal[node][a] * StoredMapNode::kNormalScale));
+      }
       ++out;
     }
   }
@@ -721,6 +732,12 @@ constexpr double kEdgeStretch = 1.5;
 /// rays down the calf.
 constexpr double kReachMargin = 0.06;
 
+/// A map's stored radii (StoredMapNode) run up to this many times its rest reach: a pose
+/// moves a segment's farthest skin from its centre by centimetres (a bent knee's front),
+/// and a radius beyond would be stored as the largest (10–30 µm steps for reaches of
+/// 15–50 cm).
+constexpr double kRadiusRangePerReach = 2.0;
+
 /// A map's rays start at its centre and stop where they first leave the skin: a centre must
 /// lie this far inside the skin [m], or its first exits can bound air.
 constexpr double kMinCentreDepth = 0.005;
@@ -875,6 +892,7 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.held.erase(std::unique(skin.held.begin(), skin.held.end()), skin.held.end());
   segment.map = MakeMapGrid(segment.superquadric, extent, map_spacing);
   segment.reach = farthest + kReachMargin;
+  segment.radius_step = kRadiusRangePerReach * segment.reach / StoredMapNode::kMaxRadiusSteps;
   // Triangles that lie well beyond the reach in the rest pose never stop a ray short of it
   // (bending a joint moves skin by centimetres, not decimetres): they are not drawn.
   {

@@ -220,6 +220,8 @@ struct SuperquadricSegment {
   /// of the current skin (SkinMapCache), or `own_nodes` when the store had no room.
   const StoredMapNode* nodes = nullptr;
   std::vector<StoredMapNode> own_nodes;
+  /// The step of the radii in `nodes` [m] (StoredMapNode::radius), from the rest reach.
+  double radius_step = 1e-5;
   /// How far from the centre the map's rays may reach [m]: the farthest vertex of the skin
   /// the segment holds (SegmentSkin::held) in the last pose, and a margin; beyond, the
   /// neighbours' shells hold the skin.

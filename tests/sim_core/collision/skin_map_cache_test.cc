@@ -4,10 +4,6 @@
 
 #include <gtest/gtest.h>
 
-#include <algorithm>
-#include <cmath>
-#include <vector>
-
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -48,13 +44,13 @@ TEST(SkinMapCache, FindsWhatWasStoredAndCountsHitsAndMisses) {
   StoredMapDrawing* stored = cache.Reserve(key, 10, nodes);
   ASSERT_NE(stored, nullptr);
   ASSERT_NE(nodes, nullptr);
-  for (int n = 0; n < 10; ++n) nodes[n].radius = 0.1f * static_cast<float>(n);
+  for (int n = 0; n < 10; ++n) nodes[n].radius = static_cast<std::int16_t>(100 * n);
   stored->bounding_radius = 0.25;
   const StoredMapDrawing* found = cache.Find(key);
   ASSERT_NE(found, nullptr);
   EXPECT_EQ(found->num_nodes, 10);
   EXPECT_EQ(found->bounding_radius, 0.25);
-  EXPECT_FLOAT_EQ(cache.Nodes(*found)[7].radius, 0.7f);
+  EXPECT_EQ(cache.Nodes(*found)[7].radius, 700);
   EXPECT_EQ(cache.Find(key + 1), nullptr);
   EXPECT_EQ(cache.stats().num_hits, 1);
   EXPECT_EQ(cache.stats().num_misses, 2);
@@ -88,33 +84,6 @@ TEST(SkinMapCache, RefusesABadQuantum) {
   EXPECT_THROW(SkinMapCache(1024, 0.0), InputError);
   EXPECT_THROW(SkinMapCache(1024, -1e-5), InputError);
   EXPECT_THROW(SkinMapCache(1024, std::numeric_limits<double>::quiet_NaN()), InputError);
-}
-
-TEST(StoredMapNode, NormalsComeBackWithinAHundredthOfADegree) {
-  // Rounding to octahedral steps of 1/32767 turns a normal by about 2/32767 rad at most
-  // (0.0035°; 0.0036° measured here); a hundredth of a degree bounds that with room.
-  // Directions on the coordinate axes and planes, where the folding's signs switch, and
-  // spread over the sphere.
-  std::vector<Eigen::Vector3d> normals;
-  for (int a = 0; a < 3; ++a) {
-    normals.push_back(Eigen::Vector3d::Unit(a));
-    normals.push_back(-Eigen::Vector3d::Unit(a));
-  }
-  normals.push_back(Eigen::Vector3d(1, -1, 0).normalized());
-  normals.push_back(Eigen::Vector3d(-1, 0, -1).normalized());
-  for (int i = 0; i < 20000; ++i) {
-    // A golden-angle spiral: evenly spread, both hemispheres.
-    const double z = 1.0 - (2.0 * i + 1.0) / 20000.0;
-    const double angle = 2.399963229728653 * i, r = std::sqrt(1.0 - z * z);
-    normals.push_back(Eigen::Vector3d(r * std::cos(angle), r * std::sin(angle), z));
-  }
-  double worst = 0.0;
-  for (const Eigen::Vector3d& n : normals) {
-    const Eigen::Vector3d back = DecodeMapNormal(EncodeMapNormal(n));
-    EXPECT_NEAR(back.norm(), 1.0, 1e-12);
-    worst = std::max(worst, std::atan2(n.cross(back).norm(), n.dot(back)));
-  }
-  EXPECT_LT(worst * 180.0 / M_PI, 0.01);
 }
 
 }  // namespace
