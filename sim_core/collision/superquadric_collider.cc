@@ -499,12 +499,13 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
   StoredMapNode* out = nodes;
   for (int f = 0; f < 6; ++f) {
     for (int node : map.face_nodes[f]) {
-      // No radius exceeds the reach, which stays within the steps' range
-      // (kRadiusRangePerReach); 0 would lose the capped sign.
-      const auto steps = static_cast<std::int16_t>(
-          std::clamp<long>(std::lround(skin.radius[node] / segment.radius_step), 1,
-                           StoredMapNode::kMaxRadiusSteps));
-      out->radius = static_cast<std::int16_t>(skin.capped[node] ? -steps : steps);
+      // A radius beyond the steps' range (a reach grown past kRadiusRangePerReach times
+      // the rest one) is stored as the largest and capped: the shell there is uncertain,
+      // not smaller than the skin. None is 0, which would lose the capped sign.
+      const long steps = std::lround(skin.radius[node] / segment.radius_step);
+      const bool capped = skin.capped[node] || steps > StoredMapNode::kMaxRadiusSteps;
+      const long stored = std::clamp<long>(steps, 1, StoredMapNode::kMaxRadiusSteps);
+      out->radius = static_cast<std::int16_t>(capped ? -stored : stored);
       for (int a = 0; a < 3; ++a) {
         out->normal[a] = static_cast<std::int16_t>(
             std::lround(skin.normal[node][a] * StoredMapNode::kNormalScale));
@@ -734,8 +735,8 @@ constexpr double kReachMargin = 0.06;
 
 /// A map's stored radii (StoredMapNode) run up to this many times its rest reach: a pose
 /// moves a segment's farthest skin from its centre by centimetres (a bent knee's front),
-/// and a radius beyond would be stored as the largest (10–30 µm steps for reaches of
-/// 15–50 cm).
+/// not by the reach again (10–30 µm steps for reaches of 15–50 cm; PackDrawing caps a
+/// radius beyond).
 constexpr double kRadiusRangePerReach = 2.0;
 
 /// A map's rays start at its centre and stop where they first leave the skin: a centre must
