@@ -332,10 +332,13 @@ class SuperquadricCollider : public BodyCollider {
     Eigen::Isometry3d to_local = Eigen::Isometry3d::Identity();
   };
   void SetPose(const std::vector<Eigen::Isometry3d>& joint_world, std::vector<Placement>& out);
-  /// Segments whose bounding sphere grown by `reach` [m] meets the box [lo, hi]; their
-  /// maps are redrawn if stale.
-  void CullSegments(const std::vector<Placement>& placements, const Eigen::Vector3d& lo,
-                    const Eigen::Vector3d& hi, double reach);
+  /// How far the shell of `segment` is grown for the body's motion when tested at the start
+  /// of the step (`at_end` false: its sweep) or at its end (true: not at all) [m].
+  double Motion(int segment, bool at_end) const;
+  /// Keeps (active_) the segments whose bounding sphere, placed at the start or the end of
+  /// the step and grown by Motion and `reach` [m], meets the box [lo, hi].
+  void CullSegments(bool at_end, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                    double reach);
   /// Moves every segment's skin corners into its end-of-step frame and marks its map stale.
   void MoveSkin(const Points& skinned);
   /// Brings the map of segment `s` up to its skin corners: a stored drawing of the same
@@ -343,7 +346,7 @@ class SuperquadricCollider : public BodyCollider {
   void RefreshMap(int s);
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
-  /// than `reach` [m] plus their own motion over the step are skipped; so are blind readings
+  /// than `reach` [m] plus Motion are skipped; so are blind readings
   /// inside a shell and capped ones (ShellProbe) deeper than PlausibleDepth. Returns false
   /// when every shell was.
   /// `undecided` (when not null) gets the segment with the deepest skipped reading inside
