@@ -32,12 +32,6 @@ std::uint64_t Avalanche(std::uint64_t hash) {
   return hash;
 }
 
-/// `x` rounded to the nearest integer (half away from zero); 0 for a non-finite or huge `x`.
-std::int64_t RoundToInteger(double x) {
-  if (!(std::abs(x) < 4e18)) return 0;
-  return static_cast<std::int64_t>(x + (x >= 0.0 ? 0.5 : -0.5));
-}
-
 }  // namespace
 
 SkinMapCache::SkinMapCache(std::size_t budget_bytes, double quantum)

@@ -21,6 +21,7 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -51,6 +52,14 @@ struct StoredMapNode {
   static constexpr double kNormalScale = 32767.0;
   static constexpr int kMaxRadiusSteps = 32767;
 };
+
+/// `x` rounded to the nearest integer (half away from zero); 0 for a non-finite or huge
+/// `x`. Inline: std::lround is a library call on the baseline x86-64 this builds for, and
+/// a key rounds every corner of a skin, a drawing four numbers per node.
+inline std::int64_t RoundToInteger(double x) {
+  if (!(std::abs(x) < 4e18)) return 0;
+  return static_cast<std::int64_t>(x + (x >= 0.0 ? 0.5 : -0.5));
+}
 
 /// Counters of a SkinMapCache [-], [bytes].
 struct SkinMapCacheStats {

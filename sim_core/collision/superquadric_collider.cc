@@ -502,13 +502,14 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
       // A radius beyond the steps' range (a reach grown past kRadiusRangePerReach times
       // the rest one) is stored as the largest and capped: the shell there is uncertain,
       // not smaller than the skin. None is 0, which would lose the capped sign.
-      const long steps = std::lround(skin.radius[node] / segment.radius_step);
+      const std::int64_t steps = RoundToInteger(skin.radius[node] / segment.radius_step);
       const bool capped = skin.capped[node] || steps > StoredMapNode::kMaxRadiusSteps;
-      const long stored = std::clamp<long>(steps, 1, StoredMapNode::kMaxRadiusSteps);
+      const std::int64_t stored =
+          std::clamp<std::int64_t>(steps, 1, StoredMapNode::kMaxRadiusSteps);
       out->radius = static_cast<std::int16_t>(capped ? -stored : stored);
       for (int a = 0; a < 3; ++a) {
         out->normal[a] = static_cast<std::int16_t>(
-            std::lround(skin.normal[node][a] * StoredMapNode::kNormalScale));
+            RoundToInteger(skin.normal[node][a] * StoredMapNode::kNormalScale));
       }
       ++out;
     }
