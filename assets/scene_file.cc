@@ -661,7 +661,7 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
                            : sim::BodyCollisionMethod::kSuperquadric;
   }
   avatar.superquadric_map_mb = NumberOr(table, "superquadric_map_mb", avatar.superquadric_map_mb,
-                                        {0.0, 16384.0, false, false}, "MB");
+                                        {0.0, sim::kMaxSuperquadricMapMb, false, false}, "MB");
   avatar.thickness = NumberOr(table, "thickness", avatar.thickness, {0.0, 0.05, false, false}, "m");
   avatar.friction = NumberOr(table, "friction", avatar.friction, {0.0, 2.0, false, false}, "");
   avatar.motion.fit_time =

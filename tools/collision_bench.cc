@@ -48,7 +48,7 @@ struct Options {
   /// printed only when both run.
   std::vector<std::string> methods{"superquadric", "mesh"};
   /// Memory for the superquadric method's stored map drawings [MB] (0: draw every map).
-  double superquadric_map_mb = 256.0;
+  double superquadric_map_mb = sim::AvatarSpec{}.superquadric_map_mb;
   /// Calls per mode of the cloth-side regions' comparison (0: skip it).
   int regions_reps = 100;
 };
@@ -290,7 +290,7 @@ int main(int argc, char** argv) {
   app.add_option("--superquadric-map-mb", options.superquadric_map_mb,
                  "Memory for the superquadric method's stored map drawings, reused when the "
                  "skin comes back (0: draw every map every frame)")
-      ->check(CLI::Range(0.0, 16384.0))
+      ->check(CLI::Range(0.0, sim::kMaxSuperquadricMapMb))
       ->capture_default_str();
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
   app.add_option("--regions-reps", options.regions_reps,

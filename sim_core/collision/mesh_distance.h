@@ -64,7 +64,8 @@ class MeshDistance {
 
   /// Moves the mesh to `vertices` (n×3) [m], same topology: refits the trees' boxes bottom
   /// up (their structure stays that of the first pose) and recomputes the face normals.
-  /// Returns false, doing nothing, when the row count differs from the mesh's. Never throws; never allocates.
+  /// Returns false, doing nothing, when the row count differs from the mesh's. Never
+  /// throws; never allocates.
   bool Update(const Points& vertices);
 
   /// The surface point closest to `point` [m] within `max_radius` [m] >= 0, with its

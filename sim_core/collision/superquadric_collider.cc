@@ -196,8 +196,11 @@ void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double
   const double wu = fu - u, wv = fv - v;
   // The face's grid points are stored row by row: the cell's four nodes are two pairs of
   // neighbours in memory.
-  const StoredMapNode* row = segment.nodes + map.face_offset[face] + u * (nk + 1) + v;
-  const StoredMapNode* n[4] = {row, row + 1, row + nk + 1, row + nk + 2};
+  const int index = u * (nk + 1) + v;
+  const int at[4] = {index, index + 1, index + nk + 1, index + nk + 2};
+  const StoredMapNode* face_nodes = segment.nodes + map.face_offset[face];
+  const StoredMapNode* n[4] = {face_nodes + at[0], face_nodes + at[1], face_nodes + at[2],
+                               face_nodes + at[3]};
   const double step = segment.radius_step;
   const double r[4] = {NodeRadius(*n[0], step), NodeRadius(*n[1], step),
                        NodeRadius(*n[2], step), NodeRadius(*n[3], step)};
@@ -213,8 +216,6 @@ void LookUp(const SuperquadricSegment& segment, const Eigen::Vector3d& d, double
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     int nearest = 0;
     const std::vector<int>& table = map.face_nodes[face];
-    const int index = u * (nk + 1) + v;
-    const int at[4] = {index, index + 1, index + nk + 1, index + nk + 2};
     for (int k = 0; k < 4; ++k) {
       const double predicted = PlaneRadius(*n[k], r[k], map.ray[table[at[k]]], d);
       hi = std::max(hi, predicted);

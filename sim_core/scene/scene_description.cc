@@ -226,8 +226,8 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
   if (!avatar.avatar) refuser.Refuse("avatar", "none", "the avatar was not loaded");
   refuser.RequireNumber("avatar.thickness", avatar.thickness, 0.0, 0.05, false, false, "m");
   refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, 2.0, false, false, "");
-  refuser.RequireNumber("avatar.superquadric_map_mb", avatar.superquadric_map_mb, 0.0, 16384.0,
-                        false, false, "MB");
+  refuser.RequireNumber("avatar.superquadric_map_mb", avatar.superquadric_map_mb, 0.0,
+                        kMaxSuperquadricMapMb, false, false, "MB");
   refuser.RequireNumber("avatar.fit_time", avatar.motion.fit_time, 0.0, 60.0, false, false, "s");
   refuser.RequireNumber("avatar.blend_time", avatar.motion.blend_time, 0.0, 60.0, false, false, "s");
 }

@@ -96,6 +96,10 @@ enum class BodyCollisionMethod {
 /// "superquadric" or "mesh".
 const char* BodyCollisionMethodName(BodyCollisionMethod method);
 
+/// The most memory a scene may give the superquadric method's stored drawings
+/// (AvatarSpec::superquadric_map_mb) [MB].
+constexpr double kMaxSuperquadricMapMb = 16384.0;
+
 /// The avatar a scene dresses, already loaded (the assets layer resolves files and names).
 struct AvatarSpec {
   std::shared_ptr<const Avatar> avatar;
@@ -108,8 +112,8 @@ struct AvatarSpec {
   /// passes on the built-in humanoid only (docs/collision.md, "Figures").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;
   /// Superquadric method: memory for its maps' drawings kept for reuse when the skin comes
-  /// back, as a looping clip brings it every pass [MB] in [0, 16384]; 0 draws every map
-  /// afresh.
+  /// back, as a looping clip brings it every pass [MB] in [0, kMaxSuperquadricMapMb]; 0
+  /// draws every map afresh.
   double superquadric_map_mb = 256.0;
   /// Cloth thickness kept off the skin [m] in [0, 0.05].
   double thickness = 0.004;

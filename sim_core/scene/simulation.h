@@ -239,6 +239,6 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
 std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                std::shared_ptr<const Avatar> avatar,
                                                const BodyCollisionSettings& settings,
-                                               double map_memory_mb = 256.0);
+                                               double map_memory_mb);
 
 }  // namespace costume::sim
