@@ -189,7 +189,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     const sim::Points& x = simulation->state().positions;
     for (Eigen::Index p = 0; p < x.rows(); ++p) {
       if (attached[p]) continue;
-      const double depth = -skin.SignedDistance(x.row(p).transpose(), 0.1);
+      const double depth = skin.PenetrationDepth(x.row(p).transpose(), 0.1);
       if (depth > deepest) {
         deepest = depth;
         deepest_here = static_cast<int>(p);

@@ -3,8 +3,10 @@
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 
 #include "sim_core/common/input_error.h"
@@ -32,6 +34,62 @@ double SquaredBoxDistance(const btDbvtVolume& volume, const Eigen::Vector3d& p) 
     sum += gap * gap;
   }
   return sum;
+}
+
+/// Whether the ray from `origin` with componentwise inverse direction `inverse` meets the
+/// box `volume` at a non-negative parameter (slab test).
+bool RayMeetsBox(const btDbvtVolume& volume, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& inverse) {
+  double near = 0.0, far = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    double t0 = (volume.Mins()[k] - origin[k]) * inverse[k];
+    double t1 = (volume.Maxs()[k] - origin[k]) * inverse[k];
+    if (t0 > t1) std::swap(t0, t1);
+    near = std::max(near, t0);
+    far = std::min(far, t1);
+    if (near > far) return false;
+  }
+  return true;
+}
+
+/// How a ray crosses a triangle, counter-clockwise seen from outside.
+enum class Crossing { kNone, kExit, kEntry, kUncertain };
+
+/// The ray from `origin` along `direction` against the triangle (a, b, c), Möller and
+/// Trumbore's test. A hit closer to an edge or a corner than kEdgeTolerance (barycentric),
+/// a ray nearly in the triangle's plane or an origin on the triangle is uncertain: the
+/// count then depends on rounding, so the caller casts another ray.
+Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                     const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  constexpr double kEdgeTolerance = 1e-9;
+  const Eigen::Vector3d e1 = b - a, e2 = c - a;
+  const Eigen::Vector3d p = direction.cross(e2);
+  // det = −direction·(e1 × e2): negative where the ray leaves through the outside.
+  const double det = e1.dot(p);
+  const Eigen::Vector3d s = origin - a;
+  const double scale = e1.norm() * e2.norm();
+  const double length = std::sqrt(scale);
+  if (std::abs(det) <= kEdgeTolerance * scale) {
+    // Parallel to the plane: no crossing, unless the ray runs in it.
+    const Eigen::Vector3d normal = e1.cross(e2);
+    const double norm = normal.norm();
+    return norm > 0.0 && std::abs(normal.dot(s)) > kEdgeTolerance * norm * length
+               ? Crossing::kNone
+               : Crossing::kUncertain;
+  }
+  const double u = s.dot(p) / det;
+  const Eigen::Vector3d q = s.cross(e1);
+  const double v = direction.dot(q) / det;
+  if (u < -kEdgeTolerance || v < -kEdgeTolerance || u + v > 1.0 + kEdgeTolerance) {
+    return Crossing::kNone;
+  }
+  const double t = e2.dot(q) / det;
+  if (t < -kEdgeTolerance * length) return Crossing::kNone;
+  if (u < kEdgeTolerance || v < kEdgeTolerance || u + v > 1.0 - kEdgeTolerance ||
+      t <= kEdgeTolerance * length) {
+    return Crossing::kUncertain;
+  }
+  return det < 0.0 ? Crossing::kExit : Crossing::kEntry;
 }
 
 int LeafTriangle(const btDbvtNode* leaf) {
@@ -186,12 +244,68 @@ SurfaceDistance MeshDistance::Query(const Eigen::Vector3d& point, double max_rad
   return best;
 }
 
+bool MeshDistance::WindingInPiece(int piece, const Eigen::Vector3d& point,
+                                  const Eigen::Vector3d& direction, int& winding) const {
+  winding = 0;
+  const btDbvt& tree = *trees_->pieces[piece];
+  if (tree.m_root == nullptr) return true;
+  const Eigen::Vector3d inverse = direction.cwiseInverse();
+  auto& stack = trees_->stack;
+  stack.clear();
+  stack.push_back(tree.m_root);
+  while (!stack.empty()) {
+    const btDbvtNode* node = stack.back();
+    stack.pop_back();
+    if (!RayMeetsBox(node->volume, point, inverse)) continue;
+    if (node->isinternal()) {
+      stack.push_back(node->childs[0]);
+      stack.push_back(node->childs[1]);
+      continue;
+    }
+    const Eigen::Vector3i& tri = normals_.triangles()[LeafTriangle(node)];
+    switch (RayCrossing(point, direction, vertices_.row(tri[0]).transpose(),
+                        vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose())) {
+      case Crossing::kNone: break;
+      case Crossing::kExit: ++winding; break;
+      case Crossing::kEntry: --winding; break;
+      case Crossing::kUncertain: return false;
+    }
+  }
+  return true;
+}
+
+bool MeshDistance::Inside(const Eigen::Vector3d& point) const {
+  if (!point.allFinite()) return false;
+  // Unit directions with no zero component (the slab test divides by them), away from the
+  // axes and diagonals that meshes built on grids line their edges up with.
+  static const std::array<Eigen::Vector3d, 4> kDirections = {
+      Eigen::Vector3d(1, 2, 3).normalized(), Eigen::Vector3d(-4, 1, 4).normalized(),
+      Eigen::Vector3d(3, -7.5, 0.1).normalized(), Eigen::Vector3d(-2, -1, -4).normalized()};
+  for (int piece = 0; piece < num_pieces(); ++piece) {
+    int winding = 0;
+    bool counted = false;
+    for (const Eigen::Vector3d& direction : kDirections) {
+      counted = WindingInPiece(piece, point, direction, winding);
+      if (counted) break;
+    }
+    // Four rays each grazing an edge or a plane: the point lies on the surface, not
+    // inside by any measurable depth.
+    if (counted && winding >= 1) return true;
+  }
+  return false;
+}
+
+double MeshDistance::PenetrationDepth(const Eigen::Vector3d& point, double max_radius) const {
+  const double distance = SignedDistance(point, max_radius);
+  if (!std::isfinite(distance) || !Inside(point)) return 0.0;
+  return std::abs(distance);
+}
+
 void MeshDistance::PenetrationDepths(const Points& points, double max_radius,
                                      std::vector<double>& depths) const {
   depths.resize(points.rows());
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const double distance = SignedDistance(points.row(i).transpose(), max_radius);
-    depths[i] = distance < 0.0 ? -distance : 0.0;
+    depths[i] = PenetrationDepth(points.row(i).transpose(), max_radius);
   }
 }
 

@@ -3,9 +3,10 @@
 /// Exact signed distance from points to a closed, animated triangle mesh (the avatar's
 /// skin): the penetration measure of collision tests and benchmarks, and the yardstick of
 /// the fast superquadric method (paper §4). Triangles sit in Bullet btDbvt trees built on
-/// the first pose and refitted bottom up when the mesh moves; the sign comes from
-/// angle-weighted pseudonormals (Bærentzen & Aanæs 2005), so it is right at edges and
-/// vertices, not only on faces.
+/// the first pose and refitted bottom up when the mesh moves. Query's sign comes from
+/// angle-weighted pseudonormals (Bærentzen & Aanæs 2005), right at edges and vertices of a
+/// mesh that does not pass through itself; the penetration measures decide inside by the
+/// winding number, which stays right where skinning folds the skin through itself.
 
 #include <Eigen/Geometry>
 #include <limits>
@@ -78,9 +79,23 @@ class MeshDistance {
     return Query(point, max_radius).signed_distance;
   }
 
-  /// Per point of `points` (m×3) [m] its penetration depth max(0, −signed distance) [m]
-  /// into `depths` (resized to m). Points deeper than `max_radius` [m] are missed
-  /// (depth 0): choose it above any depth you need to see, e.g. half the body's thickness.
+  /// Whether `point` is inside the body: its winding number in some piece is at least 1,
+  /// counted exactly as the signed crossings of a ray from it (exits − entries; a ray
+  /// through an edge or a vertex is replaced by another). Unlike the pseudonormal sign of
+  /// the nearest feature, this holds where the skin passes through itself: linear blend
+  /// skinning folds MakeHuman's crotch at dihedral angles near 180°, and there the nearest
+  /// edge's pseudonormal put a point 4.9 mm inside that lay outside (docs/collision.md,
+  /// "The penetration oracle"). Where skin is turned inside out (winding −1) is outside.
+  /// Never throws; never allocates after the first call. Not thread-safe.
+  bool Inside(const Eigen::Vector3d& point) const;
+
+  /// The penetration depth of `point` [m]: its distance to the nearest surface when
+  /// Inside(point), else 0. A point farther than `max_radius` [m] from every surface is
+  /// missed (depth 0): choose it above any depth you need to see, e.g. half the body's
+  /// thickness. Never throws; never allocates after the first call.
+  double PenetrationDepth(const Eigen::Vector3d& point, double max_radius) const;
+
+  /// Per point of `points` (m×3) [m] its PenetrationDepth [m] into `depths` (resized to m).
   void PenetrationDepths(const Points& points, double max_radius,
                          std::vector<double>& depths) const;
 
@@ -103,6 +118,11 @@ class MeshDistance {
   void Refit(const Points& vertices);
   void NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
                       SurfaceDistance& best) const;
+  /// The signed crossings of the ray from `point` along `direction` with piece `piece`
+  /// (its winding number there); false when the ray passes too near an edge, a vertex or
+  /// a triangle's plane to count.
+  bool WindingInPiece(int piece, const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
+                      int& winding) const;
 
   std::string name_;
   int num_vertices_ = 0;

@@ -1,6 +1,8 @@
 // Signed distance to closed meshes against closed forms: a tessellated box (exact), a
 // sphere (within the tessellation error computed here), signs at the box's edges and
-// corners, refitting after motion, bodies of several pieces, penetration statistics.
+// corners, refitting after motion, bodies of several pieces, penetration statistics, and
+// inside/outside by winding number where a mesh passes through itself (prisms over
+// self-crossing polygons, whose winding numbers are known).
 #include "sim_core/collision/mesh_distance.h"
 
 #include <gtest/gtest.h>
@@ -70,6 +72,100 @@ TEST(MeshDistance, SignIsRightAtEdgesAndCorners) {
     }
   }
   EXPECT_GT(num_checked, 2000);
+}
+
+// The box's inside by winding number: random points, and points on the planes of its
+// tessellation's edges and vertices, where rays are most likely to graze an edge.
+TEST(MeshDistance, InsideMatchesTheBoxEvenOnItsGridLines) {
+  const Eigen::Vector3i cells(4, 3, 5);
+  const auto box = TessellatedBox(kCenter, kHalf, cells);
+  const MeshDistance distance("box", box.vertices, box.triangles);
+  std::mt19937 rng(11);
+  std::vector<Eigen::Vector3d> points;
+  for (int i = 0; i < 1000; ++i) points.push_back(RandomPoint(rng, kCenter, 0.6));
+  // Every combination of grid coordinates (from 1.5 box sizes out to the centre).
+  for (int i = -6; i <= 6; ++i) {
+    for (int j = -5; j <= 5; ++j) {
+      for (int k = -7; k <= 7; ++k) {
+        const Eigen::Vector3d grid(i * 2.0 * kHalf.x() / cells.x(), j * 2.0 * kHalf.y() / cells.y(),
+                                   k * 2.0 * kHalf.z() / cells.z());
+        points.push_back(kCenter + 0.5 * grid);
+      }
+    }
+  }
+  int num_inside = 0, num_checked = 0;
+  for (const Eigen::Vector3d& p : points) {
+    const double expected = BoxSignedDistance(p, kCenter, kHalf);
+    if (std::abs(expected) < 1e-9) continue;  // on the surface
+    ASSERT_EQ(distance.Inside(p), expected < 0.0) << p.transpose();
+    ASSERT_NEAR(distance.PenetrationDepth(p, 2.0), std::max(0.0, -expected), 1e-12);
+    num_inside += expected < 0.0;
+    ++num_checked;
+  }
+  EXPECT_GT(num_inside, 300);
+  EXPECT_GT(num_checked, 2500);
+}
+
+/// A closed prism of height `height` [m] over the polygon `corners` (x, y) [m], which may
+/// cross itself: side walls from each edge, caps fanned from the first corner. The
+/// winding number inside the prism is the polygon's (a fan's signed triangles sum to it).
+test::TestMesh PolygonPrism(const std::vector<Eigen::Vector2d>& corners, double height) {
+  const int n = static_cast<int>(corners.size());
+  test::TestMesh mesh;
+  mesh.vertices.resize(2 * n, 3);
+  for (int i = 0; i < n; ++i) {
+    mesh.vertices.row(i) << corners[i].x(), corners[i].y(), 0.0;
+    mesh.vertices.row(n + i) << corners[i].x(), corners[i].y(), height;
+  }
+  for (int i = 1; i + 1 < n; ++i) {
+    mesh.triangles.emplace_back(0, i + 1, i);          // bottom, facing −z
+    mesh.triangles.emplace_back(n, n + i, n + i + 1);  // top, facing +z
+  }
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;  // a counter-clockwise edge's wall faces to its right
+    mesh.triangles.emplace_back(i, j, n + j);
+    mesh.triangles.emplace_back(i, n + j, n + i);
+  }
+  return mesh;
+}
+
+// Where skinning folds skin through itself, the nearest feature's pseudonormal can point
+// either way; the winding number cannot. A prism over a figure eight: its left loop runs
+// counter-clockwise (winding +1, inside), its right loop clockwise (−1: turned inside out,
+// outside), and beside the right loop's outer wall (winding 0) that wall's normal faces
+// away from the point, so the pseudonormal calls it inside. A polygon running twice around
+// a square: between its loops the winding is 1 (inside) while the nearest wall, the inner
+// loop's, faces the point.
+TEST(MeshDistance, PenetrationFollowsTheWindingWhereTheMeshPassesThroughItself) {
+  const double s = 0.1, z = 0.05;
+  const auto eight = PolygonPrism({{0, 0}, {2 * s, s}, {2 * s, 0}, {0, s}}, 2 * z);
+  const MeshDistance eight_distance("figure eight", eight.vertices, eight.triangles);
+  const Eigen::Vector3d in_left(0.3 * s, 0.5 * s, z), in_right(1.7 * s, 0.5 * s, z);
+  const Eigen::Vector3d beside_right(2.3 * s, 0.5 * s, z), beside_left(-0.3 * s, 0.5 * s, z);
+  EXPECT_TRUE(eight_distance.Inside(in_left));
+  EXPECT_NEAR(eight_distance.PenetrationDepth(in_left, 1.0), 0.3 * s, 1e-12);  // the x = 0 wall
+  EXPECT_FALSE(eight_distance.Inside(in_right));
+  EXPECT_LT(eight_distance.SignedDistance(beside_right, 1.0), 0.0);  // the pseudonormal's error
+  EXPECT_FALSE(eight_distance.Inside(beside_right));
+  EXPECT_EQ(eight_distance.PenetrationDepth(beside_right, 1.0), 0.0);
+  EXPECT_FALSE(eight_distance.Inside(beside_left));
+
+  // Outer square 0..3, then an inner square 1..2, both counter-clockwise.
+  const auto twice = PolygonPrism({{0, 0}, {3 * s, 0}, {3 * s, 3 * s}, {0, 3 * s}, {s, s},
+                                   {2 * s, s}, {2 * s, 2 * s}, {s, 2 * s}},
+                                  2 * z);
+  const MeshDistance twice_distance("twice around", twice.vertices, twice.triangles);
+  const Eigen::Vector3d between(2.2 * s, 1.5 * s, z), centre(1.5 * s, 1.5 * s, z);
+  EXPECT_GT(twice_distance.SignedDistance(between, 1.0), 0.0);  // the pseudonormal's error
+  EXPECT_TRUE(twice_distance.Inside(between));
+  EXPECT_NEAR(twice_distance.PenetrationDepth(between, 1.0), 0.2 * s, 1e-12);  // the x = 2s wall
+  EXPECT_TRUE(twice_distance.Inside(centre));  // winding 2
+  EXPECT_FALSE(twice_distance.Inside(Eigen::Vector3d(3.2 * s, 1.5 * s, z)));
+  Points points(3, 3);
+  points << in_left.transpose(), beside_right.transpose(), in_right.transpose();
+  const PenetrationStats stats = eight_distance.MeasurePenetration(points, 1.0);
+  EXPECT_EQ(stats.num_inside, 1);
+  EXPECT_NEAR(stats.max_depth, 0.3 * s, 1e-12);
 }
 
 TEST(MeshDistance, QueryGivesClosestPointAndOutwardNormal) {

@@ -463,7 +463,7 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
       const SurfaceDistance on = truth.Query(x, 0.1);
       if (std::abs(on.signed_distance) > 1e-6) continue;  // buried in another piece
       const Eigen::Vector3d p = x - 0.003 * on.normal;
-      if (truth.SignedDistance(p, 0.1) < -0.002) inside.push_back(p);
+      if (truth.PenetrationDepth(p, 0.1) > 0.002) inside.push_back(p);
     }
     ASSERT_GT(inside.size(), 300u) << t;
     Points positions(static_cast<Eigen::Index>(inside.size()), 3);
@@ -472,7 +472,7 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
     collider.ProjectOut(positions, velocities);
     int left_inside = 0;
     for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-      if (truth.SignedDistance(positions.row(i).transpose(), 0.1) < 0.0) ++left_inside;
+      if (truth.PenetrationDepth(positions.row(i).transpose(), 0.1) > 0.0) ++left_inside;
     }
     EXPECT_EQ(left_inside, 0) << "t = " << t << " s, of " << positions.rows();
   }
@@ -501,7 +501,7 @@ TEST(SuperquadricCollider, PushesPointsDeepInALimbNearItsAxisOutOfIt) {
     const double f = k / 20.0;
     for (const Eigen::Vector3d& p : {Eigen::Vector3d(hip + f * (knee - hip)),
                                      Eigen::Vector3d(knee + f * (ankle - knee))}) {
-      if (truth.SignedDistance(p, 0.2) < -0.02) deep.push_back(p);
+      if (truth.PenetrationDepth(p, 0.2) > 0.02) deep.push_back(p);
     }
   }
   ASSERT_GT(deep.size(), 25u);
@@ -511,8 +511,9 @@ TEST(SuperquadricCollider, PushesPointsDeepInALimbNearItsAxisOutOfIt) {
   collider.ProjectOut(positions, velocities);
   EXPECT_GT(collider.stats().num_skin_checks, 0);
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    const double distance = truth.SignedDistance(positions.row(i).transpose(), 0.2);
-    EXPECT_GE(distance, 0.0) << "point " << i << " of " << positions.rows();
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    const double distance = truth.SignedDistance(x, 0.2);
+    EXPECT_EQ(truth.PenetrationDepth(x, 0.2), 0.0) << "point " << i << " of " << positions.rows();
     EXPECT_LE(distance, kThickness + 0.003) << "point " << i << " of " << positions.rows();
   }
 }

@@ -50,7 +50,7 @@ RunResult RunSkirt(BodyCollisionMethod method, const std::string& clip, double s
     const Points& x = simulation->state().positions;
     skin.Update(simulation->avatar()->vertices());
     for (Eigen::Index p = 0; p < x.rows(); ++p) {
-      if (!attached[p]) result.max_depth = std::max(result.max_depth, -skin.SignedDistance(x.row(p).transpose(), 0.1));
+      if (!attached[p]) result.max_depth = std::max(result.max_depth, skin.PenetrationDepth(x.row(p).transpose(), 0.1));
     }
     if (f == fit_frames - 1) {
       result.fitted_speed = simulation->state().velocities.rowwise().norm().maxCoeff();

@@ -135,7 +135,7 @@ SuitRun RunSuit(bool fit, double walk_seconds) {
     skin.Update(simulation->avatar()->vertices());
     double depth = 0.0;
     for (Eigen::Index p = 0; p < x.rows(); ++p) {
-      if (!attached[p]) depth = std::max(depth, -skin.SignedDistance(x.row(p).transpose(), 0.1));
+      if (!attached[p]) depth = std::max(depth, skin.PenetrationDepth(x.row(p).transpose(), 0.1));
     }
     const double strain = StructuralStrain(simulation->model(), x).max;
     double& d = f == fit_frames - 1 ? run.fitted_depth : run.walk_depth;
