@@ -15,6 +15,12 @@ namespace {
 /// millimetre of thickness into metres of radial shell.
 constexpr double kMinSkinCosine = 0.1;
 
+/// Per map drawing, the most rays whose first exit leads into skin again that are followed
+/// to where they leave the skin for good, and the most crossings followed along each
+/// (MarkFoldedRays, ResolveFoldedRays); the rest keep their first exit.
+constexpr int kMaxFoldedRays = 512;
+constexpr int kMaxCrossingsPerRay = 8;
+
 using SegmentGroups = std::array<std::vector<int>, kNumHAnimJoints>;
 
 SegmentGroups GroupVertices(const Avatar& avatar) {
@@ -253,35 +259,47 @@ double InterpolateBurial(const std::array<double, 6>& b, double l0, double l1, d
          4 * (b[3] * l1 * l2 + b[4] * l2 * l0 + b[5] * l0 * l1);
 }
 
-/// Draws one skin triangle (corners in the superquadric frame) into the map: every node
-/// whose ray leaves the skin through it keeps the nearer of its current hit and this one
-/// (the ray's first exit). The triangle's rays on a face are those of its central
-/// projection onto the face's plane, a triangle whose bounding box gives the candidate
-/// nodes; a triangle reaching behind the face's plane projects to an unbounded region,
-/// which stretches the box to the face's edges. `burial` (the triangle's samples of Burial,
-/// null when none is buried) clips off the part inside another piece.
-void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, SegmentSkin& skin) {
+/// Whether skin triangle `triangle` (corners in the superquadric frame) can stop a ray
+/// within `reach`, with its normal (unnormalised) and plane: normal·corner, > 0 when the
+/// centre sees the triangle's outside (counter-clockwise from outside), so rays through it
+/// leave the skin, < 0 when they enter it. A triangle seen edge on stops nothing; nor does
+/// one whose points or whose plane lie beyond the reach, where every ray stops anyway.
+bool TriangleWithinReach(double reach, int triangle, const SegmentSkin& skin,
+                         Eigen::Vector3d& normal, double& plane) {
   const Eigen::Vector3i& corners = skin.triangles[triangle];
   // Every point of the triangle is at least its nearest corner's distance less its longest
-  // edge from the centre: beyond the reach, all its rays stop at the reach anyway.
+  // edge from the centre.
   const double nearest = std::min({skin.distance[corners[0]], skin.distance[corners[1]],
                                    skin.distance[corners[2]]});
-  if (nearest - skin.edge[triangle] >= reach) return;
+  if (nearest - skin.edge[triangle] >= reach) return false;
+  const Eigen::Vector3d& c0 = skin.local[corners[0]];
+  normal = (skin.local[corners[1]] - c0).cross(skin.local[corners[2]] - c0);
+  plane = normal.dot(c0);
+  const double length = normal.norm();
+  return std::abs(plane) > 1e-12 * length * c0.norm() && std::abs(plane) < reach * length;
+}
+
+/// Calls visit(face, index, lambda) for every map node (a face's grid point `index`) whose
+/// ray passes through `triangle`, lambda being the hit in units of the node's point on the
+/// box (so the radius is lambda times its distance from the centre); `normal` and `plane`
+/// as TriangleWithinReach gives them. The triangle's rays on a face are those of its
+/// central projection onto the face's plane, a triangle whose bounding box gives the
+/// candidate nodes; a triangle reaching behind the face's plane projects to an unbounded
+/// region, which stretches the box to the face's edges. The part of a partly buried
+/// triangle inside another piece (SegmentSkin::burial) is clipped off.
+template <typename Visit>
+void RasterizeTriangle(const SkinDistanceMap& map, int triangle, const SegmentSkin& skin,
+                       const Eigen::Vector3d& normal, double plane, Visit&& visit) {
+  const Eigen::Vector3i& corners = skin.triangles[triangle];
   const Eigen::Vector3d corner[3] = {skin.local[corners[0]], skin.local[corners[1]],
                                      skin.local[corners[2]]};
-  const Eigen::Vector3d normal = (corner[1] - corner[0]).cross(corner[2] - corner[0]);
-  // The triple product of the corners: > 0 when the centre sees the triangle's outside
-  // (counter-clockwise from outside), so a ray through it leaves the skin. Rays entering
-  // the skin, and a triangle seen edge on, stop nothing; nor does one whose plane lies
-  // beyond the reach, where every ray stops anyway.
-  const double plane = normal.dot(corner[0]);
-  const double length = normal.norm();
-  if (plane <= 1e-12 * length * corner[0].norm() || plane >= reach * length) return;
-  skin.triangle_normal[triangle] = normal / length;
   // Inside the triangle's cone of rays: on the inner side of its three edge planes, whose
-  // values are also the barycentric weights of the opposite corners (unnormalised).
-  const Eigen::Vector3d edge_planes[3] = {corner[1].cross(corner[2]), corner[2].cross(corner[0]),
-                                          corner[0].cross(corner[1])};
+  // values are also the barycentric weights of the opposite corners (unnormalised). A
+  // triangle the centre sees from behind (an entry) winds the other way.
+  const double orientation = plane > 0.0 ? 1.0 : -1.0;
+  const Eigen::Vector3d edge_planes[3] = {orientation * corner[1].cross(corner[2]),
+                                          orientation * corner[2].cross(corner[0]),
+                                          orientation * corner[0].cross(corner[1])};
   const std::array<double, 6>* burial =
       skin.partly_buried[triangle] ? &skin.burial[triangle] : nullptr;
   const Eigen::Vector3d p[3] = {skin.scaled[corners[0]], skin.scaled[corners[1]],
@@ -350,8 +368,6 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
     base[k] = -size[k];
     const double e0v = edge_planes[0].dot(step_v), e1v = edge_planes[1].dot(step_v),
                  e2v = edge_planes[2].dot(step_v), nv = normal.dot(step_v);
-    double* hit = skin.face_hit[f].data();
-    int* hit_triangle = skin.face_triangle[f].data();
     const int u_lo = first(s_lo, nj);
     for (int u = u_lo; u <= u_hi; ++u) {
       const Eigen::Vector3d row = base + u * step_u + v_lo * step_v;
@@ -367,13 +383,96 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
             continue;
           }
         }
-        const double lambda = plane / along;  // the hit in units of |B|
-        const int index = u * (nk + 1) + v;
-        if (hit[index] < 0.0 || lambda < hit[index]) {
-          hit[index] = lambda;
-          hit_triangle[index] = triangle;
-        }
+        visit(f, u * (nk + 1) + v, plane / along);
       }
+    }
+  }
+}
+
+/// Draws one skin triangle into the map: every node whose ray leaves the skin through it
+/// keeps the nearer of its current hit and this one (the ray's first exit).
+void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, SegmentSkin& skin) {
+  Eigen::Vector3d normal;
+  double plane = 0.0;
+  // Rays entering the skin stop nothing here (MarkFoldedRays looks at them).
+  if (!TriangleWithinReach(reach, triangle, skin, normal, plane) || plane < 0.0) return;
+  skin.triangle_normal[triangle] = normal.normalized();
+  RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
+    double& hit = skin.face_hit[f][index];
+    if (hit < 0.0 || lambda < hit) {
+      hit = lambda;
+      skin.face_triangle[f][index] = triangle;
+    }
+  });
+}
+
+/// Marks the rays that enter skin before their first exit (SegmentSkin::face_hit): that
+/// exit leads into skin again, from a fold or from skin that skinning moved through other
+/// skin, so it need not be where the ray leaves the body (MakeHuman's kick pushes the
+/// thigh's skin through the groin's, and the thigh's centre saw a point 3.6 mm inside the
+/// skin 2 mm outside its shell). At most kMaxFoldedRays are marked. Returns whether any.
+bool MarkFoldedRays(const SkinDistanceMap& map, double reach, SegmentSkin& skin) {
+  for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
+    const int triangle = static_cast<int>(tri);
+    Eigen::Vector3d normal;
+    double plane = 0.0;
+    if (!TriangleWithinReach(reach, triangle, skin, normal, plane) || plane > 0.0) continue;
+    RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
+      const double hit = skin.face_hit[f][index];
+      int& slot = skin.face_slot[f][index];
+      if (hit < 0.0 || lambda >= hit || slot >= 0 || skin.num_folded == kMaxFoldedRays) return;
+      slot = skin.num_folded++;
+      skin.folded_ray[slot] = {f, index};
+      skin.folded_count[slot] = 0;
+    });
+  }
+  return skin.num_folded > 0;
+}
+
+/// Moves each folded ray's hit to where it leaves the skin the map holds for good: its
+/// crossings with every triangle, in order, wind it in (entry) and out (exit) from 1 at
+/// the centre, and the first exit that takes the count to 0 holds. A ray whose count never
+/// gets there (its skin's other side is not in the map) or that crosses more than
+/// kMaxCrossingsPerRay triangles keeps its first exit.
+void ResolveFoldedRays(const SkinDistanceMap& map, double reach, SegmentSkin& skin) {
+  for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
+    const int triangle = static_cast<int>(tri);
+    Eigen::Vector3d normal;
+    double plane = 0.0;
+    if (!TriangleWithinReach(reach, triangle, skin, normal, plane)) continue;
+    const int signed_triangle = plane > 0.0 ? triangle + 1 : -(triangle + 1);
+    RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
+      const int slot = skin.face_slot[f][index];
+      if (slot < 0) return;
+      int& count = skin.folded_count[slot];
+      if (count < kMaxCrossingsPerRay) {
+        skin.folded_crossing[slot * kMaxCrossingsPerRay + count] = {lambda, signed_triangle};
+      }
+      ++count;
+    });
+  }
+  for (int slot = 0; slot < skin.num_folded; ++slot) {
+    const auto [f, index] = skin.folded_ray[slot];
+    skin.face_slot[f][index] = -1;
+    const int count = skin.folded_count[slot];
+    if (count > kMaxCrossingsPerRay) continue;
+    auto* crossing = skin.folded_crossing.data() + slot * kMaxCrossingsPerRay;
+    std::sort(crossing, crossing + count);
+    int winding = 1;
+    for (int c = 0; c < count; ++c) {
+      // A ray along an edge meets both triangles sharing it at the same hit: once.
+      if (c > 0 && crossing[c].second * crossing[c - 1].second > 0 &&
+          crossing[c].first - crossing[c - 1].first <= 1e-9 * crossing[c].first) {
+        continue;
+      }
+      winding += crossing[c].second > 0 ? -1 : 1;
+      if (winding > 0) continue;
+      if (crossing[c].second > 0 && crossing[c].first > skin.face_hit[f][index]) {
+        skin.face_hit[f][index] = crossing[c].first;
+        skin.face_triangle[f][index] = crossing[c].second - 1;
+        skin.face_folded[f][index] = 1;
+      }
+      break;
     }
   }
 }
@@ -451,6 +550,7 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
     DrawTriangle(map, segment.reach, static_cast<int>(tri), skin);
   }
+  if (MarkFoldedRays(map, segment.reach, skin)) ResolveFoldedRays(map, segment.reach, skin);
   // The faces' grids share their edge nodes: the nearest hit of each holds.
   std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
   for (int f = 0; f < 6; ++f) {
@@ -462,9 +562,14 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
       if (skin.hit_radius[node] < 0.0 || radius < skin.hit_radius[node]) {
         skin.hit_radius[node] = radius;
         skin.hit_triangle[node] = skin.face_triangle[f][index];
+        skin.hit_folded[node] = skin.face_folded[f][index];
       }
     }
   }
+  for (int slot = 0; slot < skin.num_folded; ++slot) {
+    skin.face_folded[skin.folded_ray[slot].first][skin.folded_ray[slot].second] = 0;
+  }
+  skin.num_folded = 0;
   for (int node = 0; node < map.num_nodes(); ++node) {
     skin.capped[node] = 0;
     if (skin.hit_radius[node] <= 0.0) continue;
@@ -476,6 +581,11 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     } else {
       skin.radius[node] = skin.hit_radius[node];
       skin.normal[node] = skin.triangle_normal[skin.hit_triangle[node]];
+      // A folded ray's exit is where the map's skin ends, not always the body's (the other
+      // side of a fold may be a neighbour's skin the map lacks): uncertain, as a capped
+      // node. A reading deeper than the step's motion allows is then the skin triangles'
+      // to decide (SkinShell).
+      skin.capped[node] = skin.hit_folded[node];
     }
   }
   FillMissedNodes(map, skin, segment.reach);
@@ -943,10 +1053,18 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   }
   skin.hit_radius.assign(nodes, -1.0);
   skin.hit_triangle.assign(nodes, -1);
+  skin.hit_folded.assign(nodes, 0);
   for (int f = 0; f < 6; ++f) {
     skin.face_hit[f].assign(segment.map.face_nodes[f].size(), -1.0);
     skin.face_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
+    skin.face_slot[f].assign(segment.map.face_nodes[f].size(), -1);
+    skin.face_folded[f].assign(segment.map.face_nodes[f].size(), 0);
   }
+  skin.folded_ray.assign(kMaxFoldedRays, {0, 0});
+  skin.folded_count.assign(kMaxFoldedRays, 0);
+  skin.folded_crossing.assign(static_cast<std::size_t>(kMaxFoldedRays) * kMaxCrossingsPerRay,
+                              {0.0, 0});
+  skin.num_folded = 0;
   skin.state.assign(nodes, 0);
   skin.queue.reserve(nodes);
   skin.radius = segment.map.surface_radius;

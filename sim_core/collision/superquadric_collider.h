@@ -47,6 +47,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sim_core/avatar/avatar.h"
@@ -183,10 +184,23 @@ struct SegmentSkin {
   std::vector<TrianglePoint> piece_point;
   std::vector<double> hit_radius;
   std::vector<int> hit_triangle;
+  /// Per node whether its hit is a folded ray's (below).
+  std::vector<char> hit_folded;
   /// Per face grid point (duplicating shared nodes): the nearest hit in units of the
   /// point's distance from the centre (< 0: none) and its triangle.
   std::array<std::vector<double>, 6> face_hit;
   std::array<std::vector<int>, 6> face_triangle;
+  /// Folded rays, which enter skin before their first exit (MarkFoldedRays in
+  /// superquadric_collider.cc): per face grid point its slot (-1: none) and whether its
+  /// hit moved past the first exit; per slot the face and grid point, the number of
+  /// crossings met and the crossings (hit as in face_hit, triangle + 1, negated for an
+  /// entry). Capacity fixed when the map is prepared: drawing never allocates.
+  std::array<std::vector<int>, 6> face_slot;
+  std::array<std::vector<char>, 6> face_folded;
+  std::vector<std::pair<int, int>> folded_ray;
+  std::vector<int> folded_count;
+  std::vector<std::pair<double, int>> folded_crossing;
+  int num_folded = 0;
   /// The drawing, per node: the distance from the centre to the skin along the ray [m]
   /// (where the ray first leaves the skin the map holds, at most the segment's reach;
   /// minus SkinDistanceMap::surface_radius it is the paper's mapped distance), the skin's
