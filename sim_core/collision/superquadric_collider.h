@@ -368,6 +368,12 @@ class SuperquadricCollider : public BodyCollider {
   bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
                     double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
                     int* undecided = nullptr);
+  /// Whether `x` (world) at `speed` [m/s] is more than kProjectionTolerance inside a shell
+  /// at the end of the step, and if so its normal gap [m], outward normal and the body's
+  /// velocity there: the deepest shell (DeepestShell), or, where only uncertain readings
+  /// see it inside, the skin triangles of the deepest of those (SkinShell).
+  bool Penetration(const Eigen::Vector3d& x, double speed, double& gap, Eigen::Vector3d& normal,
+                   Eigen::Vector3d& body_velocity);
   /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
   /// step at `x` (world): its normal gap [m] (signed distance minus thickness), outward
   /// normal and the velocity of the segment's body there. Returns false when no triangle

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <utility>
@@ -53,6 +54,49 @@ Eigen::Vector3d SidePoint(double axial, double theta, double offset) {
                                    (kRadius + offset) * std::sin(theta));
 }
 
+/// Appends to `local` and `triangles` a capsule of kRadius around `centre` whose axis is y,
+/// its cylinder kHalfLength either side: 64 × 41 rings, counter-clockwise from outside.
+void AppendCapsule(const Eigen::Vector3d& centre, std::vector<Eigen::Vector3d>& local,
+                   std::vector<Eigen::Vector3i>& triangles) {
+  const int base = static_cast<int>(local.size());
+  // Rings (axial position, radius) from the bottom pole to the top pole.
+  const int around = 64, cap_rings = 16, cylinder_rings = 10;
+  std::vector<std::pair<double, double>> rings;
+  for (int i = 1; i <= cap_rings; ++i) {
+    const double phi = i * (kPi / 2) / cap_rings;
+    rings.push_back({-kHalfLength - kRadius * std::cos(phi), kRadius * std::sin(phi)});
+  }
+  for (int m = 1; m < cylinder_rings; ++m) {
+    rings.push_back({-kHalfLength + 2 * kHalfLength * m / cylinder_rings, kRadius});
+  }
+  for (int i = cap_rings; i >= 1; --i) {
+    const double phi = i * (kPi / 2) / cap_rings;
+    rings.push_back({kHalfLength + kRadius * std::cos(phi), kRadius * std::sin(phi)});
+  }
+  local.push_back(centre + Eigen::Vector3d(0, -kHalfLength - kRadius, 0));
+  for (const auto& [axial, radius] : rings) {
+    for (int k = 0; k < around; ++k) {
+      const double theta = 2 * kPi * k / around;
+      local.push_back(centre +
+                      Eigen::Vector3d(radius * std::cos(theta), axial, radius * std::sin(theta)));
+    }
+  }
+  local.push_back(centre + Eigen::Vector3d(0, kHalfLength + kRadius, 0));
+  const int top = static_cast<int>(local.size()) - 1;
+  const auto ring_vertex = [&](int ring, int k) { return base + 1 + ring * around + (k % around); };
+  for (int k = 0; k < around; ++k) {
+    triangles.push_back({base, ring_vertex(0, k), ring_vertex(0, k + 1)});
+    for (int ring = 0; ring + 1 < static_cast<int>(rings.size()); ++ring) {
+      triangles.push_back(
+          {ring_vertex(ring, k), ring_vertex(ring + 1, k), ring_vertex(ring + 1, k + 1)});
+      triangles.push_back(
+          {ring_vertex(ring, k), ring_vertex(ring + 1, k + 1), ring_vertex(ring, k + 1)});
+    }
+    const int last = static_cast<int>(rings.size()) - 1;
+    triangles.push_back({top, ring_vertex(last, k + 1), ring_vertex(last, k)});
+  }
+}
+
 /// Two joints: a root and an arm (l_shoulder) placed and turned arbitrarily; a capsule mesh
 /// skinned rigidly to the arm, and five loose vertices on the root (too few to fit). Any
 /// `extra` closed pieces (arm joint frame) are skinned to the arm too.
@@ -69,44 +113,8 @@ std::shared_ptr<const Avatar> MakeCapsuleAvatar(const std::vector<test::TestMesh
   data.name = "capsule";
   data.skeleton = Skeleton::Create("capsule", joints);
   const Eigen::Isometry3d arm = data.skeleton->rest_world()[1];
-
-  // Rings (axial position, radius) from the bottom pole to the top pole.
-  const int around = 64, cap_rings = 16, cylinder_rings = 10;
-  std::vector<std::pair<double, double>> rings;
-  for (int i = 1; i <= cap_rings; ++i) {
-    const double phi = i * (kPi / 2) / cap_rings;
-    rings.push_back({-kHalfLength - kRadius * std::cos(phi), kRadius * std::sin(phi)});
-  }
-  for (int m = 1; m < cylinder_rings; ++m) {
-    rings.push_back({-kHalfLength + 2 * kHalfLength * m / cylinder_rings, kRadius});
-  }
-  for (int i = cap_rings; i >= 1; --i) {
-    const double phi = i * (kPi / 2) / cap_rings;
-    rings.push_back({kHalfLength + kRadius * std::cos(phi), kRadius * std::sin(phi)});
-  }
   std::vector<Eigen::Vector3d> local;
-  local.push_back(kCentre + Eigen::Vector3d(0, -kHalfLength - kRadius, 0));
-  for (const auto& [axial, radius] : rings) {
-    for (int k = 0; k < around; ++k) {
-      const double theta = 2 * kPi * k / around;
-      local.push_back(kCentre +
-                      Eigen::Vector3d(radius * std::cos(theta), axial, radius * std::sin(theta)));
-    }
-  }
-  local.push_back(kCentre + Eigen::Vector3d(0, kHalfLength + kRadius, 0));
-  const int top = static_cast<int>(local.size()) - 1;
-  const auto ring_vertex = [&](int ring, int k) { return 1 + ring * around + (k % around); };
-  for (int k = 0; k < around; ++k) {
-    data.triangles.push_back({0, ring_vertex(0, k), ring_vertex(0, k + 1)});
-    for (int ring = 0; ring + 1 < static_cast<int>(rings.size()); ++ring) {
-      data.triangles.push_back(
-          {ring_vertex(ring, k), ring_vertex(ring + 1, k), ring_vertex(ring + 1, k + 1)});
-      data.triangles.push_back(
-          {ring_vertex(ring, k), ring_vertex(ring + 1, k + 1), ring_vertex(ring, k + 1)});
-    }
-    const int last = static_cast<int>(rings.size()) - 1;
-    data.triangles.push_back({top, ring_vertex(last, k + 1), ring_vertex(last, k)});
-  }
+  AppendCapsule(kCentre, local, data.triangles);
   for (const test::TestMesh& piece : extra) {
     const int first = static_cast<int>(local.size());
     for (Eigen::Index v = 0; v < piece.vertices.rows(); ++v) {
@@ -577,6 +585,78 @@ TEST(SuperquadricCollider, PushesPointsOutOfSkinMovedThroughOtherSkin) {
     // Onto the shell over the box's outer face, 70 mm from the axis.
     EXPECT_NEAR((to_arm * x - kCentre).x(), 0.070 + kThickness, 0.001) << "point " << i;
   }
+}
+
+// Two limbs closer than two cloth thicknesses pinch a particle between their shells (the
+// thighs at MakeHuman's crotch): each push out of one shell is into the other, and the
+// passes throw it back and forth. Two parallel capsules 6 mm apart (hips under an unfitted
+// root) and a particle in the gap, 2.8 and 3.2 mm from their skins, 1.2 and 0.8 mm inside
+// their shells (closed form): every push leaves it 2 mm inside the other shell, so when
+// the passes run out it goes back to the least deep place it went through, its start.
+TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
+  constexpr double kAxis = kRadius + 0.003;  // each capsule's axis from the gap's middle
+  std::vector<Joint> joints(3);
+  joints[0].name = "root";
+  joints[0].hanim = HAnimJoint::kHumanoidRoot;
+  for (int side = 1; side <= 2; ++side) {
+    joints[side].name = side == 1 ? "left" : "right";
+    joints[side].parent = 0;
+    joints[side].hanim = side == 1 ? HAnimJoint::kLHip : HAnimJoint::kRHip;
+    joints[side].rest_local = Eigen::Translation3d(side == 1 ? kAxis : -kAxis, 1.0, 0.0);
+  }
+  AvatarData data;
+  data.name = "two capsules";
+  data.skeleton = Skeleton::Create("two capsules", joints);
+  std::vector<Eigen::Vector3d> world;
+  std::vector<int> owner;
+  for (int side = 1; side <= 2; ++side) {
+    // Numbered from 0 in `local`, from `first` in the avatar.
+    std::vector<Eigen::Vector3d> local;
+    const std::size_t first_triangle = data.triangles.size();
+    AppendCapsule(kCentre, local, data.triangles);
+    const int first = static_cast<int>(world.size());
+    for (std::size_t t = first_triangle; t < data.triangles.size(); ++t) {
+      data.triangles[t] += Eigen::Vector3i::Constant(first);
+    }
+    for (const Eigen::Vector3d& p : local) {
+      world.push_back(data.skeleton->rest_world()[side] * p);
+      owner.push_back(side);
+    }
+  }
+  for (int v = 0; v < 5; ++v) {
+    world.push_back(Eigen::Vector3d(0.01 * v, 1.2, 0.0));
+    owner.push_back(0);
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(world.size());
+  data.rest_vertices.resize(n, 3);
+  data.influence_joints.setConstant(n, kMaxInfluences, -1);
+  data.influence_weights.setZero(n, kMaxInfluences);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    data.rest_vertices.row(v) = world[v].transpose();
+    data.influence_joints(v, 0) = owner[v];
+    data.influence_weights(v, 0) = 1.0;
+  }
+  const std::shared_ptr<const Avatar> avatar = Avatar::Create(std::move(data));
+  SuperquadricCollider collider(avatar, BodyCollisionSettings{kThickness, 0.5});
+  ASSERT_EQ(collider.segments().size(), 2u);
+  collider.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+  collider.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+  // Skin distance from each capsule (axes at x = ±kAxis, parallel to y, centred at 0.85 m).
+  const auto skin_distance = [&](const Eigen::Vector3d& x) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (double axis : {kAxis, -kAxis}) {
+      nearest = std::min(nearest, CapsuleDistance(x - Eigen::Vector3d(axis, 1.0, 0.0)));
+    }
+    return nearest;
+  };
+  const Eigen::Vector3d start(0.0002, 0.853, 0.001);
+  ASSERT_NEAR(skin_distance(start), 0.0028, 2e-5);
+  Points positions(1, 3);
+  positions.row(0) = start.transpose();
+  Points velocities = Points::Zero(1, 3);
+  collider.ProjectOut(positions, velocities);
+  // Without going back it ended 2 mm from one skin, 2 mm inside that shell.
+  EXPECT_GE(skin_distance(positions.row(0).transpose()), 0.0027);
 }
 
 TEST(SuperquadricCollider, RefusesBadInput) {
