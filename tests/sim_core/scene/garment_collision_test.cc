@@ -1,15 +1,19 @@
 // A garment on the walking and kicking avatar (paper §4, §6; mode A): the skirt is fitted to
-// the built-in humanoid and follows its clip; the oracle is the true skinned mesh (signed
-// distance to the skin, MeshDistance), not the collider's own proxy.
+// the built-in humanoid, and to the MakeHuman body of ../shared/data when present, and
+// follows the clip; the oracle is the true skinned mesh (MeshDistance's penetration depth,
+// inside by winding number), not the collider's own proxy.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <filesystem>
 
+#include "assets/makehuman_import.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
+#include "tests/support/shared_data.h"
 
 namespace costume::sim {
 namespace {
@@ -21,15 +25,19 @@ struct RunResult {
   int rolled_back = 0;
 };
 
-RunResult RunSkirt(BodyCollisionMethod method, const std::string& clip, double seconds) {
-  static const std::shared_ptr<const Avatar> humanoid = MakeHumanoid();
+/// The skirt on `body` (the built-in humanoid when null), playing the built-in `clip`
+/// (retargeted by H-Anim names) for `seconds` after the fit.
+RunResult RunSkirt(BodyCollisionMethod method, const std::string& clip, double seconds,
+                   std::shared_ptr<const Avatar> body = nullptr) {
+  static const std::shared_ptr<const Avatar> builtin = MakeHumanoid();
+  const std::shared_ptr<const Avatar> humanoid = body ? body : builtin;
   SceneDescription scene;
   scene.source = "garment_collision_test";
   scene.solver.method = SolverMethod::kMultigrid;
   AvatarSpec avatar;
   avatar.avatar = humanoid;
   if (clip != "none") {
-    avatar.clip = std::make_shared<const Clip>(MakeBuiltInClip(clip, humanoid->shared_skeleton()));
+    avatar.clip = std::make_shared<const Clip>(MakeBuiltInClip(clip, builtin->shared_skeleton()));
   }
   avatar.collision = method;
   scene.avatar = avatar;
@@ -59,8 +67,8 @@ RunResult RunSkirt(BodyCollisionMethod method, const std::string& clip, double s
       result.max_strain = std::max(result.max_strain, StructuralStrain(simulation->model(), x).max);
     }
   }
-  std::printf("%s, %s: deepest particle %.2f mm inside the skin, max strain %.1f %%, speed after fitting %.3f m/s\n",
-              BodyCollisionMethodName(method), clip.c_str(), 1e3 * result.max_depth,
+  std::printf("%s, %s, %s: deepest particle %.2f mm inside the skin, max strain %.1f %%, speed after fitting %.3f m/s\n",
+              humanoid->name().c_str(), BodyCollisionMethodName(method), clip.c_str(), 1e3 * result.max_depth,
               100 * result.max_strain, result.fitted_speed);
   return result;
 }
@@ -92,6 +100,31 @@ TEST(GarmentCollision, SuperquadricMethodKeepsTheSkirtOutOfTheWalkingAndKickingB
     EXPECT_LE(run.max_depth, 0.002) << clip;
     EXPECT_LT(run.max_strain, std::string(clip) == "walk" ? 0.4 : 1.0) << clip;
     EXPECT_EQ(run.rolled_back, 0) << clip;
+  }
+}
+
+// The same on MakeHuman's body (../shared/data), a single skinned mesh whose crotch linear
+// blend skinning folds through itself: both methods keep every particle within 2 mm of the
+// true skin walking and kicking. For the superquadric method this needed the folded rays
+// (the thigh's skin moved through the groin's) and ProjectOut's return from a pinch
+// between the thighs (docs/collision.md). Strain is not bounded here: the superquadric
+// method's reaches several times the mesh method's on this body (docs/collision.md,
+// "Figures").
+TEST(GarmentCollision, BothMethodsKeepTheSkirtOutOfTheWalkingAndKickingMakeHumanBody) {
+  namespace fs = std::filesystem;
+  const fs::path mh = test::kSharedData / "makehuman" / "body";
+  if (!fs::exists(mh / "base.obj")) {
+    GTEST_SKIP() << "test data " << test::kSharedData << "/makehuman not present";
+  }
+  static const std::shared_ptr<const Avatar> body = assets::LoadMakeHumanAvatar(
+      (mh / "base.obj").string(), (mh / "default.mhskel").string(),
+      (mh / "default_weights.mhw").string());
+  for (BodyCollisionMethod method : {BodyCollisionMethod::kMesh, BodyCollisionMethod::kSuperquadric}) {
+    for (const char* clip : {"walk", "kick"}) {
+      const RunResult run = RunSkirt(method, clip, 2.0, body);
+      EXPECT_LE(run.max_depth, 0.002) << BodyCollisionMethodName(method) << ", " << clip;
+      EXPECT_EQ(run.rolled_back, 0) << BodyCollisionMethodName(method) << ", " << clip;
+    }
   }
 }
 
