@@ -1348,12 +1348,13 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
     // A reading from map nodes that saw no skin within the reach is uncertain: a ray
     // grazing the skin may leave it between nodes (7–20 cm claimed for particles on
     // MakeHuman's knee, which ProjectOut then threw). Read from such nodes alone it says
-    // nothing of the depth (the neighbours' shells hold the skin there); blended with nodes
-    // that saw skin, it counts only as deep as the particle and the body can have come
-    // within the step from outside the shell, give or take the thickness and a node spacing.
-    const bool uncertain =
-        probe.blind ||
-        (probe.capped && -probe.normal_gap > PlausibleDepth(s, x, speed, at_end));
+    // nothing of the depth (the neighbours' shells hold the skin there). Any reading counts
+    // only as deep as the particle and the body can have come within the step from outside
+    // the shell, give or take the thickness and a node spacing: deeper ones, from nodes that
+    // saw skin too, pushed MakeHuman's suit by 3–15 cm (2,000 % strain), and the skin
+    // triangles decide those (ProjectOut).
+    const double plausible = PlausibleDepth(s, x, speed, at_end);
+    const bool uncertain = probe.blind || -probe.normal_gap > plausible;
     if (probe.normal_gap < 0.0 && uncertain) {
       if (undecided && probe.normal_gap < undecided_gap) {
         *undecided = s;
@@ -1411,6 +1412,26 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
   }
 }
 
+namespace {
+
+/// Whether `feature` of `triangle` lies on an edge of `topology` that only one triangle
+/// uses (a corner: on one of the triangle's two edges through it).
+bool OnOpenEdge(const SurfacePseudonormals& topology, int triangle, TriangleFeature feature) {
+  const auto open = [&](int edge) { return topology.neighbour(triangle, edge) < 0; };
+  switch (feature) {
+    case TriangleFeature::kFace: return false;
+    case TriangleFeature::kEdgeAB: return open(0);
+    case TriangleFeature::kEdgeBC: return open(1);
+    case TriangleFeature::kEdgeCA: return open(2);
+    case TriangleFeature::kVertexA: return open(2) || open(0);
+    case TriangleFeature::kVertexB: return open(0) || open(1);
+    case TriangleFeature::kVertexC: return open(1) || open(2);
+  }
+  return false;
+}
+
+}  // namespace
+
 bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& gap,
                                      Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity) {
   SegmentSkin& skin = segments_[s].skin;
@@ -1451,6 +1472,11 @@ bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& ga
     // The sign from the angle-weighted pseudonormal of the closest feature, right at edges
     // and corners too (as MeshDistance).
     const TrianglePoint& p = skin.piece_point[piece];
+    // Where the skin the segment holds ends (a body of one piece, as MakeHuman's, is cut
+    // into patches), a nearest point on that edge says nothing of the side: beyond the
+    // patch's edge the body goes on, and a point outside it got a sign from a face turned
+    // away from it (pushes of 25–85 mm at the suit's shoulders and hips, 1,000 % strain).
+    if (OnOpenEdge(topology, t, p.feature)) continue;
     const SurfaceSide side = SideOf(q, p.point, topology.Of(t, p.feature, skin.corners));
     if (side.signed_distance < deepest.signed_distance) deepest = side;
   }

@@ -360,9 +360,8 @@ class SuperquadricCollider : public BodyCollider {
   void RefreshMap(int s);
   /// The deepest shell among the active segments at `x` (world), at the start or the end of
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
-  /// than `reach` [m] plus Motion are skipped; so are blind readings
-  /// inside a shell and capped ones (ShellProbe) deeper than PlausibleDepth. Returns false
-  /// when every shell was.
+  /// than `reach` [m] plus Motion are skipped; so are blind readings inside a shell
+  /// (ShellProbe) and any deeper than PlausibleDepth. Returns false when every shell was.
   /// `undecided` (when not null) gets the segment with the deepest skipped reading inside
   /// its shell, -1 for none.
   bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,

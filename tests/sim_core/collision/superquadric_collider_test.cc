@@ -177,17 +177,22 @@ TEST_F(Fixture, FitsTheCapsuleAndSkipsTheSegmentWithTooFewVertices) {
   EXPECT_LT((sq.frame.translation() - kCentre).norm(), 0.002);
 }
 
-/// Particles 1 cm inside the skin at three places get a contact and project onto the shell.
-/// `min_normal_dot`: the least cosine allowed between contact and true skin normals.
+/// Depth of the particles ExpectInsideParticlesResolved puts inside the skin [m]: within
+/// what a step could carry them from outside the shell (PlausibleDepth at rest: thickness
+/// plus the map's 1 cm node spacing), so the map's readings hold.
+constexpr double kDepth = 0.007;
+
+/// Particles kDepth inside the skin at three places get a contact and project onto the
+/// shell. `min_normal_dot`: the least cosine allowed between contact and true skin normals.
 void ExpectInsideParticlesResolved(SuperquadricCollider& collider, const Avatar& avatar,
                                    double min_normal_dot) {
   collider.Update(avatar.skeleton().rest_world(), Points(), 0.01);
   const Eigen::Isometry3d& arm = avatar.skeleton().rest_world()[1];
   const std::vector<Eigen::Vector3d> local = {
-      SidePoint(0.03, 0.7, -0.01),   // cylinder side
-      SidePoint(-0.08, 2.5, -0.01),  // its ray meets the skin where cylinder and cap join
+      SidePoint(0.03, 0.7, -kDepth),   // cylinder side
+      SidePoint(-0.08, 2.5, -kDepth),  // its ray meets the skin where cylinder and cap join
       kCentre + Eigen::Vector3d(0, kHalfLength, 0) +
-          (kRadius - 0.01) * Eigen::Vector3d(0.5, 1.0, -0.3).normalized(),  // top cap
+          (kRadius - kDepth) * Eigen::Vector3d(0.5, 1.0, -0.3).normalized(),  // top cap
   };
   Points positions(3, 3);
   for (int i = 0; i < 3; ++i) positions.row(i) = (arm * local[i]).transpose();
@@ -201,8 +206,8 @@ void ExpectInsideParticlesResolved(SuperquadricCollider& collider, const Avatar&
     const Eigen::Vector3d true_normal = arm.linear() * CapsuleNormal(local[c.particle]);
     EXPECT_GT(c.normal.dot(true_normal), min_normal_dot) << c.particle;
     EXPECT_NEAR(c.normal.norm(), 1.0, 1e-12);
-    // 1 cm deep plus thickness, removed within the step: within 0.5 mm of the true gap.
-    EXPECT_NEAR(c.target_normal_velocity, (0.01 + kThickness) / h, 0.05) << c.particle;
+    // The depth plus thickness, removed within the step: within 0.5 mm of the true gap.
+    EXPECT_NEAR(c.target_normal_velocity, (kDepth + kThickness) / h, 0.05) << c.particle;
     EXPECT_DOUBLE_EQ(c.friction, 0.5);
   }
   for (int i = 0; i < 3; ++i) {
@@ -210,7 +215,7 @@ void ExpectInsideParticlesResolved(SuperquadricCollider& collider, const Avatar&
   }
   const double deepest = collider.ProjectOut(positions, velocities);
   // Radially at least the normal depth.
-  EXPECT_GT(deepest, 0.01 + kThickness - 0.0005);
+  EXPECT_GT(deepest, kDepth + kThickness - 0.0005);
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector3d moved = arm.inverse() * positions.row(i).transpose();
     EXPECT_NEAR(CapsuleDistance(moved), kThickness, 0.001) << i;
@@ -234,6 +239,29 @@ TEST_F(Fixture, SkinNormalsFromTheMapFollowTheTrueSkin) {
   options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
   SuperquadricCollider skin_collider(avatar, settings, options);
   ExpectInsideParticlesResolved(skin_collider, *avatar, 0.99);
+}
+
+// A reading deeper than the step could have carried the particle from outside the shell
+// (PlausibleDepth) is not trusted, even from nodes that saw skin: on MakeHuman such
+// readings pushed cloth by 3–15 cm (a star-shaped shell misjudging a crease), and the
+// suit's strain reached 2,000 %. Particles 3 cm inside the resting capsule get no contact
+// from the map, and ProjectOut hands them to the skin triangles, which put them on the
+// true shell (closed form).
+TEST_F(Fixture, AReadingDeeperThanTheStepAllowsGoesToTheSkinTriangles) {
+  collider.Update(avatar->skeleton().rest_world(), Points(), 0.01);
+  const std::vector<Eigen::Vector3d> local = {SidePoint(0.03, 0.7, -0.03),
+                                              SidePoint(-0.05, -1.9, -0.03)};
+  Points positions = At(local, arm);
+  Points velocities = Points::Zero(2, 3);
+  std::vector<Contact> contacts;
+  collider.FindContacts(positions, velocities, 0.01, 0.001, contacts);
+  EXPECT_TRUE(contacts.empty());
+  collider.ProjectOut(positions, velocities);
+  EXPECT_EQ(collider.stats().num_skin_checks, 2);
+  for (int i = 0; i < 2; ++i) {
+    const Eigen::Vector3d moved = arm.inverse() * positions.row(i).transpose();
+    EXPECT_NEAR(CapsuleDistance(moved), kThickness, 0.001) << i;
+  }
 }
 
 // The map is redrawn from the skinned vertices Update is given, not kept from the rest
