@@ -107,9 +107,11 @@ TEST(GarmentCollision, SuperquadricMethodKeepsTheSkirtOutOfTheWalkingAndKickingB
 // blend skinning folds through itself: both methods keep every particle within 2 mm of the
 // true skin walking and kicking. For the superquadric method this needed the folded rays
 // (the thigh's skin moved through the groin's) and ProjectOut's return from a pinch
-// between the thighs (docs/collision.md). Strain is not bounded here: the superquadric
-// method's reaches several times the mesh method's on this body (docs/collision.md,
-// "Figures").
+// between the thighs (docs/collision.md). Walking, the skirt stretches little with either
+// method (37 % and 14 % here; in the benchmark's finer skirts the superquadric method
+// reached 265–510 % before its readings deeper than the step allows went to the skin
+// triangles, 38–71 % since); the kick is not bounded (the superquadric method's hem
+// reaches 140 % here, the mesh method's 43 %).
 TEST(GarmentCollision, BothMethodsKeepTheSkirtOutOfTheWalkingAndKickingMakeHumanBody) {
   namespace fs = std::filesystem;
   const fs::path mh = test::kSharedData / "makehuman" / "body";
@@ -123,6 +125,7 @@ TEST(GarmentCollision, BothMethodsKeepTheSkirtOutOfTheWalkingAndKickingMakeHuman
     for (const char* clip : {"walk", "kick"}) {
       const RunResult run = RunSkirt(method, clip, 2.0, body);
       EXPECT_LE(run.max_depth, 0.002) << BodyCollisionMethodName(method) << ", " << clip;
+      if (std::string(clip) == "walk") EXPECT_LT(run.max_strain, 0.5) << BodyCollisionMethodName(method);
       EXPECT_EQ(run.rolled_back, 0) << BodyCollisionMethodName(method) << ", " << clip;
     }
   }
