@@ -207,7 +207,8 @@ struct SegmentSkin {
   /// outward unit normal there (the ray at capped nodes) [-], and whether the node is
   /// capped: its ray met no skin within the segment's reach (it runs on inside the body,
   /// where the neighbours' shells hold the skin, or leaves through an open end), its radius
-  /// the reach or filled from its neighbours. Queries read the drawing packed
+  /// the reach or filled from its neighbours; or its ray is folded and its exit is where
+  /// the map's skin ends, which need not be the body's. Queries read the drawing packed
   /// (SuperquadricSegment::nodes).
   std::vector<double> radius;
   std::vector<Eigen::Vector3d> normal;
