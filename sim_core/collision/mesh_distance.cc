@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <limits>
 #include <utility>
+#include <vector>
 
 #include "sim_core/common/input_error.h"
 
@@ -90,6 +91,30 @@ Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direc
     return Crossing::kUncertain;
   }
   return det < 0.0 ? Crossing::kExit : Crossing::kEntry;
+}
+
+/// Depth-first walk of `tree` on the scratch `stack`: a node `enter` refuses is pruned, an
+/// internal node's child `first_child` names (0 or 1) is taken before the other, and
+/// `leaf` visits each leaf entered, ending the walk when it returns false. Returns false
+/// when a leaf ended it.
+template <typename Enter, typename FirstChild, typename Leaf>
+bool WalkTree(const btDbvt& tree, std::vector<const btDbvtNode*>& stack, Enter&& enter,
+              FirstChild&& first_child, Leaf&& leaf) {
+  stack.clear();
+  if (tree.m_root != nullptr) stack.push_back(tree.m_root);
+  while (!stack.empty()) {
+    const btDbvtNode* node = stack.back();
+    stack.pop_back();
+    if (!enter(node)) continue;
+    if (node->isinternal()) {
+      const int first = first_child(node);
+      stack.push_back(node->childs[1 - first]);
+      stack.push_back(node->childs[first]);
+      continue;
+    }
+    if (!leaf(node)) return false;
+  }
+  return true;
 }
 
 int LeafTriangle(const btDbvtNode* leaf) {
@@ -191,38 +216,35 @@ void MeshDistance::Refit(const Points& vertices) {
 
 void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
                                   SurfaceDistance& best) const {
-  const btDbvt& tree = *trees_->pieces[piece];
-  if (tree.m_root == nullptr) return;
   double best_squared = max_radius * max_radius;
   int best_triangle = -1;
   TrianglePoint best_point;
-  auto& stack = trees_->stack;
-  stack.clear();
-  stack.push_back(tree.m_root);
-  while (!stack.empty()) {
-    const btDbvtNode* node = stack.back();
-    stack.pop_back();
-    if (SquaredBoxDistance(node->volume, point) > best_squared) continue;
-    if (node->isinternal()) {
-      // Nearer child last, so it is searched first and shrinks the radius sooner.
-      const bool first_nearer = SquaredBoxDistance(node->childs[0]->volume, point) <
-                                SquaredBoxDistance(node->childs[1]->volume, point);
-      stack.push_back(node->childs[first_nearer ? 1 : 0]);
-      stack.push_back(node->childs[first_nearer ? 0 : 1]);
-      continue;
-    }
-    const int t = LeafTriangle(node);
-    const Eigen::Vector3i& tri = normals_.triangles()[t];
-    const TrianglePoint closest = ClosestPointOnTriangle(
-        point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
-        vertices_.row(tri[2]).transpose());
-    const double squared = (point - closest.point).squaredNorm();
-    if (squared <= best_squared) {
-      best_squared = squared;
-      best_triangle = t;
-      best_point = closest;
-    }
-  }
+  WalkTree(
+      *trees_->pieces[piece], trees_->stack,
+      [&](const btDbvtNode* node) {
+        return SquaredBoxDistance(node->volume, point) <= best_squared;
+      },
+      // The nearer child first, so it shrinks the radius sooner.
+      [&](const btDbvtNode* node) {
+        return SquaredBoxDistance(node->childs[0]->volume, point) <
+                       SquaredBoxDistance(node->childs[1]->volume, point)
+                   ? 0
+                   : 1;
+      },
+      [&](const btDbvtNode* node) {
+        const int t = LeafTriangle(node);
+        const Eigen::Vector3i& tri = normals_.triangles()[t];
+        const TrianglePoint closest = ClosestPointOnTriangle(
+            point, vertices_.row(tri[0]).transpose(), vertices_.row(tri[1]).transpose(),
+            vertices_.row(tri[2]).transpose());
+        const double squared = (point - closest.point).squaredNorm();
+        if (squared <= best_squared) {
+          best_squared = squared;
+          best_triangle = t;
+          best_point = closest;
+        }
+        return true;
+      });
   if (best_triangle < 0) return;
   const SurfaceSide side =
       SideOf(point, best_point.point, normals_.Of(best_triangle, best_point.feature, vertices_));
@@ -247,31 +269,23 @@ SurfaceDistance MeshDistance::Query(const Eigen::Vector3d& point, double max_rad
 bool MeshDistance::WindingInPiece(int piece, const Eigen::Vector3d& point,
                                   const Eigen::Vector3d& direction, int& winding) const {
   winding = 0;
-  const btDbvt& tree = *trees_->pieces[piece];
-  if (tree.m_root == nullptr) return true;
   const Eigen::Vector3d inverse = direction.cwiseInverse();
-  auto& stack = trees_->stack;
-  stack.clear();
-  stack.push_back(tree.m_root);
-  while (!stack.empty()) {
-    const btDbvtNode* node = stack.back();
-    stack.pop_back();
-    if (!RayMeetsBox(node->volume, point, inverse)) continue;
-    if (node->isinternal()) {
-      stack.push_back(node->childs[0]);
-      stack.push_back(node->childs[1]);
-      continue;
-    }
-    const Eigen::Vector3i& tri = normals_.triangles()[LeafTriangle(node)];
-    switch (RayCrossing(point, direction, vertices_.row(tri[0]).transpose(),
-                        vertices_.row(tri[1]).transpose(), vertices_.row(tri[2]).transpose())) {
-      case Crossing::kNone: break;
-      case Crossing::kExit: ++winding; break;
-      case Crossing::kEntry: --winding; break;
-      case Crossing::kUncertain: return false;
-    }
-  }
-  return true;
+  return WalkTree(
+      *trees_->pieces[piece], trees_->stack,
+      [&](const btDbvtNode* node) { return RayMeetsBox(node->volume, point, inverse); },
+      [](const btDbvtNode*) { return 1; },  // a count: any order
+      [&](const btDbvtNode* node) {
+        const Eigen::Vector3i& tri = normals_.triangles()[LeafTriangle(node)];
+        switch (RayCrossing(point, direction, vertices_.row(tri[0]).transpose(),
+                            vertices_.row(tri[1]).transpose(),
+                            vertices_.row(tri[2]).transpose())) {
+          case Crossing::kNone: return true;
+          case Crossing::kExit: ++winding; return true;
+          case Crossing::kEntry: --winding; return true;
+          case Crossing::kUncertain: return false;
+        }
+        return true;
+      });
 }
 
 bool MeshDistance::Inside(const Eigen::Vector3d& point) const {
