@@ -1353,9 +1353,11 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, double speed, 
     // the shell, give or take the thickness and a node spacing: deeper ones, from nodes that
     // saw skin too, pushed MakeHuman's suit by 3–15 cm (2,000 % strain), and the skin
     // triangles decide those (ProjectOut).
-    const double plausible = PlausibleDepth(s, x, speed, at_end);
-    const bool uncertain = probe.blind || -probe.normal_gap > plausible;
-    if (probe.normal_gap < 0.0 && uncertain) {
+    // Only readings inside need the bound (most probes read the particle outside).
+    const bool uncertain =
+        probe.normal_gap < 0.0 &&
+        (probe.blind || -probe.normal_gap > PlausibleDepth(s, x, speed, at_end));
+    if (uncertain) {
       if (undecided && probe.normal_gap < undecided_gap) {
         *undecided = s;
         undecided_gap = probe.normal_gap;
