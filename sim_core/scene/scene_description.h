@@ -107,9 +107,11 @@ struct AvatarSpec {
   std::shared_ptr<const Clip> clip;
   /// Posture, placement, fitting and blend times.
   AvatarMotionSettings motion;
-  /// The mesh method by default: more exact than the superquadric one, and faster on the
-  /// first pass through a clip on every body here; the superquadric one is faster on later
-  /// passes on the built-in humanoid only (docs/collision.md, "Figures").
+  /// The mesh method by default: it stretches the cloth far less, is faster on the first
+  /// pass through a clip on every body here and on every pass on MakeHuman; the
+  /// superquadric one is faster on later passes on the built-in humanoid, and held cloth out
+  /// of skin skinned through skin where the mesh method did not (docs/collision.md,
+  /// "Figures").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;
   /// Superquadric method: memory for its maps' drawings kept for reuse when the skin comes
   /// back, as a looping clip brings it every pass [MB] in [0, kMaxSuperquadricMapMb]; 0
