@@ -166,7 +166,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
   std::vector<double> first_pass_collision_ms;
-  long long maps_drawn = 0, maps_reused = 0, skin_checks = 0;
+  long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0;
   for (int f = 0; f < simulation->num_frames(); ++f) {
     const double cpu_start = ThreadCpuMs();
     const sim::FrameReport report = simulation->AdvanceFrame();
@@ -180,6 +180,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     maps_drawn += report.maps_drawn;
     maps_reused += report.maps_reused;
     skin_checks += report.skin_checks;
+    winding_checks += report.winding_checks;
+    buried += report.buried;
     total_ms.push_back(report.wall_ms);
     cpu_ms.push_back(cpu);
     collision_ms.push_back(report.collision_ms);
@@ -217,6 +219,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"maps_drawn", maps_drawn},
           {"maps_reused", maps_reused},
           {"skin_checks", skin_checks},
+          {"winding_checks", winding_checks},
+          {"buried", buried},
           {"map_cache_mb", MapCacheMegabytes(*simulation)},
           {"total_ms_median", Median(total_ms)},
           {"total_cpu_ms_median", Median(cpu_ms)},

@@ -3,6 +3,7 @@
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -15,6 +16,25 @@ namespace costume::sim {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+
+/// The rays along which ProjectOutBuried looks for the way out of buried skin: the axes
+/// and the diagonals, turned a little off the directions that meshes built on grids line
+/// their edges up with (a ray along an edge is not counted).
+const std::array<Eigen::Vector3d, 14> kExitDirections = [] {
+  std::array<Eigen::Vector3d, 14> directions;
+  int k = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    for (double sign : {1.0, -1.0}) directions[k++] = sign * Eigen::Vector3d::Unit(axis);
+  }
+  for (double x : {1.0, -1.0}) {
+    for (double y : {1.0, -1.0}) {
+      for (double z : {1.0, -1.0}) directions[k++] = Eigen::Vector3d(x, y, z);
+    }
+  }
+  for (Eigen::Vector3d& d : directions) d = (d + Eigen::Vector3d(3e-4, 7e-4, 5e-4)).normalized();
+  return directions;
+}();
+
 constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Added to the triangles' spread around their cells [m], so that rounding in the cell
 /// bounds can only make them more conservative.
@@ -405,6 +425,7 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   }
   r.touched.reserve(normals_.num_pieces());
   Refit();
+  counts_windings_ = normals_.num_open_edges() == 0;
 }
 
 MeshCollider::~MeshCollider() = default;
@@ -681,6 +702,85 @@ void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvt& tree,
     }
     visit(node);
   }
+}
+
+/// The part of WalkRay in one region: only the grid cells whose triangles can meet the ray
+/// where it runs through the region's slab (a ray leaving the skin crosses a region's slab
+/// in a few cells, instead of meeting every triangle's box).
+template <class Visit>
+bool WalkRayInRegion(const MeshColliderRegions& r, const MeshColliderRegion& region,
+                     const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
+                     const Eigen::Vector3d& inverse, Visit&& visit) {
+  // The ray's parameters within the slab [w_min, w_max] along the region's axis.
+  const double w = point.dot(region.axis), dw = direction.dot(region.axis);
+  double t_lo = 0.0, t_hi = kInf;
+  if (dw != 0.0) {
+    const double t0 = (region.w_min - kRoundingSlack - w) / dw;
+    const double t1 = (region.w_max + kRoundingSlack - w) / dw;
+    t_lo = std::max(0.0, std::min(t0, t1));
+    t_hi = std::max(t0, t1);
+  } else if (w < region.w_min - kRoundingSlack || w > region.w_max + kRoundingSlack) {
+    return true;
+  }
+  if (t_lo > t_hi) return true;
+  // Where it runs in the plane meanwhile, clipped to the grid grown by the spreads.
+  auto span = [&](const Eigen::Vector3d& tangent, double lo, double hi, double spread) {
+    const double x = point.dot(tangent), dx = direction.dot(tangent);
+    const double a = x + dx * t_lo;
+    const double b = dx == 0.0 ? a : x + dx * std::min(t_hi, 1e3);  // 1 km: beyond any body
+    return std::pair(std::max(std::min(a, b) - spread, lo),
+                     std::min(std::max(a, b) + spread, hi));
+  };
+  const auto [u_lo, u_hi] = span(region.tangent_u, region.u_min, region.u_max,
+                                 region.spread_u + kRoundingSlack);
+  const auto [v_lo, v_hi] = span(region.tangent_v, region.v_min, region.v_max,
+                                 region.spread_v + kRoundingSlack);
+  if (u_lo > u_hi || v_lo > v_hi) return true;
+  const int cu_lo = CellIndex(u_lo, region.u_min, region.cell_size_u, region.cells_u);
+  const int cu_hi = CellIndex(u_hi, region.u_min, region.cell_size_u, region.cells_u);
+  const int cv_lo = CellIndex(v_lo, region.v_min, region.cell_size_v, region.cells_v);
+  const int cv_hi = CellIndex(v_hi, region.v_min, region.cell_size_v, region.cells_v);
+  const int* start = &r.cell_start[region.cell_first];
+  for (int cv = cv_lo; cv <= cv_hi; ++cv) {
+    for (int cu = cu_lo; cu <= cu_hi; ++cu) {
+      const int cell = cv * region.cells_u + cu;
+      for (int j = region.first + start[cell]; j < region.first + start[cell + 1]; ++j) {
+        const PackedTriangle& t = r.packed[j];
+        if (!RayMeetsBox(t.box_min, t.box_max, point, inverse)) continue;
+        const Crossing crossing = RayCrossing(point, direction, t.a, t.b, t.c);
+        if (crossing == Crossing::kNone) continue;
+        if (crossing == Crossing::kUncertain || !visit(j, crossing)) return false;
+      }
+    }
+  }
+  return true;
+}
+
+/// Walks the ray from `point` along `direction` through the region tree of `piece`:
+/// `visit(slot, crossing)` for each packed triangle it crosses (kExit or kEntry), ending
+/// the walk when it returns false. Returns false when it ended so, or when the ray passes
+/// too near an edge or a plane to count.
+template <class Visit>
+bool WalkRay(MeshColliderRegions& r, int piece, const Eigen::Vector3d& point,
+             const Eigen::Vector3d& direction, Visit&& visit) {
+  const Eigen::Vector3d inverse = direction.cwiseInverse();
+  r.stack.clear();
+  if (r.trees[piece]->m_root != nullptr) r.stack.push_back(r.trees[piece]->m_root);
+  while (!r.stack.empty()) {
+    const btDbvtNode* node = r.stack.back();
+    r.stack.pop_back();
+    if (!RayMeetsBox(ToEigen(node->volume.Mins()), ToEigen(node->volume.Maxs()), point, inverse)) {
+      continue;
+    }
+    if (node->isinternal()) {
+      r.stack.push_back(node->childs[0]);
+      r.stack.push_back(node->childs[1]);
+      continue;
+    }
+    const MeshColliderRegion& region = r.data[RegionOf(node)];
+    if (!WalkRayInRegion(r, region, point, direction, inverse, visit)) return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -1151,6 +1251,7 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   if (positions.rows() != velocities.rows()) return 0.0;
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
+  const bool find_buried = options_.find_buried && counts_windings_;
   double deepest = 0.0;
   // The memory FindContacts left, when it was given these particles.
   const bool remembered =
@@ -1164,7 +1265,14 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
       if (!x.allFinite()) break;
       const Nearest nearest =
           Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
-      if (!nearest.found || nearest.signed_distance >= shell) break;
+      if (!nearest.found) break;
+      if (nearest.signed_distance >= shell) {
+        // Outside by its nearest triangle, which buried skin can belie.
+        if (find_buried && nearest.signed_distance < reach) {
+          deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, positions, velocities));
+        }
+        break;
+      }
       if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
       positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
       const double inward =
@@ -1173,6 +1281,111 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
     }
   }
   return deepest;
+}
+
+double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward,
+                                      Points& positions, Points& velocities) {
+  ++stats_.num_winding_checks;
+  const Eigen::Vector3d x = positions.row(i).transpose();
+  for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
+    if (!InsidePiece(piece, x, outward)) continue;
+    // Out where the winding number first falls to 0 along the nearest of a few rays, onto
+    // the shell beyond (if that is outside: the skin there may be folded). The nearest
+    // skin the particle lies behind need not lead out: folded skin nearer may bound more
+    // skin. None within max_penetration: lost, as a particle deeper than that is.
+    std::array<std::pair<RayExit, Eigen::Vector3d>, kExitDirections.size()> exits;
+    int count = 0;
+    for (const Eigen::Vector3d& direction : kExitDirections) {
+      RayExit exit;
+      if (ExitAlong(piece, x, direction, exit) && exit.distance <= options_.max_penetration) {
+        exits[count++] = {exit, direction};
+      }
+    }
+    std::sort(exits.begin(), exits.begin() + count, [](const auto& a, const auto& b) {
+      return a.first.distance < b.first.distance;
+    });
+    for (int k = 0; k < count; ++k) {
+      const auto& [exit, direction] = exits[k];
+      const Eigen::Vector3d target = x + (exit.distance + settings_.thickness) * direction;
+      if (InsidePiece(piece, target, direction)) continue;
+      ++stats_.num_buried;
+      positions.row(i) = target.transpose();
+      const PackedTriangle& t = regions_->packed[exit.slot];
+      const Eigen::Vector3d weights =
+          ClosestPointOnTriangle(x + exit.distance * direction, t.a, t.b, t.c).barycentric;
+      const Eigen::Vector3i& tri = normals_.triangles()[regions_->cell_triangles[exit.slot]];
+      Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
+      for (int c = 0; c < 3; ++c) {
+        surface_velocity += weights[c] * vertex_velocities_.row(tri[c]).transpose();
+      }
+      const double inward = (velocities.row(i).transpose() - surface_velocity).dot(t.normal);
+      if (inward < 0.0) velocities.row(i) -= inward * t.normal.transpose();
+      return exit.distance + settings_.thickness;
+    }
+  }
+  return 0.0;
+}
+
+bool MeshCollider::InsidePiece(int piece, const Eigen::Vector3d& point,
+                               const Eigen::Vector3d& direction) {
+  // Away from the skin first: such a ray leaves the body's boxes soonest. Then directions
+  // with no zero component (the slab test divides by them), away from the axes and
+  // diagonals that meshes built on grids line their edges up with.
+  static const std::array<Eigen::Vector3d, 3> kFallbacks = {
+      Eigen::Vector3d(1, 2, 3).normalized(), Eigen::Vector3d(-4, 1, 4).normalized(),
+      Eigen::Vector3d(3, -7.5, 0.1).normalized()};
+  const btDbvtNode* root = regions_->trees[piece]->m_root;
+  if (root == nullptr || SquaredBoxDistance(ToEigen(root->volume.Mins()),
+                                            ToEigen(root->volume.Maxs()), point) > 0.0) {
+    return false;  // outside the piece's box: winding 0
+  }
+  int winding = 0;
+  if (direction.cwiseAbs().minCoeff() > 1e-9 && WindingInPiece(piece, point, direction, winding)) {
+    return winding >= 1;
+  }
+  for (const Eigen::Vector3d& fallback : kFallbacks) {
+    if (WindingInPiece(piece, point, fallback, winding)) return winding >= 1;
+  }
+  return false;  // every ray grazes: the point is on the surface, not inside by any depth
+}
+
+bool MeshCollider::WindingInPiece(int piece, const Eigen::Vector3d& point,
+                                  const Eigen::Vector3d& direction, int& winding) {
+  winding = 0;
+  return WalkRay(*regions_, piece, point, direction, [&](int, Crossing crossing) {
+    winding += crossing == Crossing::kExit ? 1 : -1;
+    return true;
+  });
+}
+
+bool MeshCollider::ExitAlong(int piece, const Eigen::Vector3d& point,
+                             const Eigen::Vector3d& direction, RayExit& exit) {
+  const MeshColliderRegions& r = *regions_;
+  std::array<RayExit, kMaxExitCrossings> crossings;
+  int count = 0;
+  const bool counted = WalkRay(*regions_, piece, point, direction, [&](int j, Crossing crossing) {
+    if (count == kMaxExitCrossings) return false;
+    const PackedTriangle& t = r.packed[j];
+    const double along = t.normal.dot(direction);
+    if (along == 0.0) return false;
+    crossings[count++] = {t.normal.dot(t.a - point) / along, j,
+                          crossing == Crossing::kExit ? 1 : -1};
+    return true;
+  });
+  if (!counted) return false;
+  std::sort(crossings.begin(), crossings.begin() + count,
+            [](const RayExit& x, const RayExit& y) { return x.distance < y.distance; });
+  // The winding at the point is the sum of all; going out, each exit takes one off.
+  int winding = 0;
+  for (int k = 0; k < count; ++k) winding += crossings[k].sign;
+  for (int k = 0; k < count; ++k) {
+    winding -= crossings[k].sign;
+    if (winding == 0) {
+      exit = crossings[k];
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace costume::sim

@@ -19,6 +19,12 @@
 /// piece's motion since can only shrink by as much: a piece that cannot have come near
 /// enough to matter is not searched at all (MeshCollisionOptions::reuse_bounds).
 ///
+/// Skinning can move skin through other skin (a kicking thigh through the groin): there
+/// the nearest triangle may be buried skin seen from its outer side while the particle is
+/// inside the skin that buried it. ProjectOut therefore counts the winding number (a ray's
+/// signed crossings, through the same region trees) of particles near the skin that their
+/// nearest triangle puts outside (MeshCollisionOptions::find_buried).
+///
 /// Deviation from the paper: the paper tests a flat region "coarsely" without saying how;
 /// here it is the slab and plane grid above, which is exact (no contact is lost, whatever
 /// the region's shape), flatness only making it effective.
@@ -83,6 +89,13 @@ struct MeshCollisionOptions {
   /// give the collider its cloth, and with the particles' memory most body pieces are not
   /// walked at all, leaving less broad phase to save.
   bool cloth_regions = false;
+  /// Count, in ProjectOut, the winding number of each particle whose nearest triangle puts
+  /// it outside within max_penetration, and move it out when it is inside: where skinning
+  /// moves skin through other skin (MakeHuman's thigh through its groin in a kick), the
+  /// nearest triangle can be buried skin seen from its outer side while the particle is
+  /// inside the skin that buried it (docs/collision.md, "Buried skin"). Only for a body
+  /// whose pieces are all closed; false leaves such particles where they are.
+  bool find_buried = true;
   /// Cloth base regions hold about cloth_region_size × cloth_region_size particles [-],
   /// 1 ..= 256.
   int cloth_region_size = 8;
@@ -138,9 +151,13 @@ class MeshCollider : public BodyCollider {
                     std::vector<Contact>& contacts) override;
 
   /// See BodyCollider: moves particles inside the shell along the normal onto it and
-  /// removes their velocity into the body relative to the surface's. Returns the deepest
-  /// penetration of the shell before the correction [m]. Uses (and updates) the particles'
-  /// memory when FindContacts last had as many particles. Never throws; never allocates.
+  /// removes their velocity into the body relative to the surface's. With
+  /// options.find_buried, a particle its nearest triangle puts outside, within
+  /// max_penetration, but inside by the winding number (skin skinned through skin) goes out
+  /// where the winding number first falls to 0 along the nearest of 14 rays, onto the
+  /// shell. Returns the deepest penetration of the shell before the correction [m]. Uses
+  /// (and updates) the particles' memory when FindContacts last had as many particles.
+  /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
@@ -178,6 +195,14 @@ class MeshCollider : public BodyCollider {
     double signed_bound = -std::numeric_limits<double>::infinity();
     double distance_bound = -std::numeric_limits<double>::infinity();
   };
+  /// A ray's crossing of a triangle: distance along the ray [m], packed slot, +1 leaving
+  /// the skin, −1 entering it.
+  struct RayExit {
+    double distance = 0.0;
+    int slot = -1;
+    int sign = 0;
+  };
+  static constexpr int kMaxExitCrossings = 32;
   /// Bodies of more pieces search without memory (it would cost pieces × particles).
   static constexpr int kMaxRememberedPieces = 64;
 
@@ -237,6 +262,24 @@ class MeshCollider : public BodyCollider {
   /// Adds how far each piece moves to `skinned_vertices` to the travels.
   void AddTravel(const Points& skinned_vertices);
   void Refit();
+  /// Moves particle i out of the skin when it is inside by the winding number though its
+  /// nearest triangle, along `outward` [-] from it, puts it outside; returns the depth [m]
+  /// it had below the shell (0 when it was not inside).
+  double ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward, Points& positions,
+                          Points& velocities);
+  /// Whether `point` is inside `piece` by its winding number: the signed crossings of a
+  /// ray from it, first along `direction`, another where that one grazes an edge.
+  bool InsidePiece(int piece, const Eigen::Vector3d& point, const Eigen::Vector3d& direction);
+  /// The signed crossings (exits − entries) of the ray from `point` along `direction`
+  /// with `piece`; false when it passes too near an edge or a plane to count.
+  bool WindingInPiece(int piece, const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
+                      int& winding);
+  /// Where a ray from `point` along the unit `direction` first reaches winding number 0 in
+  /// `piece`: the distance [m] to that crossing and its packed slot. False when the ray
+  /// passes too near an edge, crosses more than kMaxExitCrossings triangles or never gets
+  /// out.
+  bool ExitAlong(int piece, const Eigen::Vector3d& point, const Eigen::Vector3d& direction,
+                 RayExit& exit);
 
   std::shared_ptr<const Avatar> avatar_;
   BodyCollisionSettings settings_;
@@ -273,6 +316,8 @@ class MeshCollider : public BodyCollider {
   /// Pieces that are closed (every edge shared by two triangles): only their signed
   /// distance is 1-Lipschitz, which the bounds rely on.
   std::vector<char> piece_closed_;
+  /// Every piece is closed (no open edge), so a winding number can be counted.
+  bool counts_windings_ = false;
 };
 
 }  // namespace costume::sim

@@ -16,6 +16,7 @@ namespace costume::sim {
 namespace {
 
 btVector3 ToBullet(const Eigen::Vector3d& v) { return btVector3(v.x(), v.y(), v.z()); }
+Eigen::Vector3d ToEigen(const btVector3& v) { return Eigen::Vector3d(v.x(), v.y(), v.z()); }
 
 btDbvtVolume TriangleBox(const Points& vertices, const Eigen::Vector3i& tri) {
   const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
@@ -35,62 +36,6 @@ double SquaredBoxDistance(const btDbvtVolume& volume, const Eigen::Vector3d& p) 
     sum += gap * gap;
   }
   return sum;
-}
-
-/// Whether the ray from `origin` with componentwise inverse direction `inverse` meets the
-/// box `volume` at a non-negative parameter (slab test).
-bool RayMeetsBox(const btDbvtVolume& volume, const Eigen::Vector3d& origin,
-                 const Eigen::Vector3d& inverse) {
-  double near = 0.0, far = std::numeric_limits<double>::infinity();
-  for (int k = 0; k < 3; ++k) {
-    double t0 = (volume.Mins()[k] - origin[k]) * inverse[k];
-    double t1 = (volume.Maxs()[k] - origin[k]) * inverse[k];
-    if (t0 > t1) std::swap(t0, t1);
-    near = std::max(near, t0);
-    far = std::min(far, t1);
-    if (near > far) return false;
-  }
-  return true;
-}
-
-/// How a ray crosses a triangle, counter-clockwise seen from outside.
-enum class Crossing { kNone, kExit, kEntry, kUncertain };
-
-/// The ray from `origin` along `direction` against the triangle (a, b, c), Möller and
-/// Trumbore's test. A hit closer to an edge or a corner than kEdgeTolerance (barycentric),
-/// a ray nearly in the triangle's plane or an origin on the triangle is uncertain: the
-/// count then depends on rounding, so the caller casts another ray.
-Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-                     const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  constexpr double kEdgeTolerance = 1e-9;
-  const Eigen::Vector3d e1 = b - a, e2 = c - a;
-  const Eigen::Vector3d p = direction.cross(e2);
-  // det = −direction·(e1 × e2): negative where the ray leaves through the outside.
-  const double det = e1.dot(p);
-  const Eigen::Vector3d s = origin - a;
-  const double scale = e1.norm() * e2.norm();
-  const double length = std::sqrt(scale);
-  if (std::abs(det) <= kEdgeTolerance * scale) {
-    // Parallel to the plane: no crossing, unless the ray runs in it.
-    const Eigen::Vector3d normal = e1.cross(e2);
-    const double norm = normal.norm();
-    return norm > 0.0 && std::abs(normal.dot(s)) > kEdgeTolerance * norm * length
-               ? Crossing::kNone
-               : Crossing::kUncertain;
-  }
-  const double u = s.dot(p) / det;
-  const Eigen::Vector3d q = s.cross(e1);
-  const double v = direction.dot(q) / det;
-  if (u < -kEdgeTolerance || v < -kEdgeTolerance || u + v > 1.0 + kEdgeTolerance) {
-    return Crossing::kNone;
-  }
-  const double t = e2.dot(q) / det;
-  if (t < -kEdgeTolerance * length) return Crossing::kNone;
-  if (u < kEdgeTolerance || v < kEdgeTolerance || u + v > 1.0 - kEdgeTolerance ||
-      t <= kEdgeTolerance * length) {
-    return Crossing::kUncertain;
-  }
-  return det < 0.0 ? Crossing::kExit : Crossing::kEntry;
 }
 
 /// Depth-first walk of `tree` on the scratch `stack`: a node `enter` refuses is pruned, an
@@ -272,7 +217,10 @@ bool MeshDistance::WindingInPiece(int piece, const Eigen::Vector3d& point,
   const Eigen::Vector3d inverse = direction.cwiseInverse();
   return WalkTree(
       *trees_->pieces[piece], trees_->stack,
-      [&](const btDbvtNode* node) { return RayMeetsBox(node->volume, point, inverse); },
+      [&](const btDbvtNode* node) {
+        return RayMeetsBox(ToEigen(node->volume.Mins()), ToEigen(node->volume.Maxs()), point,
+                           inverse);
+      },
       [](const btDbvtNode*) { return 1; },  // a count: any order
       [&](const btDbvtNode* node) {
         const Eigen::Vector3i& tri = normals_.triangles()[LeafTriangle(node)];

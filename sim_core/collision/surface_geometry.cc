@@ -173,6 +173,39 @@ void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
   for (Eigen::Vector3d& n : vertex_normals_) n = NormalisedOr(n, Eigen::Vector3d::UnitY());
 }
 
+Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                     const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  constexpr double kEdgeTolerance = 1e-9;
+  const Eigen::Vector3d e1 = b - a, e2 = c - a;
+  const Eigen::Vector3d p = direction.cross(e2);
+  // det = −direction·(e1 × e2): negative where the ray leaves through the outside.
+  const double det = e1.dot(p);
+  const Eigen::Vector3d s = origin - a;
+  const double scale = e1.norm() * e2.norm();
+  const double length = std::sqrt(scale);
+  if (std::abs(det) <= kEdgeTolerance * scale) {
+    // Parallel to the plane: no crossing, unless the ray runs in it.
+    const Eigen::Vector3d normal = e1.cross(e2);
+    const double norm = normal.norm();
+    return norm > 0.0 && std::abs(normal.dot(s)) > kEdgeTolerance * norm * length
+               ? Crossing::kNone
+               : Crossing::kUncertain;
+  }
+  const double u = s.dot(p) / det;
+  const Eigen::Vector3d q = s.cross(e1);
+  const double v = direction.dot(q) / det;
+  if (u < -kEdgeTolerance || v < -kEdgeTolerance || u + v > 1.0 + kEdgeTolerance) {
+    return Crossing::kNone;
+  }
+  const double t = e2.dot(q) / det;
+  if (t < -kEdgeTolerance * length) return Crossing::kNone;
+  if (u < kEdgeTolerance || v < kEdgeTolerance || u + v > 1.0 - kEdgeTolerance ||
+      t <= kEdgeTolerance * length) {
+    return Crossing::kUncertain;
+  }
+  return det < 0.0 ? Crossing::kExit : Crossing::kEntry;
+}
+
 SurfaceSide SideOf(const Eigen::Vector3d& point, const Eigen::Vector3d& closest,
                    const Eigen::Vector3d& pseudonormal) {
   const Eigen::Vector3d offset = point - closest;

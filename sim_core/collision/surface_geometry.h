@@ -6,8 +6,10 @@
 /// using the angle weighted pseudonormal"), whose sign test is right at edges and vertices.
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -40,6 +42,32 @@ struct TrianglePoint {
 /// necessarily the closest. Never throws; never allocates.
 TrianglePoint ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                      const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// Whether the ray from `origin` with componentwise inverse direction `inverse` meets the
+/// box [lo, hi] at a non-negative parameter (slab test). Never throws.
+inline bool RayMeetsBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi,
+                        const Eigen::Vector3d& origin, const Eigen::Vector3d& inverse) {
+  double near = 0.0, far = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    double t0 = (lo[k] - origin[k]) * inverse[k];
+    double t1 = (hi[k] - origin[k]) * inverse[k];
+    if (t0 > t1) std::swap(t0, t1);
+    near = std::max(near, t0);
+    far = std::min(far, t1);
+    if (near > far) return false;
+  }
+  return true;
+}
+
+/// How a ray crosses a triangle, counter-clockwise seen from outside.
+enum class Crossing { kNone, kExit, kEntry, kUncertain };
+
+/// The ray from `origin` along `direction` against the triangle (a, b, c), Möller and
+/// Trumbore's test. A hit closer to an edge or a corner than a billionth (barycentric),
+/// a ray nearly in the triangle's plane or an origin on the triangle is uncertain: the
+/// count then depends on rounding, so the caller casts another ray. Never throws.
+Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                     const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
 /// Where a point lies relative to a closed surface, from its closest surface point.
 struct SurfaceSide {

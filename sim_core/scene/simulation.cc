@@ -334,6 +334,8 @@ void Simulation::StepOnce(FrameReport& report) {
     report.maps_drawn += body_->stats().num_maps_drawn;
     report.maps_reused += body_->stats().num_maps_reused;
     report.skin_checks += body_->stats().num_skin_checks;
+    report.winding_checks += body_->stats().num_winding_checks;
+    report.buried += body_->stats().num_buried;
   }
   if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
   if (self_collision_) {

@@ -66,6 +66,11 @@ struct FrameReport {
   /// Superquadric method: position corrections that the skin triangles decided where no map
   /// could (BodyCollisionStats::num_skin_checks), summed over the frame's steps.
   int skin_checks = 0;
+  /// Mesh method: winding-number counts, and particles they found buried in skin and
+  /// moved out (BodyCollisionStats::num_winding_checks, num_buried), summed over the
+  /// frame's steps.
+  int winding_checks = 0;
+  int buried = 0;
   /// Time spent on self-collision [ms] (0 when the scene switches it off).
   double self_collision_ms = 0.0;
   /// Cloth–cloth collisions self-collision could not resolve, summed over the steps.

@@ -11,6 +11,7 @@
 
 #include "sim_core/avatar/skeleton.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/collision/mesh_distance.h"
 #include "sim_core/collision/surface_geometry.h"
 #include "tests/sim_core/collision/test_meshes.h"
 
@@ -390,6 +391,88 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
 // brought near enough to matter: over a moving, deforming body of three closed pieces and
 // particles moving through its shell, the contacts and corrections are those of searching
 // every piece every time.
+// A bar 20 cm long along x, its far half turned 90° about the z axis through the middle of
+// its axis, as skinning turns a thigh: the far half (now x in [0.05, 0.15], y in [1.01,
+// 1.1]) runs through the near half's top face (y = 1.05), which is buried in it for x in
+// [0.05, 0.1]. One piece, closed. The particle 5 mm above that buried face is inside the
+// far half; its nearest skin is the buried face, seen from its outer side.
+TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
+  const TestMesh bar = test::TessellatedBox(Eigen::Vector3d(0.1, 1.0, 0.0),
+                                            Eigen::Vector3d(0.1, 0.05, 0.05),
+                                            Eigen::Vector3i(20, 10, 10));
+  TestMesh folded = bar;
+  for (Eigen::Index v = 0; v < folded.vertices.rows(); ++v) {
+    const double dx = bar.vertices(v, 0) - 0.1, dy = bar.vertices(v, 1) - 1.0;
+    if (dx > 1e-9) folded.vertices.row(v) << 0.1 - dy, 1.0 + dx, bar.vertices(v, 2);
+  }
+  const Eigen::Vector3d buried(0.075, 1.055, 0.003);
+  const Eigen::Vector3d outside(0.04, 1.065, 0.003);  // in the corner the fold leaves open
+  // The setup, by an independent oracle: inside by the winding number, 5 mm outside its
+  // nearest triangle's pseudonormal.
+  const MeshDistance oracle("folded bar", folded.vertices, folded.triangles);
+  ASSERT_TRUE(oracle.Inside(buried));
+  ASSERT_NEAR(oracle.SignedDistance(buried, 0.1), 0.005, 1e-9);
+  ASSERT_FALSE(oracle.Inside(outside));
+
+  for (const bool find_buried : {false, true}) {
+    SCOPED_TRACE(find_buried ? "find_buried" : "without find_buried");
+    MeshCollisionOptions options;
+    options.find_buried = find_buried;
+    BodyCollisionSettings settings;
+    settings.thickness = 0.004;
+    MeshCollider collider(RigidAvatar(bar), settings, options);
+    collider.Update(kJoints, folded.vertices, kH);  // the first pose: the body at rest
+    Points x(2, 3), v(2, 3);
+    x << buried.transpose(), outside.transpose();
+    v << 0.5, 0.2, 0.0, 0.5, 0.2, 0.0;  // the first into the far half's face x = 0.05
+    const double deepest = collider.ProjectOut(x, v);
+    EXPECT_EQ((x.row(1).transpose() - outside).norm(), 0.0);
+    EXPECT_EQ(v(1, 0), 0.5);
+    if (!find_buried) {
+      EXPECT_EQ((x.row(0).transpose() - buried).norm(), 0.0);  // left buried
+      EXPECT_EQ(deepest, 0.0);
+      continue;
+    }
+    // Out through the far half's face x = 0.05, 25 mm away, onto the shell 4 mm beyond it
+    // (the rays are turned off the axes by under a milliradian). Nearer skin it lies
+    // behind, the twisted band at the fold 19.5 mm away, leads into the near half.
+    EXPECT_NEAR(deepest, 0.025 + 0.004, 1e-7);
+    EXPECT_LT((x.row(0).transpose() - Eigen::Vector3d(0.046, 1.055, 0.003)).norm(), 1e-4);
+    EXPECT_FALSE(oracle.Inside(x.row(0).transpose()));
+    EXPECT_NEAR(oracle.SignedDistance(x.row(0).transpose(), 0.1), 0.004, 1e-7);
+    EXPECT_NEAR(v(0, 0), 0.0, 1e-12);  // the velocity into the body is gone
+    EXPECT_NEAR(v(0, 1), 0.2, 1e-12);
+    EXPECT_EQ(collider.stats().num_buried, 1);
+    EXPECT_EQ(collider.stats().num_winding_checks, 2);
+  }
+
+  // Points all over the far half above the buried face: with find_buried every one ends
+  // outside by the oracle; without it, those nearer the buried face than to the far
+  // half's own faces stay in.
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> across_x(0.052, 0.098), across_y(1.052, 1.098),
+      across_z(-0.045, 0.045);
+  Points points(200, 3);
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    points.row(i) << across_x(rng), across_y(rng), across_z(rng);
+  }
+  for (const bool find_buried : {false, true}) {
+    MeshCollisionOptions options;
+    options.find_buried = find_buried;
+    MeshCollider collider(RigidAvatar(bar), BodyCollisionSettings{}, options);
+    collider.Update(kJoints, folded.vertices, kH);
+    Points x = points, v = Points::Zero(points.rows(), 3);
+    collider.ProjectOut(x, v);
+    int inside = 0;
+    for (Eigen::Index i = 0; i < x.rows(); ++i) inside += oracle.Inside(x.row(i).transpose());
+    if (find_buried) {
+      EXPECT_EQ(inside, 0);
+    } else {
+      EXPECT_GT(inside, 20);
+    }
+  }
+}
+
 TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
   const TestMesh a = test::TessellatedBox(Eigen::Vector3d(0.0, 1.0, 0.0),
                                           Eigen::Vector3d(0.15, 0.1, 0.12), Eigen::Vector3i(9, 6, 7));
