@@ -387,10 +387,6 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
   }
 }
 
-// The remembered bounds skip pieces the particle's and the body's motion cannot have
-// brought near enough to matter: over a moving, deforming body of three closed pieces and
-// particles moving through its shell, the contacts and corrections are those of searching
-// every piece every time.
 // A bar 20 cm long along x, its far half turned 90° about the z axis through the middle of
 // its axis, as skinning turns a thigh: the far half (now x in [0.05, 0.15], y in [1.01,
 // 1.1]) runs through the near half's top face (y = 1.05), which is buried in it for x in
@@ -473,6 +469,10 @@ TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
   }
 }
 
+// The remembered bounds skip pieces the particle's and the body's motion cannot have
+// brought near enough to matter: over a moving, deforming body of three closed pieces and
+// particles moving through its shell, the contacts and corrections are those of searching
+// every piece every time.
 TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
   const TestMesh a = test::TessellatedBox(Eigen::Vector3d(0.0, 1.0, 0.0),
                                           Eigen::Vector3d(0.15, 0.1, 0.12), Eigen::Vector3i(9, 6, 7));
