@@ -10,6 +10,7 @@
 #include <string>
 #include <utility>
 
+#include "sim_core/collision/dbvt_walk.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -425,7 +426,6 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
   }
   r.touched.reserve(normals_.num_pieces());
   Refit();
-  counts_windings_ = normals_.num_open_edges() == 0;
 }
 
 MeshCollider::~MeshCollider() = default;
@@ -688,20 +688,17 @@ int RegionOf(const btDbvtNode* leaf) {
 template <class Visit>
 void VisitOverlappingLeaves(MeshColliderRegions& r, const btDbvt& tree,
                             const btDbvtVolume& query, long long& num_tests, Visit&& visit) {
-  r.stack.clear();
-  if (tree.m_root != nullptr) r.stack.push_back(tree.m_root);
-  while (!r.stack.empty()) {
-    const btDbvtNode* node = r.stack.back();
-    r.stack.pop_back();
-    ++num_tests;
-    if (!Intersect(node->volume, query)) continue;
-    if (node->isinternal()) {
-      r.stack.push_back(node->childs[0]);
-      r.stack.push_back(node->childs[1]);
-      continue;
-    }
-    visit(node);
-  }
+  WalkTree(
+      tree, r.stack,
+      [&](const btDbvtNode* node) {
+        ++num_tests;
+        return Intersect(node->volume, query);
+      },
+      [](const btDbvtNode*) { return 1; },
+      [&](const btDbvtNode* leaf) {
+        visit(leaf);
+        return true;
+      });
 }
 
 /// The part of WalkRay in one region: only the grid cells whose triangles can meet the ray
@@ -764,23 +761,16 @@ template <class Visit>
 bool WalkRay(MeshColliderRegions& r, int piece, const Eigen::Vector3d& point,
              const Eigen::Vector3d& direction, Visit&& visit) {
   const Eigen::Vector3d inverse = direction.cwiseInverse();
-  r.stack.clear();
-  if (r.trees[piece]->m_root != nullptr) r.stack.push_back(r.trees[piece]->m_root);
-  while (!r.stack.empty()) {
-    const btDbvtNode* node = r.stack.back();
-    r.stack.pop_back();
-    if (!RayMeetsBox(ToEigen(node->volume.Mins()), ToEigen(node->volume.Maxs()), point, inverse)) {
-      continue;
-    }
-    if (node->isinternal()) {
-      r.stack.push_back(node->childs[0]);
-      r.stack.push_back(node->childs[1]);
-      continue;
-    }
-    const MeshColliderRegion& region = r.data[RegionOf(node)];
-    if (!WalkRayInRegion(r, region, point, direction, inverse, visit)) return false;
-  }
-  return true;
+  return WalkTree(
+      *r.trees[piece], r.stack,
+      [&](const btDbvtNode* node) {
+        return RayMeetsBox(ToEigen(node->volume.Mins()), ToEigen(node->volume.Maxs()), point,
+                           inverse);
+      },
+      [](const btDbvtNode*) { return 1; },  // a count: any order
+      [&](const btDbvtNode* leaf) {
+        return WalkRayInRegion(r, r.data[RegionOf(leaf)], point, direction, inverse, visit);
+      });
 }
 
 }  // namespace
@@ -1095,12 +1085,7 @@ MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
     nearest.found = true;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : normals_.Of(t, closest.feature, vertices_);
-    const Eigen::Vector3i& tri = normals_.triangles()[t];
-    nearest.surface_velocity.setZero();
-    for (int k = 0; k < 3; ++k) {
-      nearest.surface_velocity +=
-          closest.barycentric[k] * vertex_velocities_.row(tri[k]).transpose();
-    }
+    nearest.surface_velocity = SurfaceVelocity(t, closest.barycentric);
   }
   for (int piece : r.touched) r.best_triangle[piece] = -1;  // ready for the next query
   r.touched.clear();
@@ -1251,7 +1236,6 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   if (positions.rows() != velocities.rows()) return 0.0;
   const double shell = settings_.thickness;
   const double reach = shell + options_.max_penetration;
-  const bool find_buried = options_.find_buried && counts_windings_;
   double deepest = 0.0;
   // The memory FindContacts left, when it was given these particles.
   const bool remembered =
@@ -1268,19 +1252,32 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
       if (!nearest.found) break;
       if (nearest.signed_distance >= shell) {
         // Outside by its nearest triangle, which buried skin can belie.
-        if (find_buried && nearest.signed_distance < reach) {
+        if (options_.find_buried && nearest.signed_distance < reach) {
           deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, positions, velocities));
         }
         break;
       }
       if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
       positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
-      const double inward =
-          (velocities.row(i).transpose() - nearest.surface_velocity).dot(nearest.normal);
-      if (inward < 0.0) velocities.row(i) -= inward * nearest.normal.transpose();
+      RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
     }
   }
   return deepest;
+}
+
+Eigen::Vector3d MeshCollider::SurfaceVelocity(int triangle,
+                                             const Eigen::Vector3d& weights) const {
+  const Eigen::Vector3i& tri = normals_.triangles()[triangle];
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) velocity += weights[k] * vertex_velocities_.row(tri[k]).transpose();
+  return velocity;
+}
+
+void MeshCollider::RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
+                                        const Eigen::Vector3d& surface_velocity,
+                                        Points& velocities) const {
+  const double inward = (velocities.row(i).transpose() - surface_velocity).dot(normal);
+  if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
 }
 
 double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward,
@@ -1288,7 +1285,8 @@ double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& out
   ++stats_.num_winding_checks;
   const Eigen::Vector3d x = positions.row(i).transpose();
   for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
-    if (!InsidePiece(piece, x, outward)) continue;
+    // An open piece has no inside to count.
+    if (!piece_closed_[piece] || !InsidePiece(piece, x, outward)) continue;
     // Out where the winding number first falls to 0 along the nearest of a few rays, onto
     // the shell beyond (if that is outside: the skin there may be folded). The nearest
     // skin the particle lies behind need not lead out: folded skin nearer may bound more
@@ -1313,13 +1311,9 @@ double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& out
       const PackedTriangle& t = regions_->packed[exit.slot];
       const Eigen::Vector3d weights =
           ClosestPointOnTriangle(x + exit.distance * direction, t.a, t.b, t.c).barycentric;
-      const Eigen::Vector3i& tri = normals_.triangles()[regions_->cell_triangles[exit.slot]];
-      Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
-      for (int c = 0; c < 3; ++c) {
-        surface_velocity += weights[c] * vertex_velocities_.row(tri[c]).transpose();
-      }
-      const double inward = (velocities.row(i).transpose() - surface_velocity).dot(t.normal);
-      if (inward < 0.0) velocities.row(i) -= inward * t.normal.transpose();
+      RemoveInwardVelocity(i, t.normal,
+                           SurfaceVelocity(regions_->cell_triangles[exit.slot], weights),
+                           velocities);
       return exit.distance + settings_.thickness;
     }
   }
@@ -1328,22 +1322,17 @@ double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& out
 
 bool MeshCollider::InsidePiece(int piece, const Eigen::Vector3d& point,
                                const Eigen::Vector3d& direction) {
-  // Away from the skin first: such a ray leaves the body's boxes soonest. Then directions
-  // with no zero component (the slab test divides by them), away from the axes and
-  // diagonals that meshes built on grids line their edges up with.
-  static const std::array<Eigen::Vector3d, 3> kFallbacks = {
-      Eigen::Vector3d(1, 2, 3).normalized(), Eigen::Vector3d(-4, 1, 4).normalized(),
-      Eigen::Vector3d(3, -7.5, 0.1).normalized()};
   const btDbvtNode* root = regions_->trees[piece]->m_root;
   if (root == nullptr || SquaredBoxDistance(ToEigen(root->volume.Mins()),
                                             ToEigen(root->volume.Maxs()), point) > 0.0) {
     return false;  // outside the piece's box: winding 0
   }
+  // Away from the skin first: such a ray leaves the body's boxes soonest.
   int winding = 0;
   if (direction.cwiseAbs().minCoeff() > 1e-9 && WindingInPiece(piece, point, direction, winding)) {
     return winding >= 1;
   }
-  for (const Eigen::Vector3d& fallback : kFallbacks) {
+  for (const Eigen::Vector3d& fallback : WindingRayDirections()) {
     if (WindingInPiece(piece, point, fallback, winding)) return winding >= 1;
   }
   return false;  // every ray grazes: the point is on the surface, not inside by any depth

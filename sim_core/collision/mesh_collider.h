@@ -93,8 +93,8 @@ struct MeshCollisionOptions {
   /// it outside within max_penetration, and move it out when it is inside: where skinning
   /// moves skin through other skin (MakeHuman's thigh through its groin in a kick), the
   /// nearest triangle can be buried skin seen from its outer side while the particle is
-  /// inside the skin that buried it (docs/collision.md, "Buried skin"). Only for a body
-  /// whose pieces are all closed; false leaves such particles where they are.
+  /// inside the skin that buried it (docs/collision.md, "Buried skin"). Only in closed
+  /// pieces (an open one has no inside); false leaves such particles where they are.
   bool find_buried = true;
   /// Cloth base regions hold about cloth_region_size × cloth_region_size particles [-],
   /// 1 ..= 256.
@@ -262,6 +262,11 @@ class MeshCollider : public BodyCollider {
   /// Adds how far each piece moves to `skinned_vertices` to the travels.
   void AddTravel(const Points& skinned_vertices);
   void Refit();
+  /// The skin's velocity [m/s] at barycentric `weights` of `triangle`.
+  Eigen::Vector3d SurfaceVelocity(int triangle, const Eigen::Vector3d& weights) const;
+  /// Removes particle i's velocity into the skin along `normal`, relative to the skin's.
+  void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
+                            const Eigen::Vector3d& surface_velocity, Points& velocities) const;
   /// Moves particle i out of the skin when it is inside by the winding number though its
   /// nearest triangle, along `outward` [-] from it, puts it outside; returns the depth [m]
   /// it had below the shell (0 when it was not inside).
@@ -314,10 +319,8 @@ class MeshCollider : public BodyCollider {
   std::vector<double> piece_step_;   // Update scratch: per piece, then per vertex [m², m²]
   std::vector<double> vertex_step_;
   /// Pieces that are closed (every edge shared by two triangles): only their signed
-  /// distance is 1-Lipschitz, which the bounds rely on.
+  /// distance is 1-Lipschitz, which the bounds rely on, and only they have a winding number.
   std::vector<char> piece_closed_;
-  /// Every piece is closed (no open edge), so a winding number can be counted.
-  bool counts_windings_ = false;
 };
 
 }  // namespace costume::sim

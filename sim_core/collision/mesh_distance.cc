@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "sim_core/collision/dbvt_walk.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -36,30 +37,6 @@ double SquaredBoxDistance(const btDbvtVolume& volume, const Eigen::Vector3d& p) 
     sum += gap * gap;
   }
   return sum;
-}
-
-/// Depth-first walk of `tree` on the scratch `stack`: a node `enter` refuses is pruned, an
-/// internal node's child `first_child` names (0 or 1) is taken before the other, and
-/// `leaf` visits each leaf entered, ending the walk when it returns false. Returns false
-/// when a leaf ended it.
-template <typename Enter, typename FirstChild, typename Leaf>
-bool WalkTree(const btDbvt& tree, std::vector<const btDbvtNode*>& stack, Enter&& enter,
-              FirstChild&& first_child, Leaf&& leaf) {
-  stack.clear();
-  if (tree.m_root != nullptr) stack.push_back(tree.m_root);
-  while (!stack.empty()) {
-    const btDbvtNode* node = stack.back();
-    stack.pop_back();
-    if (!enter(node)) continue;
-    if (node->isinternal()) {
-      const int first = first_child(node);
-      stack.push_back(node->childs[1 - first]);
-      stack.push_back(node->childs[first]);
-      continue;
-    }
-    if (!leaf(node)) return false;
-  }
-  return true;
 }
 
 int LeafTriangle(const btDbvtNode* leaf) {
@@ -238,20 +215,15 @@ bool MeshDistance::WindingInPiece(int piece, const Eigen::Vector3d& point,
 
 bool MeshDistance::Inside(const Eigen::Vector3d& point) const {
   if (!point.allFinite()) return false;
-  // Unit directions with no zero component (the slab test divides by them), away from the
-  // axes and diagonals that meshes built on grids line their edges up with.
-  static const std::array<Eigen::Vector3d, 4> kDirections = {
-      Eigen::Vector3d(1, 2, 3).normalized(), Eigen::Vector3d(-4, 1, 4).normalized(),
-      Eigen::Vector3d(3, -7.5, 0.1).normalized(), Eigen::Vector3d(-2, -1, -4).normalized()};
   for (int piece = 0; piece < num_pieces(); ++piece) {
     int winding = 0;
     bool counted = false;
-    for (const Eigen::Vector3d& direction : kDirections) {
+    for (const Eigen::Vector3d& direction : WindingRayDirections()) {
       counted = WindingInPiece(piece, point, direction, winding);
       if (counted) break;
     }
-    // Four rays each grazing an edge or a plane: the point lies on the surface, not
-    // inside by any measurable depth.
+    // Every ray grazing an edge or a plane: the point lies on the surface, not inside by
+    // any measurable depth.
     if (counted && winding >= 1) return true;
   }
   return false;

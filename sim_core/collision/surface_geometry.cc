@@ -173,6 +173,13 @@ void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
   for (Eigen::Vector3d& n : vertex_normals_) n = NormalisedOr(n, Eigen::Vector3d::UnitY());
 }
 
+const std::array<Eigen::Vector3d, 4>& WindingRayDirections() {
+  static const std::array<Eigen::Vector3d, 4> directions = {
+      Eigen::Vector3d(1, 2, 3).normalized(), Eigen::Vector3d(-4, 1, 4).normalized(),
+      Eigen::Vector3d(3, -7.5, 0.1).normalized(), Eigen::Vector3d(-2, -1, -4).normalized()};
+  return directions;
+}
+
 Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                      const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   constexpr double kEdgeTolerance = 1e-9;

@@ -69,6 +69,11 @@ enum class Crossing { kNone, kExit, kEntry, kUncertain };
 Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                      const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
+/// Unit ray directions for counting a winding number, tried in turn where one grazes an
+/// edge: no zero component (the slab test divides by them), away from the axes and
+/// diagonals that meshes built on grids line their edges up with.
+const std::array<Eigen::Vector3d, 4>& WindingRayDirections();
+
 /// Where a point lies relative to a closed surface, from its closest surface point.
 struct SurfaceSide {
   /// Distance to the closest point [m], negative inside.
