@@ -42,9 +42,11 @@ double Median(std::vector<double> values) {
 }
 
 void PrintFrame(int frame, int num_frames, const Simulation& sim, const FrameReport& r) {
-  char extra[96] = "";
+  char extra[128] = "";
   if (sim.body_collider()) {
-    std::snprintf(extra, sizeof(extra), "  avatar collision %5.2f ms", r.collision_ms);
+    std::snprintf(extra, sizeof(extra),
+                  "  avatar collision %5.2f ms (+%4.2f ms following the body)", r.collision_ms,
+                  r.collision_update_ms);
   }
   if (sim.scene().effects.self_collision) {
     const std::size_t used = std::strlen(extra);

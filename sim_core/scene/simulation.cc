@@ -267,14 +267,16 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
 
 // The avatar moves to where it will be at the end of the step first, so contacts target the
 // body's new surface and attached particles land where the body takes them.
-void Simulation::MoveAvatar(double t, double h) {
+void Simulation::MoveAvatar(double t, double h, FrameReport& report) {
   double blend = 1.0;  // no transition: exactly the pose at t
   if (posture_duration_ > 0.0) {
     blend = std::min(1.0, (state_.time + h - posture_start_) / posture_duration_);
     if (blend >= 1.0) posture_duration_ = 0.0;
   }
   avatar_->Evaluate(t, blend);
+  const auto start = std::chrono::steady_clock::now();
   body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
+  report.collision_update_ms += MillisecondsSince(start);
   for (const BodyAttachment& a : attachments_) {
     const Eigen::Vector3d target = avatar_->joint_world()[a.joint] * a.local;
     stepper_->SetPinVelocity(a.particle,
@@ -301,7 +303,7 @@ void Simulation::StepOnce(FrameReport& report) {
   const double h = step();
   if (avatar_) {
     // lag 0 (never frozen) gives state_.time + h bit for bit: the unfrozen run is unchanged.
-    MoveAvatar(avatar_frozen_ ? frozen_avatar_time_ : state_.time + h - avatar_lag_, h);
+    MoveAvatar(avatar_frozen_ ? frozen_avatar_time_ : state_.time + h - avatar_lag_, h, report);
   }
   if (grabbing_) UpdateGrabForces();
   FindContacts(h, report);
