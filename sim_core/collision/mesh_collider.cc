@@ -234,6 +234,10 @@ struct MeshColliderRegion {
   double spread_u = 0.0, spread_v = 0.0;
   /// Box of its vertices [m].
   Eigen::Vector3d box_min = Eigen::Vector3d::Zero(), box_max = Eigen::Vector3d::Zero();
+  /// Lazy refit: whether the fields above are of an older pose than the collider's
+  /// vertices, and a bound on how far its vertices have moved since they were fitted [m].
+  bool stale = false;
+  double travel = 0.0;
 };
 
 /// A triangle's corners and box [m], copied in grid order at every refit so the search
@@ -326,6 +330,10 @@ struct MeshColliderRegions {
   double lowest = 0.0;
   /// The pieces to search, in order.
   std::vector<PieceBound> order;
+  /// What a lazy refit reads: the collider's surface and vertices (MeshCollider::normals_,
+  /// vertices_).
+  const SurfacePseudonormals* mesh = nullptr;
+  const Points* skin = nullptr;
 };
 
 namespace {
@@ -425,7 +433,9 @@ MeshCollider::MeshCollider(std::shared_ptr<const Avatar> avatar,
     }
   }
   r.touched.reserve(normals_.num_pieces());
-  Refit();
+  r.mesh = &normals_;
+  r.skin = &vertices_;
+  Refit(/*all=*/true);
 }
 
 MeshCollider::~MeshCollider() = default;
@@ -454,6 +464,12 @@ bool MeshCollider::UsesMemory() const { return normals_.num_pieces() <= kMaxReme
 int MeshCollider::MemoryOf(int particle) const { return UsesMemory() ? particle : -1; }
 
 int MeshCollider::num_regions() const { return static_cast<int>(regions_->data.size()); }
+
+int MeshCollider::num_stale_regions() const {
+  int stale = 0;
+  for (const MeshColliderRegion& region : regions_->data) stale += region.stale ? 1 : 0;
+  return stale;
+}
 
 namespace {
 
@@ -601,18 +617,37 @@ inline double SquaredBoxDistance(const Eigen::Vector3d& lo, const Eigen::Vector3
   return x * x + y * y + z * z;
 }
 
+/// Fits a region to the collider's current vertices.
+void FitRegion(MeshColliderRegions& r, MeshColliderRegion& region) {
+  ProjectRegion(*r.mesh, *r.skin, r, region);
+  BinRegion(r, region);
+  PackRegion(*r.mesh, *r.skin, r, region);
+  region.stale = false;
+  region.travel = 0.0;
+}
+
+/// Fits a region a query has reached, if Update left it stale (lazy refit). Its tree box
+/// stays the grown one until the next Update: larger than needed, never too small.
+void Freshen(MeshColliderRegions& r, int region) {
+  if (r.data[region].stale) FitRegion(r, r.data[region]);
+}
+
 }  // namespace
 
-void MeshCollider::Refit() {
+void MeshCollider::Refit(bool all) {
   // Vertex pseudonormals only for the few closest points at a vertex (Of with vertices_).
   normals_.Update(vertices_, /*vertex_normals=*/false);
   MeshColliderRegions& r = *regions_;
-  const btVector3 fatten(settings_.thickness, settings_.thickness, settings_.thickness);
   for (MeshColliderRegion& region : r.data) {
-    ProjectRegion(normals_, vertices_, r, region);
-    BinRegion(r, region);
-    PackRegion(normals_, vertices_, r, region);
-    // Boxes fattened by the thickness; the query box adds the margin and the motion.
+    if (all || !std::isfinite(region.travel)) {
+      FitRegion(r, region);
+    } else {
+      region.stale = region.travel > 0.0;
+    }
+    // Boxes fattened by the thickness; the query box adds the margin and the motion. A
+    // stale region's box grows by how far its vertices may have moved since it was fitted.
+    const double grow = settings_.thickness + region.travel;
+    const btVector3 fatten(grow, grow, grow);
     btDbvtVolume box = btDbvtVolume::FromMM(ToBullet(region.box_min) - fatten,
                                             ToBullet(region.box_max) + fatten);
     r.trees[region.piece]->update(region.leaf, box);
@@ -633,6 +668,15 @@ void MeshCollider::AddTravel(const Points& skinned_vertices) {
     }
   }
   for (std::size_t p = 0; p < piece_step_.size(); ++p) piece_travel_[p] += std::sqrt(piece_step_[p]);
+  MeshColliderRegions& r = *regions_;
+  for (MeshColliderRegion& region : r.data) {
+    double step = 0.0;
+    for (int i = region.first_vertex; i < region.first_vertex + region.num_vertices; ++i) {
+      const double squared = vertex_step_[r.vertices[i]];
+      step = std::isfinite(squared) ? std::max(step, squared) : kInf;
+    }
+    region.travel += std::sqrt(step);
+  }
 }
 
 void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
@@ -662,7 +706,7 @@ void MeshCollider::Update(const std::vector<Eigen::Isometry3d>& /*joint_world*/,
   for (double& speed : piece_speed_) speed = std::sqrt(speed);
   vertices_ = skinned_vertices;
   has_pose_ = true;
-  Refit();
+  Refit(/*all=*/!options_.lazy_refit);
 }
 
 namespace {
@@ -769,6 +813,7 @@ bool WalkRay(MeshColliderRegions& r, int piece, const Eigen::Vector3d& point,
       },
       [](const btDbvtNode*) { return 1; },  // a count: any order
       [&](const btDbvtNode* leaf) {
+        Freshen(r, RegionOf(leaf));
         return WalkRayInRegion(r, r.data[RegionOf(leaf)], point, direction, inverse, visit);
       });
 }
@@ -892,6 +937,7 @@ int MeshCollider::Collect(const Eigen::Vector3d& point, int piece, double radius
   const btDbvtVolume box = QueryBox(point, radius, settings_.thickness);
   int count = 0;
   auto add = [&](int region) {
+    Freshen(r, region);
     // The query box is a cube around the ball; its corners reach further.
     const double squared =
         SquaredBoxDistance(r.data[region].box_min, r.data[region].box_max, point);

@@ -96,6 +96,13 @@ struct MeshCollisionOptions {
   /// inside the skin that buried it (docs/collision.md, "Buried skin"). Only in closed
   /// pieces (an open one has no inside); false leaves such particles where they are.
   bool find_buried = true;
+  /// Refit a body region (its plane frame, grid and packed triangles) only when a query
+  /// first reaches it after Update, so that skin no cloth comes near (the arms and head
+  /// under a skirt) costs no refit; until then its tree box is the box it was last fitted
+  /// in, grown by how far its vertices have moved since, so no query misses it. Contacts
+  /// and corrections are those of refitting every region in Update (false), up to which of
+  /// equally near triangles is kept.
+  bool lazy_refit = true;
   /// Cloth base regions hold about cloth_region_size × cloth_region_size particles [-],
   /// 1 ..= 256.
   int cloth_region_size = 8;
@@ -135,7 +142,8 @@ class MeshCollider : public BodyCollider {
   void SetCloth(const ClothModel& cloth);
 
   /// Takes the skinned vertices (num_vertices×3) [m] (the joint frames are not needed);
-  /// vertex velocities are (new − previous)/dt. Refits the region boxes and grids. Ignored
+  /// vertex velocities are (new − previous)/dt. Refits the region boxes and grids, or, with
+  /// options.lazy_refit, grows their tree boxes by their vertices' motion. Ignored
   /// when the row count is wrong; a non-positive dt gives zero velocities. Never throws;
   /// never allocates.
   void Update(const std::vector<Eigen::Isometry3d>& joint_world, const Points& skinned_vertices,
@@ -165,6 +173,9 @@ class MeshCollider : public BodyCollider {
   /// Regions after merging, and before it (the base regions of about N×N triangles).
   int num_regions() const;
   int num_base_regions() const { return num_base_regions_; }
+  /// Regions not fitted to the current pose (MeshCollisionOptions::lazy_refit): no query
+  /// has reached them since the body last moved them.
+  int num_stale_regions() const;
 
   /// The cloth's region hierarchy after SetCloth, else null.
   const ClothRegions* cloth_regions() const { return cloth_.get(); }
@@ -259,9 +270,12 @@ class MeshCollider : public BodyCollider {
   bool UsesMemory() const;
   /// `particle`, the index of its memory, or −1 when the body goes without memory.
   int MemoryOf(int particle) const;
-  /// Adds how far each piece moves to `skinned_vertices` to the travels.
+  /// Adds how far each piece, and each region, moves to `skinned_vertices` to the travels.
   void AddTravel(const Points& skinned_vertices);
-  void Refit();
+  /// Updates the pseudonormals and refits every region (`all`), or marks each region whose
+  /// vertices moved stale, to be fitted when a query reaches it, and grows its tree box by
+  /// how far they moved since its last fit (MeshColliderRegion::travel, from AddTravel).
+  void Refit(bool all);
   /// The skin's velocity [m/s] at barycentric `weights` of `triangle`.
   Eigen::Vector3d SurfaceVelocity(int triangle, const Eigen::Vector3d& weights) const;
   /// Removes particle i's velocity into the skin along `normal`, relative to the skin's.

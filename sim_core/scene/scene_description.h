@@ -109,7 +109,7 @@ struct AvatarSpec {
   AvatarMotionSettings motion;
   /// The mesh method by default: it stretches the cloth far less, and is faster on the first
   /// pass through a clip and on any motion that does not repeat (a posture being set); the
-  /// superquadric one, update included, is 1.2–2.5× as fast on a looping clip's later
+  /// superquadric one, update included, is 1.05–2.5× as fast on a looping clip's later
   /// passes, where it reuses its maps' drawings. Both keep the cloth within 2 mm of the
   /// skin (docs/collision.md, "Figures").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <random>
@@ -549,6 +550,64 @@ TEST(MeshCollider, RememberedBoundsGiveTheContactsOfAFullSearchOnAMovingBody) {
   EXPECT_LT(10 * tests_remembering, 7 * tests_searching);
   std::printf("moving body: tests %lld remembering / %lld searching everything\n",
               tests_remembering, tests_searching);
+}
+
+TEST(MeshCollider, SkinNoQueryReachedWhileItMovedIsFittedWhereItWentWhenClothComes) {
+  // A bar 60 cm long; its right half rises 3 cm a step for ten steps (sheared over
+  // 0 <= x <= 0.1) while the only cloth lies on its left end. The right half's regions are
+  // then left unfitted (lazy refit), their tree boxes grown by the 30 cm they moved, more
+  // than any search reaches (with boxes not grown, the particle below finds no contact). A
+  // particle 1 cm inside the risen right half must still be found and put on its shell,
+  // where the skinned bar itself (MeshDistance) puts it, as refitting every region every
+  // step does.
+  const TestMesh bar = test::TessellatedBox(Eigen::Vector3d(0.0, 1.0, 0.0),
+                                            Eigen::Vector3d(0.3, 0.05, 0.1),
+                                            Eigen::Vector3i(30, 5, 10));
+  MeshCollisionOptions lazy, eager;
+  lazy.adaptive = eager.adaptive = false;  // the bar's flat faces would merge end to end
+  eager.lazy_refit = false;
+  BodyCollisionSettings settings;
+  MeshCollider lazy_collider(RigidAvatar(bar), settings, lazy);
+  MeshCollider eager_collider(RigidAvatar(bar), settings, eager);
+  ASSERT_GT(lazy_collider.num_regions(), 4);
+  auto pose = [&](int step) {
+    Points p = bar.vertices;
+    for (Eigen::Index k = 0; k < p.rows(); ++k) {
+      p(k, 1) += 0.03 * step * std::clamp(p(k, 0) / 0.1, 0.0, 1.0);
+    }
+    return p;
+  };
+  // Cloth resting 2 mm above the left end's top (y = 1.05), in its shell.
+  Points rest(5, 3);
+  for (int i = 0; i < 5; ++i) rest.row(i) = Eigen::RowVector3d(-0.28 + 0.01 * i, 1.052, 0.0);
+  for (int step = 1; step <= 10; ++step) {
+    for (MeshCollider* collider : {&lazy_collider, &eager_collider}) {
+      collider->Update(kJoints, pose(step), kH);
+      Points x = rest, v = Points::Zero(5, 3);
+      std::vector<Contact> contacts;
+      collider->FindContacts(x, v, kH, 0.002, contacts);
+      EXPECT_EQ(contacts.size(), 5u);
+      collider->ProjectOut(x, v);
+    }
+  }
+  EXPECT_GT(lazy_collider.num_stale_regions(), 0);
+  EXPECT_EQ(eager_collider.num_stale_regions(), 0);
+  // The risen top is at y = 1.35 for x >= 0.1.
+  MeshDistance skin("bar", pose(10), bar.triangles);
+  const Eigen::Vector3d inside(0.25, 1.34, 0.02);
+  ASSERT_LT(skin.SignedDistance(inside, 0.2), -0.009);
+  Points x_lazy = inside.transpose(), v_lazy = Points::Zero(1, 3);
+  Points x_eager = x_lazy, v_eager = v_lazy;
+  std::vector<Contact> contacts;
+  lazy_collider.FindContacts(x_lazy, v_lazy, kH, 0.002, contacts);
+  ASSERT_EQ(contacts.size(), 1u);
+  EXPECT_GT(contacts[0].normal.y(), 0.999);
+  lazy_collider.ProjectOut(x_lazy, v_lazy);
+  eager_collider.ProjectOut(x_eager, v_eager);
+  const Eigen::Vector3d out = x_lazy.row(0).transpose();
+  EXPECT_NEAR(skin.SignedDistance(out, 0.2), settings.thickness, 1e-6);
+  EXPECT_NEAR(out.y(), 1.35 + settings.thickness, 1e-6);
+  EXPECT_LT((x_lazy - x_eager).cwiseAbs().maxCoeff(), 1e-12);
 }
 
 TEST(MeshCollider, ABodyOfManyPiecesGoesWithoutMemoryAndFindsTheSameContacts) {
