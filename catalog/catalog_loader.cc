@@ -147,12 +147,15 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
 }
 
 std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::ClipCategory category,
-                                              const AssetData& data,
-                                              std::shared_ptr<const sim::Skeleton> skeleton,
-                                              const std::string& what) {
+                                              const AssetData& data, const std::string& what) {
   if (data.format == "builtin") {
-    auto clip = std::make_shared<sim::Clip>(sim::MakeBuiltInClip(
-        BuiltInName(data), skeleton ? std::move(skeleton) : sim::MakeHumanoidSkeleton()));
+    // Made on the built-in humanoid's skeleton whatever the avatar: the angles assume its
+    // world-aligned rest frames, and on an imported avatar's own skeleton (MakeHuman's bones
+    // along the limbs) they twisted the body out of any walk (MakeHuman's suit walking,
+    // mesh method: frames stretched up to 950 %, against at most 62 % retargeted).
+    // AvatarMotion retargets the clip by H-Anim names.
+    auto clip = std::make_shared<sim::Clip>(
+        sim::MakeBuiltInClip(BuiltInName(data), sim::MakeHumanoidSkeleton()));
     clip->category = category;
     clip->name = name;
     return clip;
@@ -247,11 +250,9 @@ std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id)
   return AvatarFromData(entry.name, catalog.Data(id), EntryWhat(entry, 0));
 }
 
-std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id,
-                                          std::shared_ptr<const sim::Skeleton> avatar_skeleton) {
+std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id) {
   const EntryInfo entry = EntryOfKind(catalog, id, Kind::kAnimation);
-  return ClipFromData(entry.name, CategoryOf(entry), catalog.Data(id), std::move(avatar_skeleton),
-                      EntryWhat(entry, 0));
+  return ClipFromData(entry.name, CategoryOf(entry), catalog.Data(id), EntryWhat(entry, 0));
 }
 
 sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version) {
@@ -284,8 +285,7 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
       break;
     case Kind::kAnimation:
       request.avatar = sim::MakeHumanoid();
-      request.clip = ClipFromData(name, sim::ClipCategory::kBasic, data,
-                                  request.avatar->shared_skeleton(), what);
+      request.clip = ClipFromData(name, sim::ClipCategory::kBasic, data, what);
       break;
     case Kind::kGarment: {
       ValidateFabric(fabric, what);

@@ -19,11 +19,11 @@ namespace costume::catalog {
 /// wrong kind or data its importer refuses.
 std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id);
 
-/// The clip of entry `id` (kind animation), with the entry's category. Built-in clips are
-/// made on `avatar_skeleton` (null: the built-in humanoid's skeleton); clips from files keep
-/// their own skeleton (sim::Retargeter puts them on any avatar). Throws sim::InputError.
-std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id,
-                                          std::shared_ptr<const sim::Skeleton> avatar_skeleton);
+/// The clip of entry `id` (kind animation), with the entry's category, on its own skeleton:
+/// built-in clips on the built-in humanoid's, whose world-aligned rest frames their angles
+/// are written for; clips from files on the file's. sim::Retargeter (AvatarMotion) puts
+/// either on any avatar. Throws sim::InputError.
+std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id);
 
 /// Version `version` (0: latest) of garment `id` as a scene garment named after the entry.
 /// Its `material` names the entry's fabric as GarmentMaterial returns it ("<name>_fabric"),

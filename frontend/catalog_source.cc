@@ -45,9 +45,10 @@ class BuiltInCatalog final : public CatalogSource {
         RequireAvatar(scene, item).avatar = sim::MakeHumanoid();
         return;
       case EntryKind::kAnimation: {
-        sim::AvatarSpec& avatar = RequireAvatar(scene, item);
-        avatar.clip = std::make_shared<const sim::Clip>(
-            sim::MakeBuiltInClip(item.name, avatar.avatar->shared_skeleton()));
+        // On the skeleton its angles are written for, retargeted onto the avatar when
+        // played (as catalog::LoadClip).
+        RequireAvatar(scene, item).clip = std::make_shared<const sim::Clip>(
+            sim::MakeBuiltInClip(item.name, sim::MakeHumanoidSkeleton()));
         return;
       }
       case EntryKind::kCostume: {
@@ -101,7 +102,7 @@ class DatabaseCatalog final : public CatalogSource {
       }
       case EntryKind::kAnimation: {
         sim::AvatarSpec& avatar = RequireAvatar(scene, item);
-        avatar.clip = catalog::LoadClip(*db_, item.id, avatar.avatar->shared_skeleton());
+        avatar.clip = catalog::LoadClip(*db_, item.id);
         return;
       }
       case EntryKind::kCostume:

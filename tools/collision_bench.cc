@@ -15,6 +15,7 @@
 #include <ctime>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -144,6 +145,18 @@ int NearestJoint(const sim::AvatarMotion& motion, const Eigen::Vector3d& x) {
   return nearest;
 }
 
+/// The `count` keys with the largest counts as [key, count] pairs, most first.
+json MostFrequent(const std::map<std::string, int>& counts, std::size_t count) {
+  std::vector<std::pair<int, std::string>> sorted;
+  for (const auto& [key, n] : counts) sorted.emplace_back(n, key);
+  std::sort(sorted.rbegin(), sorted.rend());
+  json top = json::array();
+  for (std::size_t k = 0; k < std::min(count, sorted.size()); ++k) {
+    top.push_back({sorted[k].second, sorted[k].first});
+  }
+  return top;
+}
+
 /// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 json Measure(const std::string& avatar_name, const sim::SceneDescription& scene) {
   auto simulation = sim::Simulation::Build(scene);
@@ -155,6 +168,9 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   std::vector<double> total_ms, collision_ms, update_ms, with_update_ms, cpu_ms, frame_max_depth,
       frame_max_strain;
   double max_depth = 0.0, max_strain = 0.0;
+  // Per joint, the frames whose most stretched spring is nearest it: where the collider
+  // holds the cloth stretched.
+  std::map<std::string, int> strain_near;
   // Where the deepest penetration was: the measured frame, the particle and the joint
   // nearest it, for finding what let it in.
   int deepest_frame = -1, deepest_particle = -1, deepest_joint = -1;
@@ -207,8 +223,14 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     }
     frame_max_depth.push_back(std::max(0.0, deepest));
     max_depth = std::max(max_depth, deepest);
-    frame_max_strain.push_back(sim::StructuralStrain(simulation->model(), x).max);
-    max_strain = std::max(max_strain, frame_max_strain.back());
+    const sim::StrainStats strain = sim::StructuralStrain(simulation->model(), x);
+    frame_max_strain.push_back(strain.max);
+    max_strain = std::max(max_strain, strain.max);
+    if (strain.max_spring >= 0) {
+      const sim::Spring& spring = simulation->model().springs()[strain.max_spring];
+      const Eigen::Vector3d middle = 0.5 * (x.row(spring.a) + x.row(spring.b)).transpose();
+      ++strain_near[motion.avatar().skeleton().joint(NearestJoint(motion, middle)).name];
+    }
   }
   const auto& s = scene.avatar.value();
   return {{"avatar", avatar_name},
@@ -242,6 +264,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           // whether the cloth stays stretched.
           {"max_strain_median", Median(frame_max_strain)},
           {"max_strain_p99", Percentile(frame_max_strain, 0.99)},
+          {"max_strain_near", MostFrequent(strain_near, 3)},
           {"rolled_back_steps", rolled_back},
           {"unconverged_frames", unconverged}};
 }

@@ -107,8 +107,7 @@ class DatabaseSceneCatalog final : public SceneCatalog {
       throw sim::InputError(Describe(entry) + ": the scene has no avatar to play it on; load "
                             "an avatar first");
     }
-    scene.avatar->clip =
-        catalog::LoadClip(*catalog_, entry.id, scene.avatar->avatar->shared_skeleton());
+    scene.avatar->clip = catalog::LoadClip(*catalog_, entry.id);
   }
 
   std::unique_ptr<catalog::Catalog> catalog_;

@@ -96,10 +96,15 @@ double MechanicalEnergy(const ClothModel& model, const ClothState& state,
 StrainStats StructuralStrain(const ClothModel& model, const Points& positions) {
   StrainStats stats;
   int count = 0;
-  for (const Spring& s : model.springs()) {
+  const std::vector<Spring>& springs = model.springs();
+  for (std::size_t k = 0; k < springs.size(); ++k) {
+    const Spring& s = springs[k];
     if (s.kind != SpringKind::kStructural) continue;
     const double strain = (positions.row(s.b) - positions.row(s.a)).norm() / s.rest_length - 1;
-    stats.max = std::max(stats.max, strain);
+    if (strain > stats.max) {
+      stats.max = strain;
+      stats.max_spring = static_cast<int>(k);
+    }
     stats.mean += std::abs(strain);
     ++count;
   }

@@ -120,10 +120,12 @@ double MechanicalEnergy(const ClothModel& model, const ClothState& state,
                         const Eigen::Vector3d& gravity);
 
 /// Structural strain statistics over structural springs, strain = length / rest − 1:
-/// the largest stretch, and the mean of |strain| (stretch and compression alike).
+/// the largest stretch, the mean of |strain| (stretch and compression alike), and the
+/// spring that has the largest (index into ClothModel::springs(); -1 when none stretches).
 struct StrainStats {
   double max = 0.0;
   double mean = 0.0;
+  int max_spring = -1;
 };
 StrainStats StructuralStrain(const ClothModel& model, const Points& positions);
 

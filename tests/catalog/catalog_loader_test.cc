@@ -5,10 +5,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <utility>
+#include <vector>
 
 #include "assets/edited_garment.h"
 #include "catalog/fabric_presets.h"
+#include "sim_core/avatar/clip.h"
+#include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
@@ -39,16 +44,69 @@ TEST_F(CatalogLoaderTest, BuiltInsLoadAsSimCoreMakesThem) {
   EXPECT_TRUE(humanoid->rest_vertices() == direct->rest_vertices());
 
   for (const std::string& name : sim::BuiltInClipNames()) {
-    const auto clip = LoadClip(*catalog_, Id(Kind::kAnimation, name), humanoid->shared_skeleton());
+    const auto clip = LoadClip(*catalog_, Id(Kind::kAnimation, name));
     const sim::Clip made = sim::MakeBuiltInClip(name, humanoid->shared_skeleton());
     EXPECT_EQ(clip->frames.size(), made.frames.size()) << name;
     EXPECT_EQ(clip->frame_time, made.frame_time) << name;
     EXPECT_EQ(clip->category,
               name == "dance" ? sim::ClipCategory::kChoreography : sim::ClipCategory::kBasic);
   }
-  // Without a skeleton: the built-in humanoid's.
-  EXPECT_EQ(LoadClip(*catalog_, Id(Kind::kAnimation, "walk"), nullptr)->skeleton->num_joints(),
-            humanoid->skeleton().num_joints());
+}
+
+/// The built-in humanoid's skeleton with its arms raised `degrees` about the shoulders (both
+/// outwards, about the forward axis): the rest of an imported avatar modelled in a T-pose.
+std::shared_ptr<const sim::Skeleton> ArmsRaised(double degrees) {
+  const auto humanoid = sim::MakeHumanoidSkeleton();
+  std::vector<sim::Joint> joints;
+  for (int j = 0; j < humanoid->num_joints(); ++j) joints.push_back(humanoid->joint(j));
+  for (sim::HAnimJoint shoulder : {sim::HAnimJoint::kLShoulder, sim::HAnimJoint::kRShoulder}) {
+    const int s = humanoid->Find(shoulder);
+    const Eigen::Isometry3d& world = humanoid->rest_world()[s];
+    const Eigen::Isometry3d& parent = humanoid->rest_world()[joints[s].parent];
+    const Eigen::Vector3d elbow =
+        humanoid->rest_world()[humanoid->Find(shoulder == sim::HAnimJoint::kLShoulder
+                                                  ? sim::HAnimJoint::kLElbow
+                                                  : sim::HAnimJoint::kRElbow)]
+            .translation();
+    // Outwards and up: about the axis that turns the hanging upper arm towards the side.
+    const Eigen::Vector3d down = (elbow - world.translation()).normalized();
+    const Eigen::Vector3d side(world.translation().x() > 0.0 ? 1.0 : -1.0, 0.0, 0.0);
+    const Eigen::Vector3d axis = down.cross(side).normalized();
+    Eigen::Isometry3d raised = world;
+    raised.linear() = Eigen::AngleAxisd(degrees * M_PI / 180.0, axis) * world.linear();
+    joints[s].rest_local = parent.inverse() * raised;
+  }
+  return sim::Skeleton::Create("arms raised", joints);
+}
+
+TEST_F(CatalogLoaderTest, ABuiltInClipSwingsTheArmsOfAnAvatarRestingInATPoseDownAsOnTheHumanoid) {
+  // The walk's arms hang by the body whatever the avatar's rest: retargeted from the
+  // skeleton its angles are written for, the elbows stay well below the shoulders. (Made
+  // on the T-pose skeleton itself, the angles kept the arms near the horizontal.)
+  const auto t_pose = ArmsRaised(80.0);
+  const auto clip = LoadClip(*catalog_, Id(Kind::kAnimation, "walk"));
+  const sim::Retargeter retargeter(clip->skeleton, t_pose);
+  std::vector<Eigen::Isometry3d> world;
+  sim::ComputeJointWorld(*t_pose, sim::RestPose(*t_pose), world);
+  const int l_shoulder = t_pose->Find(sim::HAnimJoint::kLShoulder);
+  const int l_elbow = t_pose->Find(sim::HAnimJoint::kLElbow);
+  ASSERT_GT(world[l_elbow].translation().y(), world[l_shoulder].translation().y() - 0.1)
+      << "the test skeleton's arm should rest near the horizontal";
+  sim::Pose sampled, pose;
+  for (double t : {0.0, 0.3, 0.6, 0.9}) {
+    sim::SampleClip(*clip, t, sampled);
+    retargeter.Apply(sampled, pose);
+    sim::ComputeJointWorld(*t_pose, pose, world);
+    for (auto [shoulder, elbow] : {std::pair{sim::HAnimJoint::kLShoulder, sim::HAnimJoint::kLElbow},
+                                   std::pair{sim::HAnimJoint::kRShoulder, sim::HAnimJoint::kRElbow}}) {
+      const Eigen::Vector3d upper_arm =
+          world[t_pose->Find(shoulder)].translation() - world[t_pose->Find(elbow)].translation();
+      // Hanging within 45° of the vertical: the elbow more than cos 45° of the upper arm's
+      // length below the shoulder.
+      EXPECT_GT(upper_arm.y(), std::cos(M_PI / 4) * upper_arm.norm())
+          << "t = " << t << " s, " << sim::HAnimName(shoulder);
+    }
+  }
 }
 
 TEST_F(CatalogLoaderTest, ABuiltInGarmentDressesTheAvatarWithItsFabric) {

@@ -302,11 +302,11 @@ TEST_F(SharedDataImportTest, ClipsLoadAsFromTheirFiles) {
                    "choreography");
   ASSERT_EQ(ids.size(), 2u);
   const sim::Clip direct = assets::LoadClip((kSharedData / "cmu-mocap-bvh/02_02.bvh").string());
-  const auto stored = LoadClip(*catalog_, ids[0], nullptr);
+  const auto stored = LoadClip(*catalog_, ids[0]);
   EXPECT_EQ(stored->frames.size(), direct.frames.size());
   EXPECT_EQ(stored->frame_time, direct.frame_time);
   EXPECT_EQ(stored->category, sim::ClipCategory::kChoreography);
-  const auto dance = LoadClip(*catalog_, ids[1], nullptr);
+  const auto dance = LoadClip(*catalog_, ids[1]);
   EXPECT_GT(dance->frames.size(), 10u);
   EXPECT_EQ(catalog_->Get(ids[1]).provenance,
             "imported from deepmimic-motions/motions/humanoid3d_dance_a.txt");

@@ -176,6 +176,7 @@ TEST(StructuralStrain, MeasuresStretchOfStructuralSpringsOnly) {
   const StrainStats stats = StructuralStrain(*model, x);
   EXPECT_NEAR(stats.max, 0.5, 1e-12);
   EXPECT_NEAR(stats.mean, 0.25, 1e-12);
+  EXPECT_EQ(stats.max_spring, 1);  // s2, the stretched one
 }
 
 }  // namespace
