@@ -91,6 +91,7 @@ Eigen::Vector2d ParametricAngles(const Superquadric& s, const Eigen::Vector3d& p
 namespace {
 
 constexpr int kNumParameters = 11;  // a1 a2 a3 e1 e2 | translation (3) | rotation increment (3)
+constexpr int kNumEndResiduals = 6;  // per axis, the + and the − end
 using ParameterVector = Eigen::Matrix<double, kNumParameters, 1>;
 using NormalMatrix = Eigen::Matrix<double, kNumParameters, kNumParameters>;
 
@@ -136,14 +137,42 @@ Superquadric ToSuperquadric(const FitState& state) {
   return s;
 }
 
-/// Solina–Bajcsy residuals sqrt(a1 a2 a3)·(F^e1 − 1) of every point.
+/// How far a superquadric may reach beyond its points' extent along each of its axes, as
+/// a fraction of their half extent [-].
+constexpr double kEndSlack = 0.1;
+
+/// Weight of an end's reach beyond the slack, per unit of the half extent, against a point's
+/// residual [-].
+constexpr double kEndWeight = 10.0;
+
+/// Residuals of the fit: per point the Solina–Bajcsy residual sqrt(a1 a2 a3)·(F^e1 − 1),
+/// then per axis and end how far the superquadric reaches beyond the points' extent along
+/// its axis plus the slack (kNumEndResiduals). The points of a limb's skin form an open
+/// tube, which says nothing of where the superquadric ends: without the ends' residuals a
+/// tapering limb is fitted best by the wide half of an ellipsoid twice its length, centred
+/// at its thick end (MakeHuman's thighs and forearms were fitted so, their other halves
+/// through the pelvis and the upper arm), whose centre then sees the skin of the body
+/// around it, not the limb's (docs/collision.md, "The fit of an open tube").
 void Residuals(const FitState& state, const Points& points, Eigen::VectorXd& residuals) {
   const Superquadric s = ToSuperquadric(state);
   const double weight = std::sqrt(s.a1 * s.a2 * s.a3);
   const Eigen::Matrix3d rt = state.rotation.transpose();
-  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  const Eigen::Index n = points.rows();
+  for (Eigen::Index i = 0; i < n; ++i) {
     const Eigen::Vector3d local = rt * (points.row(i).transpose() - state.translation);
+    lo = lo.cwiseMin(local);
+    hi = hi.cwiseMax(local);
     residuals[i] = weight * (std::pow(InsideOutside(s, local), s.e1) - 1.0);
+  }
+  // Each end weighs as much as all points together would with residuals of kEndWeight times
+  // the end's relative excess.
+  const double end_weight = kEndWeight * weight * std::sqrt(static_cast<double>(n));
+  for (int k = 0; k < 3; ++k) {
+    const double half = std::max(0.5 * (hi[k] - lo[k]), 1e-12);
+    const double limit = kEndSlack * half;
+    residuals[n + 2 * k] = end_weight * std::max(0.0, state.a[k] - hi[k] - limit) / half;
+    residuals[n + 2 * k + 1] = end_weight * std::max(0.0, state.a[k] + lo[k] - limit) / half;
   }
 }
 
@@ -233,7 +262,7 @@ SuperquadricFit FitSuperquadric(const Points& all_points, const std::string& nam
   const Bounds bounds{1e-4 * extent};
   for (int k = 0; k < 3; ++k) state.a[k] = std::max(state.a[k], bounds.min_size);
 
-  const Eigen::Index n = points.rows();
+  const Eigen::Index n = points.rows() + kNumEndResiduals;
   Eigen::VectorXd residuals(n), trial(n), scratch(n);
   Eigen::MatrixXd jacobian(n, kNumParameters);
   Residuals(state, points, residuals);

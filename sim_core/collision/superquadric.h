@@ -92,14 +92,14 @@ struct SuperquadricFit {
   double rms_radial_distance = 0.0;
   /// Largest |RadialDistance| over all input points [m].
   double max_radial_distance = 0.0;
-  /// Σ residual² of the Solina–Bajcsy cost at the start and the end [m³].
+  /// Σ residual² of the fit's cost (FitSuperquadric) at the start and the end [m³].
   double initial_cost = 0.0;
   double final_cost = 0.0;
   int num_iterations = 0;
 };
 
 /// Fits a superquadric to `points` (n×3) [m] after Solina & Bajcsy 1990: minimises
-///   Σ_i (sqrt(a1·a2·a3)·(F(p_i)^e1 − 1))²
+///   Σ_i (sqrt(a1·a2·a3)·(F(p_i)^e1 − 1))² + Σ_ends (w·max(0, reach beyond the ends))²
 /// over the sizes, the exponents and the pose (position and rotation, 11 parameters) by
 /// Levenberg–Marquardt with a forward-difference Jacobian. The rotation is updated
 /// multiplicatively (R ← R·exp([δω]×)) so it needs no angle parameterisation. The exponents
@@ -108,7 +108,12 @@ struct SuperquadricFit {
 /// that iteration. Start: the points' centroid and principal axes (largest spread → z,
 /// second → x), sizes the half extents along those axes, e1 = e2 = 1 (an ellipsoid).
 /// The factor sqrt(a1·a2·a3) is Solina's: it removes the bias of F^e1 towards large shapes
-/// and makes the cost prefer the smallest superquadric through the points.
+/// and makes the cost prefer the smallest superquadric through the points. The second sum is
+/// ours: along each of its axes the superquadric may reach 10 % of the points' half extent
+/// beyond their last point (in its own frame) before the reach costs, w times the excess over
+/// the half extent, each end as much as all points with that residual. An open tube of
+/// points (a limb's skin) otherwise leaves the length free, and a tapering one is fitted best
+/// by the wide half of a superquadric twice its length (docs/collision.md).
 /// `name` names the point set in error messages. Throws InputError if there are fewer than
 /// 11 points, a point is not finite, or all points coincide.
 SuperquadricFit FitSuperquadric(const Points& points, const std::string& name,

@@ -107,11 +107,11 @@ struct AvatarSpec {
   std::shared_ptr<const Clip> clip;
   /// Posture, placement, fitting and blend times.
   AvatarMotionSettings motion;
-  /// The mesh method by default: it stretches the cloth far less, and is faster on the first
-  /// pass through a clip and on any motion that does not repeat (a posture being set); the
-  /// superquadric one, update included, is 1.05–2.5× as fast on a looping clip's later
-  /// passes, where it reuses its maps' drawings. Both keep the cloth within 2 mm of the
-  /// skin (docs/collision.md, "Figures").
+  /// The mesh method by default: its worst frames stretch the cloth less (a typical frame
+  /// alike), and it is faster on the first pass through a clip and on any motion that does
+  /// not repeat (a posture being set); the superquadric one, update included, is 0.9–2.5× as
+  /// fast on a looping clip's later passes, where it reuses its maps' drawings. Both keep
+  /// the cloth within 2 mm of the skin (docs/collision.md, "Figures").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;
   /// Superquadric method: memory for its maps' drawings kept for reuse when the skin comes
   /// back, as a looping clip brings it every pass [MB] in [0, kMaxSuperquadricMapMb]; 0

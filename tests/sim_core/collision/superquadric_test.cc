@@ -1,11 +1,12 @@
 // Superquadrics: the inside-outside function against closed forms, its gradient against
 // finite differences, and the Solina–Bajcsy fit recovering a known superquadric from noisy
-// samples in an arbitrary pose.
+// samples in an arbitrary pose and fitting an open tube along its length.
 #include "sim_core/collision/superquadric.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <random>
 
@@ -167,6 +168,36 @@ TEST(FitSuperquadric, ExponentsStayWithinTheirBounds) {
   EXPECT_GE(fit.superquadric.e2, kMinSuperquadricExponent);
   EXPECT_LT(fit.superquadric.e1, 0.2);
   EXPECT_LT(fit.superquadric.e2, 0.2);
+}
+
+// A thigh's skin: a tube open at both ends, 45 cm long, its radius tapering from 8 cm at the
+// hip to 4.5 cm at the knee. The fitted superquadric is the tube's shape, its ends within
+// 10 % of the tube's half length of the tube's (plus the fit's slack) and its centre, where
+// the collider's rays start, within a sixth of the length of the tube's middle. Without the
+// fit's end residuals it came out as the wide half of an ellipsoid twice the tube's length,
+// centred near the hip end (as MakeHuman's thighs did).
+TEST(FitSuperquadric, AnOpenTaperingTubeIsFittedAlongItsLengthNotAsHalfALongerShape) {
+  constexpr double kLength = 0.45, kHip = 0.08, kKnee = 0.045;
+  constexpr int kRings = 40, kAround = 36;
+  Points points(kRings * kAround, 3);
+  for (int i = 0; i < kRings; ++i) {
+    const double z = kLength * i / (kRings - 1);
+    const double r = kHip + (kKnee - kHip) * z / kLength;
+    for (int j = 0; j < kAround; ++j) {
+      const double phi = 2 * kPi * j / kAround;
+      points.row(i * kAround + j) << r * std::cos(phi), r * std::sin(phi), z;
+    }
+  }
+  const SuperquadricFit fit = FitSuperquadric(points, "open tube");
+  const Superquadric& s = fit.superquadric;
+  const Eigen::Vector3d axis = s.frame.linear().col(2);
+  const Eigen::Vector3d centre = s.frame.translation();
+  EXPECT_GT(std::abs(axis.z()), 0.99);  // the long axis is the tube's
+  EXPECT_NEAR(centre.z(), 0.5 * kLength, kLength / 6);
+  EXPECT_LT(s.a3, 0.5 * kLength * 1.2);
+  EXPECT_LT(std::hypot(centre.x(), centre.y()), 0.01);
+  std::printf("a = %.1f %.1f %.1f mm, centre at %.1f mm along the tube, RMS %.1f mm\n", 1e3 * s.a1,
+              1e3 * s.a2, 1e3 * s.a3, 1e3 * centre.z(), 1e3 * fit.rms_radial_distance);
 }
 
 TEST(FitSuperquadric, RefusesTooFewPoints) {
