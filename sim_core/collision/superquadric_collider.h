@@ -365,14 +365,14 @@ class SuperquadricCollider : public BodyCollider {
   /// (ShellProbe) and any deeper than PlausibleDepth. Returns false when every shell was.
   /// `undecided` (when not null) gets the segment with the deepest skipped reading inside
   /// its shell, -1 for none.
-  bool DeepestShell(const Eigen::Vector3d& x, double speed, bool at_end, double reach,
+  bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
                     double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
                     int* undecided = nullptr);
-  /// Whether `x` (world) at `speed` [m/s] is more than kProjectionTolerance inside a shell
+  /// Whether `x` (world) is more than kProjectionTolerance inside a shell
   /// at the end of the step, and if so its normal gap [m], outward normal and the body's
   /// velocity there: the deepest shell (DeepestShell), or, where only uncertain readings
   /// see it inside, the skin triangles of the deepest of those (SkinShell).
-  bool Penetration(const Eigen::Vector3d& x, double speed, double& gap, Eigen::Vector3d& normal,
+  bool Penetration(const Eigen::Vector3d& x, double& gap, Eigen::Vector3d& normal,
                    Eigen::Vector3d& body_velocity);
   /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
   /// step at `x` (world): its normal gap [m] (signed distance minus thickness), outward
@@ -380,10 +380,10 @@ class SuperquadricCollider : public BodyCollider {
   /// lies within kSkinCheckRadius of `x`.
   bool SkinShell(const Eigen::Vector3d& x, int segment, double& gap, Eigen::Vector3d& normal,
                  Eigen::Vector3d& body_velocity);
-  /// How deep [m] a particle at `x` moving at `speed` [m/s] can have come into the shell of
-  /// `segment` within the step from outside it: what it and the body travelled, plus the
-  /// thickness and a node spacing for the map's own error.
-  double PlausibleDepth(int segment, const Eigen::Vector3d& x, double speed, bool at_end) const;
+  /// How deep [m] a reading of `segment`'s map at `x` (world) is trusted: what the body
+  /// travelled there within the step, plus the thickness and a node spacing for the map's
+  /// own error.
+  double PlausibleDepth(int segment, const Eigen::Vector3d& x, bool at_end) const;
   /// Velocity [m/s] of the body point of `segment` that is at `x` (world) at the start of
   /// the step (`at_end` false) or at its end (true), over the step's rigid motion.
   Eigen::Vector3d BodyVelocity(int segment, const Eigen::Vector3d& x, bool at_end) const;
