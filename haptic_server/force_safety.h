@@ -16,12 +16,14 @@
 ///    as a raised cosine of the phase φ ∈ [0, 1]: gain = (1 − cos πφ) / 2 (C¹: no jerk at
 ///    either end).
 /// 4. Fade: when the grab ends, or patches are stale (none for more than stale_after =
-///    1.5 frames at 60 Hz = 25 ms), φ falls to zero over fade_time (25 ms). The force is thus
-///    zero at most stale_after + fade_time = 50 ms after the last patch arrived.
+///    1.5 frames at 60 Hz = 25 ms), φ falls to zero over fade_time (25 ms) of time, however
+///    many ticks the loop skipped. The force is thus zero at most stale_after + fade_time =
+///    50 ms after the last patch arrived (plus the tick that finds the deadline passed).
 /// 5. Clamp: the magnitude is scaled down to max_force, keeping the direction.
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "haptic_server/device.h"
@@ -94,7 +96,9 @@ class ForceSafety {
   /// Throws InputError for invalid options.
   explicit ForceSafety(const ForceSafetyOptions& options);
 
-  /// The force to send to the device [N], device frame, for a tick of length `dt` [s] > 0.
+  /// The force to send to the device [N], device frame, for a tick of length `dt` [s] > 0
+  /// (the loop's nominal period). A fade advances by the time since the previous step's
+  /// `input.now` when that is longer: ticks the loop skipped must not put off the zero force.
   /// Never throws; never allocates.
   Eigen::Vector3d Step(const SafetyInput& input, double dt);
 
@@ -111,12 +115,14 @@ class ForceSafety {
 
  private:
   Eigen::Vector3d LimitStiffness(const SafetyInput& input);
-  void AdvancePhase(bool active, double dt);
+  void AdvancePhase(bool active, double dt, double elapsed);
 
   ForceSafetyOptions options_;
   double phase_ = 0.0;
   double gain_ = 0.0;
   bool was_stale_ = false;
+  /// The previous step's input.now [s]; NaN before the first.
+  double last_now_ = std::numeric_limits<double>::quiet_NaN();
   Eigen::Vector3d filtered_base_ = Eigen::Vector3d::Zero();
   SafetyFlags flags_;
   SafetyCounters counters_;

@@ -132,6 +132,40 @@ TEST(ForceSafety, FadesToZeroWithin50MsAfterPatchesStop) {
   EXPECT_EQ(safety.counters().num_stale_episodes, 1u);
 }
 
+// The loop at normal priority on a loaded machine skips ticks: here every fifth runs (5 ms
+// apart, each stepped with the nominal 1 ms). The force is still zero 50 ms after the last
+// patch, give or take the tick that finds the deadline passed: the fade counts time, not
+// ticks (counted in ticks it lasted 125 ms, and grab_release_test saw 0.1 N at 57 ms).
+TEST(ForceSafety, FadesToZeroWithin50MsAfterPatchesStopWhenTheLoopSkipsTicks) {
+  ForceSafety safety(Options({10.0, 1000.0}));
+  const Eigen::Vector3d f(1.0, 0, 0);
+  RampUp(safety, f, 300);  // full gain; last patch at t = 0.300 s
+  const double last_patch = 0.300;
+  constexpr double kSkipped = 5e-3;
+  for (int k = 1; k <= 30; ++k) {
+    const double since = k * kSkipped;
+    SafetyInput in = Holding(last_patch + since, f);
+    in.last_patch_time = last_patch;
+    const double out = safety.Step(in, kDt).x();
+    if (since > 0.050 + kSkipped + 1e-9) {
+      ASSERT_EQ(out, 0.0) << 1e3 * since << " ms";
+    }
+    if (since < 0.025 - 1e-9) {
+      ASSERT_NEAR(out, 1.0, 1e-12) << 1e3 * since << " ms";
+    }
+  }
+}
+
+// A ramp-in, by contrast, advances by the nominal period whatever time passed: after a stall
+// of the loop the force must not jump up.
+TEST(ForceSafety, RampsInByTicksNotByTimeAfterAStall) {
+  ForceSafety safety(Options({10.0, 1000.0}));
+  const Eigen::Vector3d f(1.0, 0, 0);
+  safety.Step(Holding(0.001, f), kDt);
+  const double after_stall = safety.Step(Holding(0.101, f), kDt).x();  // 100 ms later
+  EXPECT_NEAR(after_stall, 0.5 * (1.0 - std::cos(std::numbers::pi * 2.0 / 200.0)), 1e-12);
+}
+
 TEST(ForceSafety, ZeroesTheForceAtOnceOnANonFiniteValueAndRampsAgainAfter) {
   ForceSafety safety(Options({10.0, 1000.0}));
   const Eigen::Vector3d f(0, 1.0, 0);
