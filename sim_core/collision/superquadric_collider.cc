@@ -1266,7 +1266,7 @@ void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_wo
 }
 
 double SuperquadricCollider::PlausibleDepth(int segment, const Eigen::Vector3d& x,
-                                           bool at_end) const {
+                                            bool at_end) const {
   // The body's motion, not the particle's: cloth sliding fast along the skin comes no
   // deeper for it, and on MakeHuman's suit the collar sliding down the chest at 2 m/s had
   // the upper arm's map, whose rays pass through the armpit into the torso, read it 41 mm
@@ -1316,8 +1316,7 @@ void BoundingBox(const Points& positions, Eigen::Vector3d& lo, Eigen::Vector3d& 
 
 }  // namespace
 
-bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end,
-                                        double reach,
+bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
                                         double& gap, Eigen::Vector3d& normal,
                                         Eigen::Vector3d& body_velocity, int* undecided) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
