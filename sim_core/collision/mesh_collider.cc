@@ -18,24 +18,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// The rays along which ProjectOutBuried looks for the way out of buried skin: the axes
-/// and the diagonals, turned a little off the directions that meshes built on grids line
-/// their edges up with (a ray along an edge is not counted).
-const std::array<Eigen::Vector3d, 14> kExitDirections = [] {
-  std::array<Eigen::Vector3d, 14> directions;
-  int k = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    for (double sign : {1.0, -1.0}) directions[k++] = sign * Eigen::Vector3d::Unit(axis);
-  }
-  for (double x : {1.0, -1.0}) {
-    for (double y : {1.0, -1.0}) {
-      for (double z : {1.0, -1.0}) directions[k++] = Eigen::Vector3d(x, y, z);
-    }
-  }
-  for (Eigen::Vector3d& d : directions) d = (d + Eigen::Vector3d(3e-4, 7e-4, 5e-4)).normalized();
-  return directions;
-}();
-
 constexpr double kInf = std::numeric_limits<double>::infinity();
 /// Added to the triangles' spread around their cells [m], so that rounding in the cell
 /// bounds can only make them more conservative.
@@ -1337,9 +1319,9 @@ double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& out
     // the shell beyond (if that is outside: the skin there may be folded). The nearest
     // skin the particle lies behind need not lead out: folded skin nearer may bound more
     // skin. None within max_penetration: lost, as a particle deeper than that is.
-    std::array<std::pair<RayExit, Eigen::Vector3d>, kExitDirections.size()> exits;
+    std::array<std::pair<RayExit, Eigen::Vector3d>, kNumExitRays> exits;
     int count = 0;
-    for (const Eigen::Vector3d& direction : kExitDirections) {
+    for (const Eigen::Vector3d& direction : ExitRayDirections()) {
       RayExit exit;
       if (ExitAlong(piece, x, direction, exit) && exit.distance <= options_.max_penetration) {
         exits[count++] = {exit, direction};

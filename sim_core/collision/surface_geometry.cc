@@ -180,6 +180,24 @@ const std::array<Eigen::Vector3d, 4>& WindingRayDirections() {
   return directions;
 }
 
+const std::array<Eigen::Vector3d, kNumExitRays>& ExitRayDirections() {
+  static const std::array<Eigen::Vector3d, kNumExitRays> directions = [] {
+    std::array<Eigen::Vector3d, kNumExitRays> list;
+    int k = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      for (double sign : {1.0, -1.0}) list[k++] = sign * Eigen::Vector3d::Unit(axis);
+    }
+    for (double x : {1.0, -1.0}) {
+      for (double y : {1.0, -1.0}) {
+        for (double z : {1.0, -1.0}) list[k++] = Eigen::Vector3d(x, y, z);
+      }
+    }
+    for (Eigen::Vector3d& d : list) d = (d + Eigen::Vector3d(3e-4, 7e-4, 5e-4)).normalized();
+    return list;
+  }();
+  return directions;
+}
+
 Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                      const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   constexpr double kEdgeTolerance = 1e-9;

@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
@@ -73,6 +74,12 @@ Crossing RayCrossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& direc
 /// edge: no zero component (the slab test divides by them), away from the axes and
 /// diagonals that meshes built on grids line their edges up with.
 const std::array<Eigen::Vector3d, 4>& WindingRayDirections();
+
+/// The rays along which a point inside buried skin looks for the way out (both colliders'
+/// ProjectOut): the axes and the diagonals, turned a little off the directions that meshes
+/// built on grids line their edges up with (a ray along an edge is not counted).
+constexpr std::size_t kNumExitRays = 14;
+const std::array<Eigen::Vector3d, kNumExitRays>& ExitRayDirections();
 
 /// Where a point lies relative to a closed surface, from its closest surface point.
 struct SurfaceSide {
