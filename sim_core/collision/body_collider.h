@@ -34,10 +34,11 @@ struct BodyCollisionStats {
   /// readings inside a shell), which the segment's skin triangles then decided, since the
   /// last FindContacts began.
   int num_skin_checks = 0;
-  /// Mesh method: ProjectOut's winding-number counts (particles near the skin that their
-  /// nearest triangle put outside), and the particles among them found inside, buried by
-  /// skin that skinning moved through other skin, and moved out, since the last
-  /// FindContacts began.
+  /// ProjectOut's winding-number counts (mesh method: particles near the skin that their
+  /// nearest triangle put outside; superquadric method: skin checks whose nearest skin put
+  /// the particle outside, on a body of one piece), and the particles among them found
+  /// inside, buried by skin that skinning moved through other skin, and moved out, since
+  /// the last FindContacts began.
   int num_winding_checks = 0;
   int num_buried = 0;
 };

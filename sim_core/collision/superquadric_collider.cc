@@ -1076,6 +1076,7 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.piece_distance.resize(skin.topology->num_pieces());
   skin.piece_triangle.resize(skin.topology->num_pieces());
   skin.piece_point.resize(skin.topology->num_pieces());
+  skin.ray_crossing.reserve(skin.triangles.size());
 }
 
 SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
@@ -1318,12 +1319,12 @@ void BoundingBox(const Points& positions, Eigen::Vector3d& lo, Eigen::Vector3d& 
 
 bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
                                         double& gap, Eigen::Vector3d& normal,
-                                        Eigen::Vector3d& body_velocity, int* undecided) {
+                                        Eigen::Vector3d& body_velocity,
+                                        Undecided* undecided) {
   const std::vector<Placement>& placement = at_end ? end_ : start_;
   gap = std::numeric_limits<double>::infinity();
   int deepest = -1;
-  double undecided_gap = 0.0;
-  if (undecided) *undecided = -1;
+  if (undecided) undecided->count = 0;
   ShellProbe best;
   stats_.num_tests += static_cast<long long>(active_.size());
   for (std::size_t a = 0; a < active_.size(); ++a) {
@@ -1362,10 +1363,7 @@ bool SuperquadricCollider::DeepestShell(const Eigen::Vector3d& x, bool at_end, d
         probe.normal_gap < 0.0 &&
         (probe.blind || -probe.normal_gap > PlausibleDepth(s, x, at_end));
     if (uncertain) {
-      if (undecided && probe.normal_gap < undecided_gap) {
-        *undecided = s;
-        undecided_gap = probe.normal_gap;
-      }
+      if (undecided) undecided->Add(s, probe.normal_gap);
       continue;
     }
     if (probe.normal_gap >= gap) continue;
@@ -1436,6 +1434,80 @@ bool OnOpenEdge(const SurfacePseudonormals& topology, int triangle, TriangleFeat
   return false;
 }
 
+/// The crossings of the ray from `origin` along the unit `direction` (segment frame) with
+/// the skin triangles of `skin` (SegmentSkin::ray_crossing, nearest first; the topology's
+/// face normals must be those of `skin.local`). False when one cannot be counted: a hit
+/// near an edge, or a ray in a triangle's plane. Never throws or allocates.
+bool CrossingsAlong(SegmentSkin& skin, const Eigen::Vector3d& origin,
+                    const Eigen::Vector3d& direction) {
+  const SurfacePseudonormals& topology = *skin.topology;
+  std::vector<std::pair<double, int>>& crossings = skin.ray_crossing;
+  crossings.clear();
+  for (int t = 0; t < topology.num_triangles(); ++t) {
+    if (!(topology.double_area(t) > 0.0)) continue;  // nothing to cross
+    const Eigen::Vector3i& c = skin.triangles[t];
+    const Crossing crossing =
+        RayCrossing(origin, direction, skin.local[c[0]], skin.local[c[1]], skin.local[c[2]]);
+    if (crossing == Crossing::kNone) continue;
+    if (crossing == Crossing::kUncertain) return false;
+    const Eigen::Vector3d& normal = topology.face_normal(t);
+    const double along = normal.dot(direction);
+    if (along == 0.0) return false;
+    crossings.emplace_back(normal.dot(skin.local[c[0]] - origin) / along,
+                           crossing == Crossing::kExit ? 1 : -1);
+  }
+  std::sort(crossings.begin(), crossings.end());
+  return true;
+}
+
+/// The winding number of `skin` at `q` (segment frame): the crossings beyond it on the ray
+/// from the centre, each exit one, each entry minus one. The same count over the whole ray
+/// must find the centre inside (at least 1: it lies inside the body, or in skin folded over
+/// it), else a crossing is missing (the ray leaves the skin the segment holds) and the
+/// count says nothing. False then, or when a crossing cannot be counted. Never throws or
+/// allocates.
+bool WindingFromCentre(SegmentSkin& skin, const Eigen::Vector3d& q, int& winding) {
+  const double length = q.norm();
+  if (!(length > 0.0) || !CrossingsAlong(skin, Eigen::Vector3d::Zero(), q / length)) {
+    return false;
+  }
+  winding = 0;
+  int centre = 0;
+  for (const auto& [distance, sign] : skin.ray_crossing) {
+    centre += sign;
+    if (distance > length) winding += sign;
+  }
+  return centre >= 1;
+}
+
+/// The nearest way out of `skin` from `q` (segment frame), inside at `winding`: along each
+/// of ExitRayDirections, where the count first falls to 0 on a ray whose crossings add up
+/// to `winding` (none missing), and whose count is still 0 `clearance` [m] beyond, where
+/// the point is to go (folded skin may lie just past the first way out). As the mesh
+/// collider's ProjectOutBuried. Its direction and distance [m]; false when no ray finds
+/// one within kSkinCheckRadius. Never throws or allocates.
+bool WoundExit(SegmentSkin& skin, const Eigen::Vector3d& q, int winding, double clearance,
+               Eigen::Vector3d& direction, double& distance) {
+  distance = kSkinCheckRadius;
+  bool found = false;
+  for (const Eigen::Vector3d& ray : ExitRayDirections()) {
+    if (!CrossingsAlong(skin, q, ray)) continue;
+    int count = winding;
+    double first = -1.0;
+    bool clear = true;
+    for (const auto& [along, sign] : skin.ray_crossing) {
+      if (first >= 0.0 && along <= first + clearance) clear = false;
+      count -= sign;
+      if (count == 0 && first < 0.0) first = along;
+    }
+    if (count != 0 || first < 0.0 || !clear || first >= distance) continue;
+    distance = first;
+    direction = ray;
+    found = true;
+  }
+  return found;
+}
+
 }  // namespace
 
 bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& gap,
@@ -1487,15 +1559,43 @@ bool SuperquadricCollider::SkinShell(const Eigen::Vector3d& x, int s, double& ga
     if (side.signed_distance < deepest.signed_distance) deepest = side;
   }
   if (!std::isfinite(deepest.signed_distance)) return false;
+  // Skinning moves skin through skin: when a running knee bends, MakeHuman's calf passes
+  // through the back of its thigh, and a point inside the calf may lie outside the buried
+  // thigh skin nearest it, which is all the nearest point's sign sees (a skirt's hem 10 mm
+  // inside the calf, docs/collision.md, "Skin through skin, counted"). Counted along the
+  // ray from the centre, which needs the skin's other side in the segment's patch: a body
+  // of one piece (the built-in humanoid's closed pieces are signed each by its own).
+  int winding = 0;
+  Eigen::Vector3d way_out;
+  double way_out_distance = 0.0;
+  if (deepest.signed_distance > 0.0 && topology.num_pieces() == 1) {
+    ++stats_.num_winding_checks;
+    if (WindingFromCentre(skin, q, winding) && winding > 0 &&
+        WoundExit(skin, q, winding, settings_.thickness, way_out, way_out_distance)) {
+      ++stats_.num_buried;
+      deepest.signed_distance = -way_out_distance;
+      deepest.normal = way_out;
+    }
+  }
   gap = deepest.signed_distance - settings_.thickness;
   normal = end_[s].to_world.linear() * deepest.normal;
   body_velocity = BodyVelocity(s, x, true);
   return true;
 }
 
+void SuperquadricCollider::Undecided::Add(int s, double reading) {
+  int k = count < kMax ? count++ : kMax;
+  // Insertion, deepest first; a reading shallower than all kMax kept is dropped.
+  while (k > 0 && gap[k - 1] > reading) {
+    if (k < kMax) segment[k] = segment[k - 1], gap[k] = gap[k - 1];
+    --k;
+  }
+  if (k < kMax) segment[k] = s, gap[k] = reading;
+}
+
 bool SuperquadricCollider::Penetration(const Eigen::Vector3d& x, double& gap,
                                        Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity) {
-  int undecided = -1;
+  Undecided undecided;
   if (DeepestShell(x, true, 0.0, gap, normal, body_velocity, &undecided) &&
       gap < -kProjectionTolerance) {
     return true;
@@ -1503,9 +1603,17 @@ bool SuperquadricCollider::Penetration(const Eigen::Vector3d& x, double& gap,
   // A point inside a shell that only uncertain readings see is decided by the skin itself:
   // a ray along a limb's axis leaves the skin only at the limb's far end, beyond every
   // shell's reach, so a point deep in the limb near its axis is held by no map (45 mm on
-  // MakeHuman's kick; docs/collision.md, "Nodes that saw no skin").
-  return undecided >= 0 && SkinShell(x, undecided, gap, normal, body_velocity) &&
-         gap < -kProjectionTolerance;
+  // MakeHuman's kick; docs/collision.md, "Nodes that saw no skin"). Each segment's
+  // triangles speak only for the skin they hold, and the body is their union: a point
+  // inside a thigh whose calf's skin, folded into it, is the calf's nearest (a bent knee)
+  // is the thigh's to find.
+  for (int k = 0; k < undecided.count; ++k) {
+    if (SkinShell(x, undecided.segment[k], gap, normal, body_velocity) &&
+        gap < -kProjectionTolerance) {
+      return true;
+    }
+  }
+  return false;
 }
 
 double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {

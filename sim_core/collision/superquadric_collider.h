@@ -182,6 +182,10 @@ struct SegmentSkin {
   std::vector<double> piece_distance;
   std::vector<int> piece_triangle;
   std::vector<TrianglePoint> piece_point;
+  /// Scratch of a skin check's winding count along a ray (superquadric_collider.cc,
+  /// CrossingsAlong): per crossed triangle the hit's distance [m] and +1 for an exit, −1
+  /// for an entry, nearest first. Room for every triangle: never allocates.
+  std::vector<std::pair<double, int>> ray_crossing;
   std::vector<double> hit_radius;
   std::vector<int> hit_triangle;
   /// Per node whether its hit is a folded ray's (below).
@@ -341,6 +345,16 @@ class SuperquadricCollider : public BodyCollider {
   const SkinMapCacheStats& map_cache_stats() const { return map_cache_.stats(); }
 
  private:
+  /// The segments whose readings DeepestShell skipped inside their shells, the deepest
+  /// reading first: each can speak only for the skin its own triangles hold (SkinShell).
+  struct Undecided {
+    static constexpr int kMax = 3;
+    std::array<int, kMax> segment{};
+    std::array<double, kMax> gap{};
+    int count = 0;
+    /// Keeps `s`, read `reading` [m] inside its shell, among the kMax deepest.
+    void Add(int s, double reading);
+  };
   /// A segment's superquadric frame in the world and its inverse.
   struct Placement {
     Eigen::Isometry3d to_world = Eigen::Isometry3d::Identity();
@@ -363,11 +377,11 @@ class SuperquadricCollider : public BodyCollider {
   /// the step: its normal gap [m], outward normal and surface velocity there. Shells farther
   /// than `reach` [m] plus Motion are skipped; so are blind readings inside a shell
   /// (ShellProbe) and any deeper than PlausibleDepth. Returns false when every shell was.
-  /// `undecided` (when not null) gets the segment with the deepest skipped reading inside
-  /// its shell, -1 for none.
+  /// `undecided` (when not null) gets the segments with the deepest skipped readings
+  /// inside their shells.
   bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
                     double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
-                    int* undecided = nullptr);
+                    Undecided* undecided = nullptr);
   /// Whether `x` (world) is more than kProjectionTolerance inside a shell
   /// at the end of the step, and if so its normal gap [m], outward normal and the body's
   /// velocity there: the deepest shell (DeepestShell), or, where only uncertain readings
@@ -376,8 +390,10 @@ class SuperquadricCollider : public BodyCollider {
                    Eigen::Vector3d& body_velocity);
   /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
   /// step at `x` (world): its normal gap [m] (signed distance minus thickness), outward
-  /// normal and the velocity of the segment's body there. Returns false when no triangle
-  /// lies within kSkinCheckRadius of `x`.
+  /// normal and the velocity of the segment's body there. A point its nearest skin puts
+  /// outside but the winding number inside (skin skinned through skin, on a body of one
+  /// piece) gets the nearest way out along a few rays instead (WoundExit in the .cc).
+  /// Returns false when no triangle lies within kSkinCheckRadius of `x`.
   bool SkinShell(const Eigen::Vector3d& x, int segment, double& gap, Eigen::Vector3d& normal,
                  Eigen::Vector3d& body_velocity);
   /// How deep [m] a reading of `segment`'s map at `x` (world) is trusted: what the body
