@@ -106,9 +106,9 @@ TEST(GarmentCollision, SuperquadricMethodKeepsTheSkirtOutOfTheWalkingAndKickingB
 // The same on MakeHuman's body (../shared/data), a single skinned mesh whose crotch linear
 // blend skinning folds through itself: both methods keep every particle within 2 mm of the
 // true skin walking, kicking and running. (Running, the benchmark's finer skirt went 10 mm
-// into the calf that the bent knee folds through the thigh, before the superquadric method
-// counted skin through skin, docs/collision.md, "Other clips"; this coarser skirt stayed
-// out either way.) For the superquadric method this needed the folded rays
+// into the body behind the bent knee, where skinning folds skin through skin, before the
+// superquadric method counted it, docs/collision.md, "Other clips"; this coarser skirt
+// stayed out either way.) For the superquadric method this needed the folded rays
 // (the thigh's skin moved through the groin's) and ProjectOut's return from a pinch
 // between the thighs (docs/collision.md). Walking, the skirt stretches little with either
 // method (37 % and 14 % here; in the benchmark's finer skirts the superquadric method
