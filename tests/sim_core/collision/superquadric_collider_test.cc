@@ -35,6 +35,14 @@ const Eigen::Vector3d kCentre(0.0, -0.15, 0.0);  // capsule centre in the arm jo
                                                  // its axis is the joint's y axis
 
 /// Signed distance of `local` (arm joint frame) from the capsule's skin [m], > 0 outside.
+/// The points `local` placed by `frame`, one per row [m].
+Points At(const std::vector<Eigen::Vector3d>& local,
+          const Eigen::Isometry3d& frame = Eigen::Isometry3d::Identity()) {
+  Points points(static_cast<Eigen::Index>(local.size()), 3);
+  for (std::size_t i = 0; i < local.size(); ++i) points.row(i) = (frame * local[i]).transpose();
+  return points;
+}
+
 double CapsuleDistance(const Eigen::Vector3d& local) {
   const Eigen::Vector3d p = local - kCentre;
   const double s = std::clamp(p.y(), -kHalfLength, kHalfLength);
@@ -149,14 +157,6 @@ struct Fixture : ::testing::Test {
   SuperquadricCollider collider{avatar, settings};
   Eigen::Isometry3d arm = avatar->skeleton().rest_world()[1];
   Points unused_skin;
-
-  Points At(const std::vector<Eigen::Vector3d>& local, const Eigen::Isometry3d& frame) const {
-    Points points(static_cast<Eigen::Index>(local.size()), 3);
-    for (std::size_t i = 0; i < local.size(); ++i) {
-      points.row(i) = (frame * local[i]).transpose();
-    }
-    return points;
-  }
 };
 
 TEST_F(Fixture, FitsTheCapsuleAndSkipsTheSegmentWithTooFewVertices) {
@@ -253,7 +253,7 @@ TEST_F(Fixture, SkinNormalsFromTheMapFollowTheTrueSkin) {
 void ExpectDeepPointsDecidedByTheSkinTriangles(Fixture& f, const Points& velocities) {
   const std::vector<Eigen::Vector3d> local = {SidePoint(0.03, 0.7, -0.03),
                                               SidePoint(-0.05, -1.9, -0.03)};
-  Points positions = f.At(local, f.arm);
+  Points positions = At(local, f.arm);
   Points moving = velocities;
   std::vector<Contact> contacts;
   f.collider.FindContacts(positions, moving, 0.01, 0.001, contacts);
@@ -537,8 +537,7 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
       if (truth.PenetrationDepth(p, 0.1) > 0.002) inside.push_back(p);
     }
     ASSERT_GT(inside.size(), 300u) << t;
-    Points positions(static_cast<Eigen::Index>(inside.size()), 3);
-    for (std::size_t i = 0; i < inside.size(); ++i) positions.row(i) = inside[i].transpose();
+    Points positions = At(inside);
     Points velocities = Points::Zero(positions.rows(), 3);
     collider.ProjectOut(positions, velocities);
     int left_inside = 0;
@@ -576,8 +575,7 @@ TEST(SuperquadricCollider, PushesPointsDeepInALimbNearItsAxisOutOfIt) {
     }
   }
   ASSERT_GT(deep.size(), 25u);
-  Points positions(static_cast<Eigen::Index>(deep.size()), 3);
-  for (std::size_t i = 0; i < deep.size(); ++i) positions.row(i) = deep[i].transpose();
+  Points positions = At(deep);
   Points velocities = Points::Zero(positions.rows(), 3);
   collider.ProjectOut(positions, velocities);
   EXPECT_GT(collider.stats().num_skin_checks, 0);
@@ -622,8 +620,7 @@ TEST(SuperquadricCollider, PushesPointsOutOfSkinMovedThroughOtherSkin) {
       }
     }
   }
-  Points positions(static_cast<Eigen::Index>(local.size()), 3);
-  for (std::size_t i = 0; i < local.size(); ++i) positions.row(i) = (arm * local[i]).transpose();
+  Points positions = At(local, arm);
   const MeshDistance truth("capsule and box", skin, avatar->triangles());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     ASSERT_GT(truth.PenetrationDepth(positions.row(i).transpose(), 0.1), 0.003) << i;
@@ -703,8 +700,7 @@ TEST(SuperquadricCollider, PushesPointsOutOfSkinFoldedThroughItsOwnPiece) {
     }
   }
   ASSERT_GT(buried.size(), 50u);
-  Points positions(static_cast<Eigen::Index>(buried.size()), 3);
-  for (std::size_t i = 0; i < buried.size(); ++i) positions.row(i) = buried[i].transpose();
+  Points positions = At(buried);
   Points velocities = Points::Zero(positions.rows(), 3);
   collider.ProjectOut(positions, velocities);
   EXPECT_GT(collider.stats().num_buried, 0);
