@@ -434,6 +434,7 @@ void MeshCollider::SetCloth(const ClothModel& cloth) {
 }
 
 void MeshCollider::SizeMemory(Eigen::Index n) {
+  if (near_piece_.size() != static_cast<std::size_t>(n)) near_piece_.assign(n, -1);
   if (!UsesMemory() || memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * n)) {
     return;
   }
@@ -1111,6 +1112,7 @@ MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
     const double distance = std::abs(nearest.signed_distance);
     const bool inside = nearest.signed_distance < 0.0;
     nearest.found = true;
+    nearest.piece = winner;
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : normals_.Of(t, closest.feature, vertices_);
     nearest.surface_velocity = SurfaceVelocity(t, closest.barycentric);
@@ -1177,11 +1179,13 @@ void MeshCollider::FindContactsPerParticle(const Points& positions, const Points
     const Eigen::Vector3d x = positions.row(i).transpose();
     const Eigen::Vector3d v = velocities.row(i).transpose();
     const double reach = ReachOf(v, h, margin);
+    near_piece_[i] = -1;
     if (!(reach < kInf) || !x.allFinite()) continue;
     ++num_queries_;
     const Nearest nearest =
         Query(x, reach, ContactThreshold(v, h, margin), h, MemoryOf(static_cast<int>(i)),
               Source{});
+    near_piece_[i] = NearPiece(nearest);
     Contact contact;
     if (!nearest.found || !MakeContact(static_cast<int>(i), v, nearest, h, margin, contact)) {
       continue;
@@ -1198,6 +1202,7 @@ void MeshCollider::FindContactsPerRegion(const Points& positions, const Points& 
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     const double reach = ReachOf(velocities.row(i).transpose(), h, margin);
     const bool valid = reach < kInf && positions.row(i).allFinite();
+    near_piece_[i] = -1;
     // The largest query box Query walks, so a region's box holds its particles' boxes.
     half_extents_[i] = valid ? std::max(reach + kBoundExtension - shell, 0.0) : -1.0;
     reaches_[i] = reach;
@@ -1255,6 +1260,7 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
     const Nearest nearest =
         Query(positions.row(p).transpose(), reaches_[p], ContactThreshold(velocity, h, margin),
               h, MemoryOf(p), Source{true, first, count});
+    near_piece_[p] = NearPiece(nearest);
     if (!nearest.found) continue;
     has_contact_[p] = MakeContact(p, velocity, nearest, h, margin, particle_contacts_[p]);
   }
@@ -1269,6 +1275,7 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   const bool remembered =
       UsesMemory() &&
       memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * positions.rows());
+  const bool near_known = near_piece_.size() == static_cast<std::size_t>(positions.rows());
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     // In a crease between two pieces (the back of a bent knee) moving out of one can move a
     // particle into the other: a few alternating passes, as the superquadric collider does.
@@ -1277,6 +1284,17 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
       if (!x.allFinite()) break;
       const Nearest nearest =
           Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
+      // The piece whose skin was within reach at the step's start has none within reach
+      // now: the particle left it by more than max_penetration in one step, or the skin
+      // swept over it (a kicking leg through loose trousers) and it is deeper than that.
+      if (pass == 0 && options_.find_buried && near_known && near_piece_[i] >= 0 &&
+          SearchedBeyondReach(near_piece_[i])) {
+        const double depth = ProjectOutLost(i, positions, velocities);
+        if (depth > 0.0) {
+          deepest = std::max(deepest, depth);
+          continue;  // out of that piece: into another?
+        }
+      }
       if (!nearest.found) break;
       if (nearest.signed_distance >= shell) {
         // Outside by its nearest triangle, which buried skin can belie.
@@ -1308,42 +1326,71 @@ void MeshCollider::RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& n
   if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
 }
 
+bool MeshCollider::SearchedBeyondReach(int piece) const {
+  const MeshColliderRegions& r = *regions_;
+  // A piece skipped by its bound is not that deep (its signed distance is above the
+  // threshold); one out of reach was not within reach at the step's start either.
+  return r.piece_state[piece] == kSearched &&
+         (!(r.piece_distance[piece] < kInf) || !r.in_reach[piece]);
+}
+
+double MeshCollider::ProjectOutLost(Eigen::Index i, Points& positions, Points& velocities) {
+  ++stats_.num_winding_checks;
+  // Any ray counts the winding number; back against its velocity, the way a particle the
+  // skin swept over came in, it likely leaves the body's boxes soonest.
+  const Eigen::Vector3d velocity = velocities.row(i).transpose();
+  const double speed = velocity.norm();
+  const Eigen::Vector3d back = speed > 0.0 ? Eigen::Vector3d(-velocity / speed)
+                                           : Eigen::Vector3d(0.36, 0.48, 0.8);
+  // Only the piece that was near: deep in any other, the particle was lost before the step.
+  return ProjectOutOfPiece(i, near_piece_[i], back, kLostParticleSearch, positions, velocities);
+}
+
 double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward,
                                       Points& positions, Points& velocities) {
   ++stats_.num_winding_checks;
-  const Eigen::Vector3d x = positions.row(i).transpose();
   for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
-    // An open piece has no inside to count.
-    if (!piece_closed_[piece] || !InsidePiece(piece, x, outward)) continue;
-    // Out where the winding number first falls to 0 along the nearest of a few rays, onto
-    // the shell beyond (if that is outside: the skin there may be folded). The nearest
-    // skin the particle lies behind need not lead out: folded skin nearer may bound more
-    // skin. None within max_penetration: lost, as a particle deeper than that is.
-    std::array<std::pair<RayExit, Eigen::Vector3d>, kNumExitRays> exits;
-    int count = 0;
-    for (const Eigen::Vector3d& direction : ExitRayDirections()) {
-      RayExit exit;
-      if (ExitAlong(piece, x, direction, exit) && exit.distance <= options_.max_penetration) {
-        exits[count++] = {exit, direction};
-      }
+    const double depth = ProjectOutOfPiece(i, piece, outward, options_.max_penetration,
+                                           positions, velocities);
+    if (depth > 0.0) return depth;
+  }
+  return 0.0;
+}
+
+double MeshCollider::ProjectOutOfPiece(Eigen::Index i, int piece,
+                                       const Eigen::Vector3d& outward, double max_depth,
+                                       Points& positions, Points& velocities) {
+  const Eigen::Vector3d x = positions.row(i).transpose();
+  // An open piece has no inside to count.
+  if (!piece_closed_[piece] || !InsidePiece(piece, x, outward)) return 0.0;
+  // Out where the winding number first falls to 0 along the nearest of a few rays, onto
+  // the shell beyond (if that is outside: the skin there may be folded). The nearest
+  // skin the particle lies behind need not lead out: folded skin nearer may bound more
+  // skin. None within max_depth: lost.
+  std::array<std::pair<RayExit, Eigen::Vector3d>, kNumExitRays> exits;
+  int count = 0;
+  for (const Eigen::Vector3d& direction : ExitRayDirections()) {
+    RayExit exit;
+    if (ExitAlong(piece, x, direction, exit) && exit.distance <= max_depth) {
+      exits[count++] = {exit, direction};
     }
-    std::sort(exits.begin(), exits.begin() + count, [](const auto& a, const auto& b) {
-      return a.first.distance < b.first.distance;
-    });
-    for (int k = 0; k < count; ++k) {
-      const auto& [exit, direction] = exits[k];
-      const Eigen::Vector3d target = x + (exit.distance + settings_.thickness) * direction;
-      if (InsidePiece(piece, target, direction)) continue;
-      ++stats_.num_buried;
-      positions.row(i) = target.transpose();
-      const PackedTriangle& t = regions_->packed[exit.slot];
-      const Eigen::Vector3d weights =
-          ClosestPointOnTriangle(x + exit.distance * direction, t.a, t.b, t.c).barycentric;
-      RemoveInwardVelocity(i, t.normal,
-                           SurfaceVelocity(regions_->cell_triangles[exit.slot], weights),
-                           velocities);
-      return exit.distance + settings_.thickness;
-    }
+  }
+  std::sort(exits.begin(), exits.begin() + count, [](const auto& a, const auto& b) {
+    return a.first.distance < b.first.distance;
+  });
+  for (int k = 0; k < count; ++k) {
+    const auto& [exit, direction] = exits[k];
+    const Eigen::Vector3d target = x + (exit.distance + settings_.thickness) * direction;
+    if (InsidePiece(piece, target, direction)) continue;
+    ++stats_.num_buried;
+    positions.row(i) = target.transpose();
+    const PackedTriangle& t = regions_->packed[exit.slot];
+    const Eigen::Vector3d weights =
+        ClosestPointOnTriangle(x + exit.distance * direction, t.a, t.b, t.c).barycentric;
+    RemoveInwardVelocity(i, t.normal,
+                         SurfaceVelocity(regions_->cell_triangles[exit.slot], weights),
+                         velocities);
+    return exit.distance + settings_.thickness;
   }
   return 0.0;
 }

@@ -23,7 +23,9 @@
 /// the nearest triangle may be buried skin seen from its outer side while the particle is
 /// inside the skin that buried it. ProjectOut therefore counts the winding number (a ray's
 /// signed crossings, through the same region trees) of particles near the skin that their
-/// nearest triangle puts outside (MeshCollisionOptions::find_buried).
+/// nearest triangle puts outside (MeshCollisionOptions::find_buried), and of particles that
+/// had skin within reach when FindContacts ran and have none now: a limb swept over them
+/// faster than the proximity search reaches.
 ///
 /// Deviation from the paper: the paper tests a flat region "coarsely" without saying how;
 /// here it is the slab and plane grid above, which is exact (no contact is lost, whatever
@@ -35,6 +37,7 @@
 /// that query returned. Contacts are the same with or without them.
 
 #include <Eigen/Geometry>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -93,8 +96,11 @@ struct MeshCollisionOptions {
   /// it outside within max_penetration, and move it out when it is inside: where skinning
   /// moves skin through other skin (MakeHuman's thigh through its groin in a kick), the
   /// nearest triangle can be buried skin seen from its outer side while the particle is
-  /// inside the skin that buried it (docs/collision.md, "Buried skin"). Only in closed
-  /// pieces (an open one has no inside); false leaves such particles where they are.
+  /// inside the skin that buried it (docs/collision.md, "Buried skin"). Likewise a
+  /// particle FindContacts found within reach of a piece's skin and ProjectOut finds none
+  /// of it within reach: the step took it more than max_penetration deep, where no
+  /// proximity search sees it ("Lost particles"). Only in closed pieces (an open one has
+  /// no inside); false leaves such particles where they are.
   bool find_buried = true;
   /// Refit a body region (its plane frame, grid and packed triangles) only when a query
   /// first reaches it after Update, so that skin no cloth comes near (the arms and head
@@ -163,7 +169,9 @@ class MeshCollider : public BodyCollider {
   /// options.find_buried, a particle its nearest triangle puts outside, within
   /// max_penetration, but inside by the winding number (skin skinned through skin) goes out
   /// where the winding number first falls to 0 along the nearest of 14 rays, onto the
-  /// shell. Returns the deepest penetration of the shell before the correction [m]. Uses
+  /// shell; so does one that FindContacts found within reach of a piece and that is now
+  /// deeper in it than max_penetration (exits up to kLostParticleSearch away). Returns
+  /// the deepest penetration of the shell before the correction [m]. Uses
   /// (and updates) the particles' memory when FindContacts last had as many particles.
   /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
@@ -190,6 +198,8 @@ class MeshCollider : public BodyCollider {
     double signed_distance = 0.0;
     Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
+    /// The piece of the nearest surface point (−1 when none was found).
+    int piece = -1;
   };
   /// Where a query's body regions come from: the per-piece region trees, or candidate
   /// slots [first, first + count) gathered for a cloth region.
@@ -214,6 +224,8 @@ class MeshCollider : public BodyCollider {
     int sign = 0;
   };
   static constexpr int kMaxExitCrossings = 32;
+  /// How far a lost particle's exit is looked for [m]: through any limb or torso.
+  static constexpr double kLostParticleSearch = 0.3;
   /// Bodies of more pieces search without memory (it would cost pieces × particles).
   static constexpr int kMaxRememberedPieces = 64;
 
@@ -286,6 +298,26 @@ class MeshCollider : public BodyCollider {
   /// it had below the shell (0 when it was not inside).
   double ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward, Points& positions,
                           Points& velocities);
+  /// Moves particle i out of closed `piece` when it is inside it by the winding number
+  /// (the first ray along `outward` [-]): onto the shell beyond the nearest of 14 rays'
+  /// exits within `max_depth` [m] whose shell point is outside. Returns the depth below
+  /// the shell it had [m], 0 when it was not inside or no exit would do.
+  double ProjectOutOfPiece(Eigen::Index i, int piece, const Eigen::Vector3d& outward,
+                           double max_depth, Points& positions, Points& velocities);
+  /// Particle i had skin of piece near_piece_[i] within reach when FindContacts ran, and
+  /// none now: when it is inside that piece, out along the nearest exit within
+  /// kLostParticleSearch (ProjectOutOfPiece). Returns its depth below the shell [m].
+  double ProjectOutLost(Eigen::Index i, Points& positions, Points& velocities);
+  /// The piece a FindContacts query puts within ProjectOut's reach of the particle, −1
+  /// for none.
+  int NearPiece(const Nearest& nearest) const {
+    return nearest.found && std::abs(nearest.signed_distance) <=
+                                settings_.thickness + options_.max_penetration
+               ? nearest.piece
+               : -1;
+  }
+  /// Whether the last query searched `piece` and found no triangle of it within reach.
+  bool SearchedBeyondReach(int piece) const;
   /// Whether `point` is inside `piece` by its winding number: the signed crossings of a
   /// ray from it, first along `direction`, another where that one grazes an edge.
   bool InsidePiece(int piece, const Eigen::Vector3d& point, const Eigen::Vector3d& direction);
@@ -320,6 +352,8 @@ class MeshCollider : public BodyCollider {
   std::vector<double> reaches_;
   std::vector<Contact> particle_contacts_;
   std::vector<char> has_contact_;
+  /// Per particle, the piece FindContacts found within ProjectOut's reach (NearPiece).
+  std::vector<int> near_piece_;
   /// Per particle and piece, what the particle's last query learnt (PieceMemory), and
   /// where the particle was then (its anchor). Bounds shrink by the particle's and the
   /// piece's motion since; a piece whose bound shows it cannot matter is not searched.

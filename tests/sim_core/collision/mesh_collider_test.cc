@@ -470,6 +470,54 @@ TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
   }
 }
 
+// A particle the skin was near at the step's start, found more than max_penetration (5 cm)
+// deep after the solve (a kicking leg swept through loose trousers), is beyond any
+// proximity search: it goes out along the nearest exit ray, as a buried one does. One
+// that left the skin as far outward stays where it is.
+TEST(MeshCollider, ParticleDeeperThanMaxPenetrationAfterTheStepIsMovedOut) {
+  const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
+  const double top = kCenter.y() + kHalf.y();
+  BodyCollisionSettings settings;
+  settings.thickness = 0.004;
+  MeshCollisionOptions defaults;
+  ASSERT_EQ(defaults.max_penetration, 0.05);
+  const Eigen::Vector3d start(0.013, top + 0.01, 0.027);  // 1 cm above the top face
+  for (const bool find_buried : {false, true}) {
+    SCOPED_TRACE(find_buried ? "find_buried" : "without find_buried");
+    MeshCollisionOptions options;
+    options.find_buried = find_buried;
+    MeshCollider collider(RigidAvatar(box), settings, options);
+    collider.Update(kJoints, box.vertices, kH);
+    Points x(2, 3), v(2, 3);
+    x << start.transpose(), start.transpose();
+    v << 0.0, -4.8, 0.0, 0.0, 4.8, 0.0;  // 8 cm in a step, down and up
+    std::vector<Contact> contacts;
+    collider.FindContacts(x, v, kH, 0.002, contacts);
+    ASSERT_EQ(contacts.size(), 1u);  // the first would cross the shell in the step
+    // Where the step took them: 66 mm below the top face (134 mm from every other), and
+    // 86 mm above it.
+    x.row(0) << 0.013, top - 0.066, 0.027;
+    x.row(1) << 0.013, top + 0.086, 0.027;
+    const Points outside = x.row(1);
+    const double deepest = collider.ProjectOut(x, v);
+    EXPECT_EQ((x.row(1) - outside).norm(), 0.0);
+    EXPECT_EQ(v(1, 1), 4.8);
+    if (!find_buried) {
+      EXPECT_NEAR(x(0, 1), top - 0.066, 1e-12);  // lost
+      EXPECT_EQ(deepest, 0.0);
+      continue;
+    }
+    // Out through the top face onto the shell (the ray is off the axis by under a
+    // milliradian), its velocity into the body gone.
+    EXPECT_NEAR(deepest, 0.066 + 0.004, 1e-7);
+    EXPECT_LT((x.row(0).transpose() - Eigen::Vector3d(0.013, top + 0.004, 0.027)).norm(), 1e-4);
+    EXPECT_NEAR(test::BoxSignedDistance(x.row(0).transpose(), kCenter, kHalf), 0.004, 1e-7);
+    EXPECT_NEAR(v(0, 1), 0.0, 1e-12);
+    EXPECT_EQ(collider.stats().num_winding_checks, 2);
+    EXPECT_EQ(collider.stats().num_buried, 1);
+  }
+}
+
 // The remembered bounds skip pieces the particle's and the body's motion cannot have
 // brought near enough to matter: over a moving, deforming body of three closed pieces and
 // particles moving through its shell, the contacts and corrections are those of searching
