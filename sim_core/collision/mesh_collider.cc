@@ -1299,7 +1299,8 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
       if (nearest.signed_distance >= shell) {
         // Outside by its nearest triangle, which buried skin can belie.
         if (options_.find_buried && nearest.signed_distance < reach) {
-          deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, positions, velocities));
+          deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, nearest.piece,
+                                                       positions, velocities));
         }
         break;
       }
@@ -1347,11 +1348,16 @@ double MeshCollider::ProjectOutLost(Eigen::Index i, Points& positions, Points& v
 }
 
 double MeshCollider::ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward,
-                                      Points& positions, Points& velocities) {
+                                      int folded, Points& positions, Points& velocities) {
   ++stats_.num_winding_checks;
   for (int piece = 0; piece < normals_.num_pieces(); ++piece) {
-    const double depth = ProjectOutOfPiece(i, piece, outward, options_.max_penetration,
-                                           positions, velocities);
+    // Inside the piece whose own nearest skin puts the particle outside, that piece is
+    // folded through itself (a raised thigh skinned into the belly) and its exit may lie
+    // far beyond max_penetration. In another piece the particle may have been lost long
+    // before: a search that far would move it or not as the memory happened to search.
+    const double max_depth = piece == folded ? kLostParticleSearch : options_.max_penetration;
+    const double depth =
+        ProjectOutOfPiece(i, piece, outward, max_depth, positions, velocities);
     if (depth > 0.0) return depth;
   }
   return 0.0;

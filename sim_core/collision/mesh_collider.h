@@ -169,8 +169,10 @@ class MeshCollider : public BodyCollider {
   /// options.find_buried, a particle its nearest triangle puts outside, within
   /// max_penetration, but inside by the winding number (skin skinned through skin) goes out
   /// where the winding number first falls to 0 along the nearest of 14 rays, onto the
-  /// shell; so does one that FindContacts found within reach of a piece and that is now
-  /// deeper in it than max_penetration (exits up to kLostParticleSearch away). Returns
+  /// shell (exits up to kLostParticleSearch away in the nearest triangle's piece, folded
+  /// through itself there, max_penetration in others); so does one that FindContacts
+  /// found within reach of a piece and that is now deeper in it than max_penetration
+  /// (exits up to kLostParticleSearch away). Returns
   /// the deepest penetration of the shell before the correction [m]. Uses
   /// (and updates) the particles' memory when FindContacts last had as many particles.
   /// Never throws; never allocates.
@@ -294,10 +296,11 @@ class MeshCollider : public BodyCollider {
   void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
                             const Eigen::Vector3d& surface_velocity, Points& velocities) const;
   /// Moves particle i out of the skin when it is inside by the winding number though its
-  /// nearest triangle, along `outward` [-] from it, puts it outside; returns the depth [m]
-  /// it had below the shell (0 when it was not inside).
-  double ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward, Points& positions,
-                          Points& velocities);
+  /// nearest triangle, of piece `folded`, along `outward` [-] from it, puts it outside:
+  /// exits up to kLostParticleSearch away in `folded`, max_penetration in other pieces.
+  /// Returns the depth [m] it had below the shell (0 when it was not inside).
+  double ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward, int folded,
+                          Points& positions, Points& velocities);
   /// Moves particle i out of closed `piece` when it is inside it by the winding number
   /// (the first ray along `outward` [-]): onto the shell beyond the nearest of 14 rays'
   /// exits within `max_depth` [m] whose shell point is outside. Returns the depth below

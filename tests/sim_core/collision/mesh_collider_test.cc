@@ -470,6 +470,44 @@ TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
   }
 }
 
+// The same fold in a bar twice as thick (40 × 20 × 20 cm, folded about (0.2, 1.0)): the
+// far half now spans x in [0.1, 0.3], y in [1.0, 1.2], and buries the near half's top
+// face (y = 1.1) for x in [0.1, 0.2]. A particle 5 mm above that face, 60 mm from the far
+// half's face x = 0.1, has no exit within max_penetration (5 cm): inside the piece whose
+// own nearest skin puts it outside, the piece is folded through itself and exits are
+// looked for up to 30 cm away (as a raised thigh skinned into the belly needs).
+TEST(MeshCollider, ParticleBuriedDeeperThanMaxPenetrationInAFoldGoesOutThroughIt) {
+  const TestMesh bar = test::TessellatedBox(Eigen::Vector3d(0.2, 1.0, 0.0),
+                                            Eigen::Vector3d(0.2, 0.1, 0.1),
+                                            Eigen::Vector3i(40, 20, 20));
+  TestMesh folded = bar;
+  for (Eigen::Index v = 0; v < folded.vertices.rows(); ++v) {
+    const double dx = bar.vertices(v, 0) - 0.2, dy = bar.vertices(v, 1) - 1.0;
+    if (dx > 1e-9) folded.vertices.row(v) << 0.2 - dy, 1.0 + dx, bar.vertices(v, 2);
+  }
+  const Eigen::Vector3d buried(0.16, 1.105, 0.003);
+  const MeshDistance oracle("folded thick bar", folded.vertices, folded.triangles);
+  ASSERT_TRUE(oracle.Inside(buried));
+  ASSERT_NEAR(oracle.SignedDistance(buried, 0.1), 0.005, 1e-9);
+  MeshCollisionOptions defaults;
+  ASSERT_EQ(defaults.max_penetration, 0.05);
+
+  BodyCollisionSettings settings;
+  settings.thickness = 0.004;
+  MeshCollider collider(RigidAvatar(bar), settings);
+  collider.Update(kJoints, folded.vertices, kH);
+  Points x = Row(buried), v = Row(Eigen::Vector3d(0.5, 0.2, 0.0));
+  const double deepest = collider.ProjectOut(x, v);
+  // Out through x = 0.1, 60 mm away, onto the shell beyond it, above the near half.
+  EXPECT_NEAR(deepest, 0.06 + 0.004, 1e-6);
+  EXPECT_LT((x.row(0).transpose() - Eigen::Vector3d(0.096, 1.105, 0.003)).norm(), 1e-4);
+  EXPECT_FALSE(oracle.Inside(x.row(0).transpose()));
+  EXPECT_GE(oracle.SignedDistance(x.row(0).transpose(), 0.1), 0.004 - 1e-6);
+  EXPECT_NEAR(v(0, 0), 0.0, 1e-12);  // the velocity into that face is gone
+  EXPECT_NEAR(v(0, 1), 0.2, 1e-12);
+  EXPECT_EQ(collider.stats().num_buried, 1);
+}
+
 // A particle the skin was near at the step's start, found more than max_penetration (5 cm)
 // deep after the solve (a kicking leg swept through loose trousers), is beyond any
 // proximity search: it goes out along the nearest exit ray, as a buried one does. One
