@@ -172,9 +172,9 @@ class MeshCollider : public BodyCollider {
   /// shell (exits up to kLostParticleSearch away in the nearest triangle's piece, folded
   /// through itself there, max_penetration in others); so does one that FindContacts
   /// found within reach of a piece and that is now deeper in it than max_penetration
-  /// (exits up to kLostParticleSearch away). Returns
-  /// the deepest penetration of the shell before the correction [m]. Uses
-  /// (and updates) the particles' memory when FindContacts last had as many particles.
+  /// (exits up to kLostParticleSearch away). Returns the deepest penetration of the shell
+  /// before the correction [m]. Uses (and updates) the particles' memory when
+  /// FindContacts last had as many particles.
   /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
@@ -296,9 +296,9 @@ class MeshCollider : public BodyCollider {
   void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
                             const Eigen::Vector3d& surface_velocity, Points& velocities) const;
   /// Moves particle i out of the skin when it is inside by the winding number though its
-  /// nearest triangle, of piece `folded`, along `outward` [-] from it, puts it outside:
-  /// exits up to kLostParticleSearch away in `folded`, max_penetration in other pieces.
-  /// Returns the depth [m] it had below the shell (0 when it was not inside).
+  /// nearest triangle (of piece `folded`; `outward` [-] points away from it) puts it
+  /// outside: exits up to kLostParticleSearch away in `folded`, max_penetration in other
+  /// pieces. Returns the depth [m] it had below the shell (0 when it was not inside).
   double ProjectOutBuried(Eigen::Index i, const Eigen::Vector3d& outward, int folded,
                           Points& positions, Points& velocities);
   /// Moves particle i out of closed `piece` when it is inside it by the winding number
