@@ -1484,7 +1484,7 @@ bool WindingFromCentre(SegmentSkin& skin, const Eigen::Vector3d& q, int& winding
 /// of ExitRayDirections, where the count first falls to 0 on a ray whose crossings add up
 /// to `winding` (none missing), and whose count is still 0 `clearance` [m] beyond, where
 /// the point is to go (folded skin may lie just past the first way out). As the mesh
-/// collider's ProjectOutBuried. Its direction and distance [m]; false when no ray finds
+/// collider's ProjectOutOfPiece. Its direction and distance [m]; false when no ray finds
 /// one within kSkinCheckRadius. Never throws or allocates.
 bool WoundExit(SegmentSkin& skin, const Eigen::Vector3d& q, int winding, double clearance,
                Eigen::Vector3d& direction, double& distance) {

@@ -388,20 +388,28 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
   }
 }
 
+/// `bar` (a box along x from 0, its axis at y = 1) with its far half, x > `middle`, turned
+/// 90° about the z axis through (middle, 1.0), as skinning turns a thigh: that half then
+/// stands up through the near half's top face, which it buries.
+TestMesh FoldedAtTheMiddle(const TestMesh& bar, double middle) {
+  TestMesh folded = bar;
+  for (Eigen::Index v = 0; v < folded.vertices.rows(); ++v) {
+    const double dx = bar.vertices(v, 0) - middle, dy = bar.vertices(v, 1) - 1.0;
+    if (dx > 1e-9) folded.vertices.row(v) << middle - dy, 1.0 + dx, bar.vertices(v, 2);
+  }
+  return folded;
+}
+
 // A bar 20 cm long along x, its far half turned 90° about the z axis through the middle of
 // its axis, as skinning turns a thigh: the far half (now x in [0.05, 0.15], y in [1.01,
 // 1.1]) runs through the near half's top face (y = 1.05), which is buried in it for x in
 // [0.05, 0.1]. One piece, closed. The particle 5 mm above that buried face is inside the
 // far half; its nearest skin is the buried face, seen from its outer side.
 TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
-  const TestMesh bar = test::TessellatedBox(Eigen::Vector3d(0.1, 1.0, 0.0),
-                                            Eigen::Vector3d(0.1, 0.05, 0.05),
-                                            Eigen::Vector3i(20, 10, 10));
-  TestMesh folded = bar;
-  for (Eigen::Index v = 0; v < folded.vertices.rows(); ++v) {
-    const double dx = bar.vertices(v, 0) - 0.1, dy = bar.vertices(v, 1) - 1.0;
-    if (dx > 1e-9) folded.vertices.row(v) << 0.1 - dy, 1.0 + dx, bar.vertices(v, 2);
-  }
+  const Eigen::Vector3d half(0.1, 0.05, 0.05);
+  const TestMesh bar =
+      test::TessellatedBox(Eigen::Vector3d(half.x(), 1.0, 0.0), half, Eigen::Vector3i(20, 10, 10));
+  const TestMesh folded = FoldedAtTheMiddle(bar, half.x());
   const Eigen::Vector3d buried(0.075, 1.055, 0.003);
   const Eigen::Vector3d outside(0.04, 1.065, 0.003);  // in the corner the fold leaves open
   // The setup, by an independent oracle: inside by the winding number, 5 mm outside its
@@ -477,14 +485,10 @@ TEST(MeshCollider, ParticleInSkinThatBuriedItsNearestSkinIsMovedOutThroughIt) {
 // own nearest skin puts it outside, the piece is folded through itself and exits are
 // looked for up to 30 cm away (as a raised thigh skinned into the belly needs).
 TEST(MeshCollider, ParticleBuriedDeeperThanMaxPenetrationInAFoldGoesOutThroughIt) {
-  const TestMesh bar = test::TessellatedBox(Eigen::Vector3d(0.2, 1.0, 0.0),
-                                            Eigen::Vector3d(0.2, 0.1, 0.1),
-                                            Eigen::Vector3i(40, 20, 20));
-  TestMesh folded = bar;
-  for (Eigen::Index v = 0; v < folded.vertices.rows(); ++v) {
-    const double dx = bar.vertices(v, 0) - 0.2, dy = bar.vertices(v, 1) - 1.0;
-    if (dx > 1e-9) folded.vertices.row(v) << 0.2 - dy, 1.0 + dx, bar.vertices(v, 2);
-  }
+  const Eigen::Vector3d half(0.2, 0.1, 0.1);
+  const TestMesh bar =
+      test::TessellatedBox(Eigen::Vector3d(half.x(), 1.0, 0.0), half, Eigen::Vector3i(40, 20, 20));
+  const TestMesh folded = FoldedAtTheMiddle(bar, half.x());
   const Eigen::Vector3d buried(0.16, 1.105, 0.003);
   const MeshDistance oracle("folded thick bar", folded.vertices, folded.triangles);
   ASSERT_TRUE(oracle.Inside(buried));
