@@ -646,8 +646,8 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
 /// [avatar]: the built-in humanoid, the clip it plays, how cloth collides with it.
 sim::AvatarSpec ParseAvatar(const TableView& table) {
   table.RefuseUnknownKeys({"model", "clip", "collision", "superquadric_map_mb", "thickness",
-                           "friction", "fit_time", "blend_time", "position", "heading",
-                           "posture"});
+                           "friction", "max_skin_travel", "max_steps_per_frame", "fit_time",
+                           "blend_time", "position", "heading", "posture"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
   if (const std::optional<Field> model = table.Find("model")) ReadChoice(*model, {"builtin"});
@@ -664,6 +664,10 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
                                         {0.0, sim::kMaxSuperquadricMapMb, false, false}, "MB");
   avatar.thickness = NumberOr(table, "thickness", avatar.thickness, {0.0, 0.05, false, false}, "m");
   avatar.friction = NumberOr(table, "friction", avatar.friction, {0.0, 2.0, false, false}, "");
+  avatar.max_skin_travel =
+      NumberOr(table, "max_skin_travel", avatar.max_skin_travel, {0.0, 1.0, false, false}, "m");
+  avatar.max_steps_per_frame = IntegerOr(table, "max_steps_per_frame", avatar.max_steps_per_frame,
+                                         1, sim::kMaxStepsPerFrame);
   avatar.motion.fit_time =
       NumberOr(table, "fit_time", avatar.motion.fit_time, {0.0, 60.0, false, false}, "s");
   avatar.motion.blend_time =

@@ -50,6 +50,7 @@ struct Options {
   std::vector<std::string> methods{"superquadric", "mesh"};
   /// Memory for the superquadric method's stored map drawings [MB] (0: draw every map).
   double superquadric_map_mb = sim::AvatarSpec{}.superquadric_map_mb;
+  double max_skin_travel = sim::AvatarSpec{}.max_skin_travel;
   /// Calls per mode of the cloth-side regions' comparison (0: skip it).
   int regions_reps = 100;
 };
@@ -86,6 +87,7 @@ sim::SceneDescription GarmentScene(std::shared_ptr<const sim::Avatar> avatar,
   spec.clip = std::move(clip);
   spec.collision = method;
   spec.superquadric_map_mb = options.superquadric_map_mb;
+  spec.max_skin_travel = options.max_skin_travel;
   scene.avatar = spec;
   scene.duration = spec.motion.fit_time + options.walk_seconds;
   sim::Material cotton;
@@ -174,7 +176,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   // Where the deepest penetration was: the measured frame, the particle and the joint
   // nearest it, for finding what let it in.
   int deepest_frame = -1, deepest_particle = -1, deepest_joint = -1;
-  int rolled_back = 0, unconverged = 0;
+  int rolled_back = 0, unconverged = 0, steps = 0, most_steps = 0;
   const int fit_frames = static_cast<int>(scene.avatar->motion.fit_time * scene.frame_rate);
   sim::Points cloth;
   // The first pass through the clip draws every map; later passes may reuse the drawings
@@ -191,6 +193,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     rolled_back += report.rolled_back_steps;
     unconverged += report.converged ? 0 : 1;
     if (f < fit_frames) continue;  // the clip is measured, not the fitting
+    steps += report.steps;
+    most_steps = std::max(most_steps, report.steps);
     if (static_cast<int>(total_ms.size()) < first_pass_frames) {
       first_pass_collision_ms.push_back(report.collision_ms);
     }
@@ -240,6 +244,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"particles", simulation->model().num_particles()},
           {"avatar_vertices", motion.avatar().num_vertices()},
           {"frames_measured", total_ms.size()},
+          {"steps_per_frame_mean", total_ms.empty() ? 0.0 : double(steps) / total_ms.size()},
+          {"steps_per_frame_max", most_steps},
           {"collision_ms_median", Median(collision_ms)},
           {"collision_ms_median_first_pass", Median(first_pass_collision_ms)},
           {"collision_update_ms_median", Median(update_ms)},
@@ -334,6 +340,11 @@ int main(int argc, char** argv) {
                  "Memory for the superquadric method's stored map drawings, reused when the "
                  "skin comes back (0: draw every map every frame)")
       ->check(CLI::Range(0.0, sim::kMaxSuperquadricMapMb))
+      ->capture_default_str();
+  app.add_option("--max-skin-travel", options.max_skin_travel,
+                 "Farthest the skin near the cloth may move in one step before a frame is split "
+                 "into more steps [m] (0: never split)")
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
   app.add_option("--regions-reps", options.regions_reps,

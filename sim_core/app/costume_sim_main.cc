@@ -53,8 +53,13 @@ void PrintFrame(int frame, int num_frames, const Simulation& sim, const FrameRep
     std::snprintf(extra + used, sizeof(extra) - used, "  self-collision %5.2f ms%s",
                   r.self_collision_ms, r.unresolved_self_collisions ? " [unresolved]" : "");
   }
-  std::printf("frame %4d/%d  t=%6.3f s  %7.2f ms  iterations %4d  contacts %5d%s%s%s\n", frame,
-              num_frames, sim.state().time, r.wall_ms, r.iterations, r.num_contacts, extra,
+  char split[64] = "";
+  if (r.steps > sim.scene().solver.substeps) {
+    // avatar.max_skin_travel: the skin near the cloth moved too far for the usual steps.
+    std::snprintf(split, sizeof(split), "  [%d steps: fast skin]", r.steps);
+  }
+  std::printf("frame %4d/%d  t=%6.3f s  %7.2f ms  iterations %4d  contacts %5d%s%s%s%s\n", frame,
+              num_frames, sim.state().time, r.wall_ms, r.iterations, r.num_contacts, extra, split,
               r.converged ? "" : "  [solver hit its iteration cap]",
               r.rolled_back_steps ? "  [non-finite step undone]" : "");
 }

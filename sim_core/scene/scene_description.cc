@@ -228,6 +228,10 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
   refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, 2.0, false, false, "");
   refuser.RequireNumber("avatar.superquadric_map_mb", avatar.superquadric_map_mb, 0.0,
                         kMaxSuperquadricMapMb, false, false, "MB");
+  refuser.RequireNumber("avatar.max_skin_travel", avatar.max_skin_travel, 0.0, 1.0, false, false,
+                        "m");
+  refuser.RequireInteger("avatar.max_steps_per_frame", avatar.max_steps_per_frame, 1,
+                         kMaxStepsPerFrame);
   refuser.RequireNumber("avatar.fit_time", avatar.motion.fit_time, 0.0, 60.0, false, false, "s");
   refuser.RequireNumber("avatar.blend_time", avatar.motion.blend_time, 0.0, 60.0, false, false, "s");
 }

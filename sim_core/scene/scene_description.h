@@ -100,6 +100,9 @@ const char* BodyCollisionMethodName(BodyCollisionMethod method);
 /// (AvatarSpec::superquadric_map_mb) [MB].
 constexpr double kMaxSuperquadricMapMb = 16384.0;
 
+/// The most steps AvatarSpec::max_steps_per_frame may allow.
+constexpr int kMaxStepsPerFrame = 64;
+
 /// The avatar a scene dresses, already loaded (the assets layer resolves files and names).
 struct AvatarSpec {
   std::shared_ptr<const Avatar> avatar;
@@ -121,6 +124,16 @@ struct AvatarSpec {
   double thickness = 0.004;
   /// Coulomb friction between cloth and skin [-] in [0, 2].
   double friction = 0.5;
+  /// Farthest the skin near the cloth may move within one step [m] in [0, 1]; a frame in
+  /// which it moves farther is split into more steps (up to max_steps_per_frame). Collision
+  /// is tested where a step starts and ends, so a limb that crosses cloth within one step
+  /// (a kicking foot: 20 cm a frame) leaves it on its far side, threaded round the limb.
+  /// 0: never split (solver.substeps steps every frame). At 5 cm a walk is rarely split and
+  /// the built-in kick's skirt is no longer threaded (docs/collision.md, "Fast limbs").
+  double max_skin_travel = 0.05;
+  /// Most steps a frame is split into for the skin's travel, in [1, kMaxStepsPerFrame];
+  /// never fewer than solver.substeps.
+  int max_steps_per_frame = 8;
   int source_line = 0;
 };
 

@@ -22,6 +22,28 @@ namespace {
 /// so that the first step finds it resting on the shell rather than inside.
 constexpr double kFitClearanceExtra = 0.001;
 
+/// The farthest a skin vertex that can reach the cloth moves from `start` to `end` relative
+/// to the body's root, which moves by `root_shift` [m]: garments hang from the body and go
+/// where its root takes them, so a clip travelling across the room is no faster for the
+/// cloth than one in place. A vertex counts when its start lies within its own travel of the
+/// cloth's bounding box grown by the thickness (a hand swinging far from a skirt does not).
+double SkinTravelNearCloth(const Points& start, const Points& end,
+                           const Eigen::Vector3d& root_shift, const Points& cloth,
+                           double thickness) {
+  if (cloth.rows() == 0 || start.rows() != end.rows()) return 0.0;
+  const Eigen::Array3d lo = cloth.colwise().minCoeff().transpose().array() - thickness;
+  const Eigen::Array3d hi = cloth.colwise().maxCoeff().transpose().array() + thickness;
+  double farthest = 0.0;
+  for (Eigen::Index v = 0; v < start.rows(); ++v) {
+    const double travel = ((end.row(v) - start.row(v)).transpose() - root_shift).norm();
+    if (!(travel > farthest)) continue;
+    const Eigen::Array3d a = start.row(v).transpose().array();
+    const Eigen::Array3d outside = (lo - a).max(a - hi).max(0.0);
+    if (outside.matrix().norm() <= travel) farthest = travel;
+  }
+  return farthest;
+}
+
 /// Wall-clock time since `start` [ms], for the frame report.
 double MillisecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
@@ -251,13 +273,17 @@ int Simulation::num_frames() const {
 // that pulled in the last step (negative impulse: the cloth wants to lift off) is released,
 // unless the particle would now end inside the shell on its own; kept, it would glue cloth to
 // the obstacle and freeze stretch into it.
-void Simulation::ReleaseAdhesiveContacts() {
+void Simulation::ReleaseAdhesiveContacts(double h) {
   std::erase_if(contacts_, [this](const Contact& c) {
     const double normal_velocity = state_.velocities.row(c.particle).dot(c.normal);
     const bool would_penetrate = normal_velocity < c.target_normal_velocity;
     return normal_impulse_[c.particle] < 0.0 && !would_penetrate;
   });
-  for (Contact& c : contacts_) c.previous_normal_impulse = std::max(normal_impulse_[c.particle], 0.0);
+  // The stepper takes the impulse over this step's h for the last step's normal force.
+  const double rescale = last_step_ > 0.0 ? h / last_step_ : 1.0;
+  for (Contact& c : contacts_) {
+    c.previous_normal_impulse = std::max(normal_impulse_[c.particle], 0.0) * rescale;
+  }
 }
 
 void Simulation::ApplyStrainLimit(FrameReport& report) {
@@ -268,11 +294,8 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
 // The avatar moves to where it will be at the end of the step first, so contacts target the
 // body's new surface and attached particles land where the body takes them.
 void Simulation::MoveAvatar(double t, double h, FrameReport& report) {
-  double blend = 1.0;  // no transition: exactly the pose at t
-  if (posture_duration_ > 0.0) {
-    blend = std::min(1.0, (state_.time + h - posture_start_) / posture_duration_);
-    if (blend >= 1.0) posture_duration_ = 0.0;
-  }
+  const double blend = PostureBlendAfter(h);
+  if (blend >= 1.0) posture_duration_ = 0.0;
   avatar_->Evaluate(t, blend);
   const auto start = std::chrono::steady_clock::now();
   body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
@@ -299,19 +322,43 @@ void Simulation::FindContacts(double h, FrameReport& report) {
   }
 }
 
-void Simulation::StepOnce(FrameReport& report) {
-  const double h = step();
-  if (avatar_) {
-    // lag 0 (never frozen) gives state_.time + h bit for bit: the unfrozen run is unchanged.
-    MoveAvatar(avatar_frozen_ ? frozen_avatar_time_ : state_.time + h - avatar_lag_, h, report);
-  }
+double Simulation::AvatarTimeAfter(double dt) const {
+  // lag 0 (never frozen) gives state_.time + dt bit for bit: the unfrozen run is unchanged.
+  return avatar_frozen_ ? frozen_avatar_time_ : state_.time + dt - avatar_lag_;
+}
+
+double Simulation::PostureBlendAfter(double dt) const {
+  if (!(posture_duration_ > 0.0)) return 1.0;  // no transition: exactly the pose at the time
+  return std::min(1.0, (state_.time + dt - posture_start_) / posture_duration_);
+}
+
+int Simulation::StepsThisFrame() {
+  const int steps = scene_.solver.substeps;
+  if (!avatar_ || !(scene_.avatar->max_skin_travel > 0.0)) return steps;
+  const AvatarSpec& spec = *scene_.avatar;
+  const double frame = 1.0 / scene_.frame_rate;
+  frame_start_skin_ = avatar_->vertices();
+  const Eigen::Vector3d root = avatar_->joint_world()[0].translation();  // joint 0 is a root
+  avatar_->Evaluate(AvatarTimeAfter(frame), PostureBlendAfter(frame));
+  const double travel =
+      SkinTravelNearCloth(frame_start_skin_, avatar_->vertices(),
+                          avatar_->joint_world()[0].translation() - root, state_.positions,
+                          spec.thickness);
+  const double needed = std::ceil(travel / spec.max_skin_travel);
+  const int most = std::max(steps, spec.max_steps_per_frame);
+  return needed >= most ? most : std::max(steps, static_cast<int>(needed));
+}
+
+void Simulation::StepOnce(double h, FrameReport& report) {
+  if (avatar_) MoveAvatar(AvatarTimeAfter(h), h, report);
   if (grabbing_) UpdateGrabForces();
   FindContacts(h, report);
-  ReleaseAdhesiveContacts();
+  ReleaseAdhesiveContacts(h);
   if (self_collision_) start_positions_ = state_.positions;
   const StepReport step_report = stepper_->Step(state_, h, contacts_);
   std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
   for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
+  last_step_ = h;
   report.steps += 1;
   report.iterations += step_report.iterations;
   report.coarse_iterations += step_report.coarse_iterations;
@@ -504,7 +551,10 @@ double Simulation::avatar_time() const {
 FrameReport Simulation::AdvanceFrame() {
   const auto start = std::chrono::steady_clock::now();
   FrameReport report;
-  for (int s = 0; s < scene_.solver.substeps; ++s) StepOnce(report);
+  const int steps = StepsThisFrame();
+  // Unsplit, h is step() bit for bit.
+  const double h = 1.0 / (scene_.frame_rate * steps);
+  for (int s = 0; s < steps; ++s) StepOnce(h, report);
   report.wall_ms = MillisecondsSince(start);
   return report;
 }

@@ -89,7 +89,9 @@ class Simulation {
   /// source, the field, the value and the allowed range.
   static std::unique_ptr<Simulation> Build(const SceneDescription& scene);
 
-  /// Advances one frame (1/frame_rate s, in solver.substeps steps). Never throws.
+  /// Advances one frame (1/frame_rate s, in solver.substeps steps, or more where the avatar's
+  /// skin near the cloth moves farther than AvatarSpec::max_skin_travel within a step;
+  /// FrameReport::steps says how many). Never throws.
   FrameReport AdvanceFrame();
 
   // ---- editing (mode B, paper §5) ------------------------------------------------------
@@ -164,7 +166,7 @@ class Simulation {
   const std::vector<BodyAttachment>& attachments() const { return attachments_; }
   /// The pyramid the hierarchical and multigrid solvers use; null for the others.
   const QuincunxPyramid* pyramid() const { return pyramid_.get(); }
-  /// Step length [s].
+  /// Step length [s] of a frame that is not split for the skin's travel.
   double step() const { return 1.0 / (scene_.frame_rate * scene_.solver.substeps); }
   /// Number of frames the scene's duration asks for.
   int num_frames() const;
@@ -173,7 +175,15 @@ class Simulation {
   Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
              std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
              const StepperSettings& settings);
-  void StepOnce(FrameReport& report);
+  /// Steps for the coming frame: solver.substeps, or as many as keep the skin near the
+  /// cloth within AvatarSpec::max_skin_travel a step (poses the avatar at the frame's end to
+  /// measure it; the first step poses it again).
+  int StepsThisFrame();
+  void StepOnce(double h, FrameReport& report);
+  /// The time the avatar is posed at, and the posture transition's blend, `dt` [s] after
+  /// state_.time.
+  double AvatarTimeAfter(double dt) const;
+  double PostureBlendAfter(double dt) const;
   void MoveAvatar(double t, double h, FrameReport& report);
   void StartGrab();
   /// Points the stepper at the grab's forces or anchors (or at none when not grabbing).
@@ -182,7 +192,7 @@ class Simulation {
   void BuildSolver(const StepperSettings& settings);
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
-  void ReleaseAdhesiveContacts();
+  void ReleaseAdhesiveContacts(double h);
   void ApplyStrainLimit(FrameReport& report);
 
   SceneDescription scene_;
@@ -228,8 +238,12 @@ class Simulation {
   double posture_start_ = 0.0;
   double posture_duration_ = 0.0;
   /// Each particle's contact normal impulse in the last step [N·s]: its positive part bounds
-  /// friction, a negative one releases the contact.
+  /// friction, a negative one releases the contact. The last step's length [s] (steps differ
+  /// where a frame is split for the skin's travel, and friction needs the force).
   std::vector<double> normal_impulse_;
+  double last_step_ = 0.0;
+  /// The skin where the frame starts (StepsThisFrame's measure).
+  Points frame_start_skin_;
 };
 
 /// The stepper settings a scene asks for.

@@ -443,6 +443,22 @@ TEST(ParseSceneText, ReadsTheSuperquadricMapMemoryAndRefusesItOutOfRange) {
   EXPECT_TRUE(Contains(message, "16384")) << message;
 }
 
+TEST(ParseSceneText, ReadsTheSkinTravelPerStepAndRefusesItOutOfRange) {
+  const std::string base = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\n";
+  const sim::AvatarSpec defaults = *ParseSceneText(base, "test.toml", "").avatar;
+  EXPECT_EQ(defaults.max_skin_travel, 0.05);
+  EXPECT_EQ(defaults.max_steps_per_frame, 8);
+  const sim::AvatarSpec set = *ParseSceneText(
+      base + "max_skin_travel = 0\nmax_steps_per_frame = 3\n", "test.toml", "").avatar;
+  EXPECT_EQ(set.max_skin_travel, 0.0);
+  EXPECT_EQ(set.max_steps_per_frame, 3);
+  const std::string travel = ErrorOf(base + "max_skin_travel = -0.01\n");
+  EXPECT_TRUE(Contains(travel, "avatar.max_skin_travel = -0.01")) << travel;
+  const std::string steps = ErrorOf(base + "max_steps_per_frame = 65\n");
+  EXPECT_TRUE(Contains(steps, "avatar.max_steps_per_frame = 65")) << steps;
+  EXPECT_TRUE(Contains(steps, "64")) << steps;
+}
+
 TEST(ParseSceneText, RefusesAPatternWithoutAvatarAndAnUnknownClip) {
   const std::string pattern = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   EXPECT_TRUE(Contains(ErrorOf(pattern), "test.toml:1: garment[0].pattern = \"skirt\": a pattern "
