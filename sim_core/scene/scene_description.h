@@ -128,8 +128,10 @@ struct AvatarSpec {
   /// which it moves farther is split into more steps (up to max_steps_per_frame). Collision
   /// is tested where a step starts and ends, so a limb that crosses cloth within one step
   /// (a kicking foot: 20 cm a frame) leaves it on its far side, threaded round the limb.
-  /// 0: never split (solver.substeps steps every frame). At 5 cm a walk is rarely split and
-  /// the built-in kick's skirt is no longer threaded (docs/collision.md, "Fast limbs").
+  /// 0: never split (solver.substeps steps every frame). At 5 cm the benchmark's walks are
+  /// not split, and its kick takes a quarter more steps and stretches the skirts' worst
+  /// springs a third to a sixth as far (docs/collision.md, "Fast limbs"). Measured relative
+  /// to the body's root, which the garments hang from.
   double max_skin_travel = 0.05;
   /// Most steps a frame is split into for the skin's travel, in [1, kMaxStepsPerFrame];
   /// never fewer than solver.substeps.
