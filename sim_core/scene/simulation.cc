@@ -293,10 +293,10 @@ void Simulation::ApplyStrainLimit(FrameReport& report) {
 
 // The avatar moves to where it will be at the end of the step first, so contacts target the
 // body's new surface and attached particles land where the body takes them.
-void Simulation::MoveAvatar(double t, double h, FrameReport& report) {
+void Simulation::MoveAvatar(double t, double h, bool posed, FrameReport& report) {
   const double blend = PostureBlendAfter(h);
   if (blend >= 1.0) posture_duration_ = 0.0;
-  avatar_->Evaluate(t, blend);
+  if (!posed) avatar_->Evaluate(t, blend);
   const auto start = std::chrono::steady_clock::now();
   body_->Update(avatar_->joint_world(), avatar_->vertices(), h);
   report.collision_update_ms += MillisecondsSince(start);
@@ -332,7 +332,8 @@ double Simulation::PostureBlendAfter(double dt) const {
   return std::min(1.0, (state_.time + dt - posture_start_) / posture_duration_);
 }
 
-int Simulation::StepsThisFrame() {
+int Simulation::StepsThisFrame(bool& posed_at_end) {
+  posed_at_end = false;
   const int steps = scene_.solver.substeps;
   if (!avatar_ || !(scene_.avatar->max_skin_travel > 0.0)) return steps;
   const AvatarSpec& spec = *scene_.avatar;
@@ -340,6 +341,7 @@ int Simulation::StepsThisFrame() {
   frame_start_skin_ = avatar_->vertices();
   const Eigen::Vector3d root = avatar_->joint_world()[0].translation();  // joint 0 is a root
   avatar_->Evaluate(AvatarTimeAfter(frame), PostureBlendAfter(frame));
+  posed_at_end = true;
   const double travel =
       SkinTravelNearCloth(frame_start_skin_, avatar_->vertices(),
                           avatar_->joint_world()[0].translation() - root, state_.positions,
@@ -349,8 +351,8 @@ int Simulation::StepsThisFrame() {
   return needed >= most ? most : std::max(steps, static_cast<int>(needed));
 }
 
-void Simulation::StepOnce(double h, FrameReport& report) {
-  if (avatar_) MoveAvatar(AvatarTimeAfter(h), h, report);
+void Simulation::StepOnce(double h, bool avatar_posed, FrameReport& report) {
+  if (avatar_) MoveAvatar(AvatarTimeAfter(h), h, avatar_posed, report);
   if (grabbing_) UpdateGrabForces();
   FindContacts(h, report);
   ReleaseAdhesiveContacts(h);
@@ -551,10 +553,12 @@ double Simulation::avatar_time() const {
 FrameReport Simulation::AdvanceFrame() {
   const auto start = std::chrono::steady_clock::now();
   FrameReport report;
-  const int steps = StepsThisFrame();
-  // Unsplit, h is step() bit for bit.
+  bool posed_at_end = false;
+  const int steps = StepsThisFrame(posed_at_end);
+  // Unsplit, h is step() bit for bit, and a single step ends where the measure posed the
+  // avatar (the same time and blend), so it is not skinned twice.
   const double h = 1.0 / (scene_.frame_rate * steps);
-  for (int s = 0; s < steps; ++s) StepOnce(h, report);
+  for (int s = 0; s < steps; ++s) StepOnce(h, posed_at_end && steps == 1, report);
   report.wall_ms = MillisecondsSince(start);
   return report;
 }

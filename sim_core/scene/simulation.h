@@ -176,15 +176,16 @@ class Simulation {
              std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
              const StepperSettings& settings);
   /// Steps for the coming frame: solver.substeps, or as many as keep the skin near the
-  /// cloth within AvatarSpec::max_skin_travel a step (poses the avatar at the frame's end to
-  /// measure it; the first step poses it again).
-  int StepsThisFrame();
-  void StepOnce(double h, FrameReport& report);
+  /// cloth within AvatarSpec::max_skin_travel a step. Measuring poses the avatar at the
+  /// frame's end (`posed_at_end`); a split frame's first step poses it again.
+  int StepsThisFrame(bool& posed_at_end);
+  /// One step of h [s]; `avatar_posed`: the avatar already stands where the step ends.
+  void StepOnce(double h, bool avatar_posed, FrameReport& report);
   /// The time the avatar is posed at, and the posture transition's blend, `dt` [s] after
   /// state_.time.
   double AvatarTimeAfter(double dt) const;
   double PostureBlendAfter(double dt) const;
-  void MoveAvatar(double t, double h, FrameReport& report);
+  void MoveAvatar(double t, double h, bool posed, FrameReport& report);
   void StartGrab();
   /// Points the stepper at the grab's forces or anchors (or at none when not grabbing).
   void ConnectGrab();
