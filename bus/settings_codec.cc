@@ -45,6 +45,18 @@ sim::CoarseOperator CoarseOperatorFrom(std::int8_t op) {
                         ": must be 0 (rediscretised) or 1 (galerkin)");
 }
 
+using CP = costume_lcm::collision_parameters;
+
+sim::BodyCollisionMethod CollisionMethodFrom(std::int8_t method) {
+  switch (method) {
+    case CP::METHOD_SUPERQUADRIC: return sim::BodyCollisionMethod::kSuperquadric;
+    case CP::METHOD_MESH: return sim::BodyCollisionMethod::kMesh;
+    default: break;
+  }
+  throw sim::InputError("command SET_COLLISION: collision.method = " + std::to_string(method) +
+                        ": must be 0 (superquadric) or 1 (mesh)");
+}
+
 }  // namespace
 
 costume_lcm::solver_parameters ToMessage(const sim::SolverSettings& settings) {
@@ -101,6 +113,31 @@ sim::Material FromMessage(const costume_lcm::material_parameters& p) {
   material.shear_spring_k = p.shear_spring_k;
   material.bending_spring_k = p.bending_spring_k;
   return material;
+}
+
+costume_lcm::collision_parameters ToMessage(const sim::CollisionSettings& settings) {
+  costume_lcm::collision_parameters p{};
+  p.method = settings.method == sim::BodyCollisionMethod::kMesh ? CP::METHOD_MESH
+                                                                : CP::METHOD_SUPERQUADRIC;
+  p.thickness = settings.thickness;
+  p.friction = settings.friction;
+  p.max_skin_travel = settings.max_skin_travel;
+  p.max_steps_per_frame = settings.max_steps_per_frame;
+  p.superquadric_map_mb = settings.superquadric_map_mb;
+  p.self_collision = settings.self_collision;
+  return p;
+}
+
+sim::CollisionSettings FromMessage(const costume_lcm::collision_parameters& collision) {
+  sim::CollisionSettings settings;
+  settings.method = CollisionMethodFrom(collision.method);
+  settings.thickness = collision.thickness;
+  settings.friction = collision.friction;
+  settings.max_skin_travel = collision.max_skin_travel;
+  settings.max_steps_per_frame = collision.max_steps_per_frame;
+  settings.superquadric_map_mb = collision.superquadric_map_mb;
+  settings.self_collision = collision.self_collision;
+  return settings;
 }
 
 }  // namespace costume::bus

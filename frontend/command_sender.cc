@@ -89,6 +89,12 @@ bool CommandSender::SetSolver(const sim::SolverSettings& settings) {
   return Send(message);
 }
 
+bool CommandSender::SetCollision(const sim::CollisionSettings& settings) {
+  Command message = Blank(Command::KIND_SET_COLLISION);
+  message.collision = bus::ToMessage(settings);
+  return Send(message);
+}
+
 bool CommandSender::EliminateStretch(const Eigen::Vector3d& centre, double radius) {
   Command message = Blank(Command::KIND_ELIMINATE_STRETCH);
   for (int i = 0; i < 3; ++i) message.centre[i] = centre[i];

@@ -52,6 +52,8 @@ class CommandSender {
   bool SetMaterial(int garment, const sim::Material& material);
   /// SET_SOLVER with every field of `settings` (the server restarts from frame 0 with it).
   bool SetSolver(const sim::SolverSettings& settings);
+  /// SET_COLLISION with every field of `settings` (the server changes them in place).
+  bool SetCollision(const sim::CollisionSettings& settings);
   /// ELIMINATE_STRETCH over the sphere (`centre` [m], `radius` [m] > 0), grab_id = -1.
   bool EliminateStretch(const Eigen::Vector3d& centre, double radius);
   /// UNDO / REDO of the last stretch elimination (rest lengths).

@@ -193,6 +193,83 @@ bool SolverPanel::SetSettings(const sim::SolverSettings& s, QString* reason) {
   return true;
 }
 
+// ---- CollisionPanel -------------------------------------------------------------------------
+
+CollisionPanel::CollisionPanel(QWidget* parent) : QGroupBox("Collision", parent) {
+  method = new QComboBox;
+  method->addItems({"Mesh (accurate)", "Superquadrics (fast)"});
+  method->setToolTip(
+      "Mesh: the skinned mesh through a bounding-volume tree, for any motion. Superquadrics: "
+      "one per body segment with the skin mapped over it, fastest on a looping clip's later "
+      "passes, when its map drawings are reused (docs/collision.md)");
+  thickness_mm = Field({0.0, 50.0}, 1, "mm", "Cloth kept off the skin (and off itself)");
+  friction = Field({0.0, 2.0}, 2, "", "Coulomb friction between cloth and skin");
+  max_skin_travel_cm = Field({0.0, 100.0}, 1, "cm",
+                             "Farthest the skin near the cloth may move in one step: a frame "
+                             "in which a limb moves farther is split into more steps, so a "
+                             "kick does not pass through the cloth; 0 = never split");
+  max_skin_travel_cm->setSpecialValueText("never split");
+  max_steps_per_frame = new QSpinBox;
+  max_steps_per_frame->setRange(1, sim::kMaxStepsPerFrame);
+  max_steps_per_frame->setToolTip("Most steps a frame is split into for the skin's travel");
+  map_memory_mb = Field({0.0, sim::kMaxSuperquadricMapMb}, 0, "MB",
+                        "Superquadrics: memory for map drawings reused when the skin comes "
+                        "back (a looping clip); 0 = draw every map afresh");
+  self_collision = new QCheckBox("Cloth against itself");
+  self_collision->setToolTip("Self-collision; off costs nothing");
+  apply = new QPushButton("Apply collision");
+  auto* form = new QFormLayout(this);
+  form->addRow("Method", method);
+  form->addRow("Thickness", thickness_mm);
+  form->addRow("Friction on skin", friction);
+  form->addRow("Skin travel per step", max_skin_travel_cm);
+  form->addRow("Steps per frame, at most", max_steps_per_frame);
+  form->addRow("Map memory", map_memory_mb);
+  form->addRow(self_collision);
+  form->addRow(apply);
+  SetSettings(sim::CollisionSettingsOf(sim::SceneDescription{}));
+  connect(method, &QComboBox::currentIndexChanged, this, [this] { UpdateEnabled(); });
+  connect(max_skin_travel_cm, &QDoubleSpinBox::valueChanged, this, [this] { UpdateEnabled(); });
+  connect(apply, &QPushButton::clicked, this, [this] { emit collisionRequested(settings()); });
+}
+
+void CollisionPanel::UpdateEnabled() {
+  map_memory_mb->setEnabled(method->currentIndex() == 1);
+  max_steps_per_frame->setEnabled(max_skin_travel_cm->value() > 0.0);
+}
+
+sim::CollisionSettings CollisionPanel::settings() const {
+  sim::CollisionSettings s;
+  s.method = method->currentIndex() == 1 ? sim::BodyCollisionMethod::kSuperquadric
+                                         : sim::BodyCollisionMethod::kMesh;
+  s.thickness = thickness_mm->value() / 1000.0;
+  s.friction = friction->value();
+  s.max_skin_travel = max_skin_travel_cm->value() / 100.0;
+  s.max_steps_per_frame = max_steps_per_frame->value();
+  s.superquadric_map_mb = map_memory_mb->value();
+  s.self_collision = self_collision->isChecked();
+  return s;
+}
+
+bool CollisionPanel::SetSettings(const sim::CollisionSettings& s, QString* reason) {
+  if (!Fits(thickness_mm, s.thickness * 1000.0, "thickness", reason) ||
+      !Fits(friction, s.friction, "friction", reason) ||
+      !Fits(max_skin_travel_cm, s.max_skin_travel * 100.0, "max_skin_travel", reason) ||
+      !FitsInt(max_steps_per_frame, s.max_steps_per_frame, "max_steps_per_frame", reason) ||
+      !Fits(map_memory_mb, s.superquadric_map_mb, "superquadric_map_mb", reason)) {
+    return false;
+  }
+  method->setCurrentIndex(s.method == sim::BodyCollisionMethod::kSuperquadric ? 1 : 0);
+  thickness_mm->setValue(s.thickness * 1000.0);
+  friction->setValue(s.friction);
+  max_skin_travel_cm->setValue(s.max_skin_travel * 100.0);
+  max_steps_per_frame->setValue(s.max_steps_per_frame);
+  map_memory_mb->setValue(s.superquadric_map_mb);
+  self_collision->setChecked(s.self_collision);
+  UpdateEnabled();
+  return true;
+}
+
 // ---- PosturePanel ---------------------------------------------------------------------------
 
 const std::vector<std::string>& PostureJoints() {

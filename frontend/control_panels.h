@@ -1,11 +1,13 @@
 #pragma once
 /// @file
-/// The parameter panels of the main window: fabric, solver and the avatar's posture. Each
+/// The parameter panels of the main window: fabric, solver, collision and the avatar's
+/// posture. Each
 /// holds validated fields with units and emits one request signal when the designer applies
 /// it; the window turns requests into commands (command_sender.h). Ranges are physical
 /// ranges (docs/frontend.md): a spin box refuses a typed value outside its range, and the
 /// Set* methods refuse (returning false with the reason) values outside it too.
 
+#include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QGroupBox>
@@ -91,6 +93,35 @@ class SolverPanel : public QGroupBox {
 
  signals:
   void solverRequested(const sim::SolverSettings& settings);
+
+ private:
+  void UpdateEnabled();
+};
+
+/// Collision method, thickness, friction against the skin, the skin's travel per step and
+/// its step cap, the superquadric method's map memory, self-collision; Apply
+/// (KIND_SET_COLLISION). Lengths are shown in mm and cm, sent in metres.
+class CollisionPanel : public QGroupBox {
+  Q_OBJECT
+
+ public:
+  explicit CollisionPanel(QWidget* parent = nullptr);
+  sim::CollisionSettings settings() const;
+  /// Shows `settings`; false with the reason for a value outside the fields' ranges.
+  bool SetSettings(const sim::CollisionSettings& settings, QString* reason = nullptr);
+
+  /// Index 0 the mesh method (accurate), 1 superquadrics (fast).
+  QComboBox* method = nullptr;
+  QDoubleSpinBox* thickness_mm = nullptr;
+  QDoubleSpinBox* friction = nullptr;
+  QDoubleSpinBox* max_skin_travel_cm = nullptr;
+  QSpinBox* max_steps_per_frame = nullptr;
+  QDoubleSpinBox* map_memory_mb = nullptr;
+  QCheckBox* self_collision = nullptr;
+  QPushButton* apply = nullptr;
+
+ signals:
+  void collisionRequested(const sim::CollisionSettings& settings);
 
  private:
   void UpdateEnabled();

@@ -100,10 +100,12 @@ MainWindow::MainWindow(bus::MessageBus& bus, FrontendOptions options,
   auto* tabs = new QTabWidget;
   material_ = new MaterialPanel(FabricPresets());
   solver_ = new SolverPanel;
+  collision_ = new CollisionPanel;
   posture_ = new PosturePanel;
   tabs->addTab(BuildEditing(), "Editing");
   tabs->addTab(material_, "Fabric");
   tabs->addTab(solver_, "Solver");
+  tabs->addTab(collision_, "Collision");
   tabs->addTab(posture_, "Posture");
   auto* controls_dock = new QDockWidget("Controls", this);
   auto* scroll = new QScrollArea;
@@ -124,9 +126,9 @@ MainWindow::MainWindow(bus::MessageBus& bus, FrontendOptions options,
   BuildStatusBar();
   ConnectSignals();
   FillLists();
-  if (solver_->SetSettings(mirror_->scene().solver)) {
-    // The fields start at the scene's solver, so Apply without changes is a no-op request.
-  }
+  // The fields start at the scene's settings, so Apply without changes is a no-op request.
+  solver_->SetSettings(mirror_->scene().solver);
+  collision_->SetSettings(sim::CollisionSettingsOf(mirror_->scene()));
   Log("scene '" + QString::fromStdString(mirror_->scene().name) + "' mirrored: " +
       QString::number(mirror_->num_particles()) + " particles; catalogue: " +
       QString::fromStdString(catalog_->Describe()));
@@ -367,8 +369,14 @@ void MainWindow::ConnectSignals() {
   });
   connect(solver_, &SolverPanel::solverRequested, this, [this](const sim::SolverSettings& s) {
     sender_->SetSolver(s);
-    Log("solver sent: the server restarts the scene from frame 0 with it");
+    Log("solver sent: the server changes it in place, the cloth keeping its state");
   });
+  connect(collision_, &CollisionPanel::collisionRequested, this,
+          [this](const sim::CollisionSettings& s) {
+            sender_->SetCollision(s);
+            Log("collision sent: the server changes it in place (a new method, thickness or "
+                "friction builds a new collider: superquadrics take about a second)");
+          });
   connect(posture_, &PosturePanel::postureRequested, this,
           [this](const std::vector<JointAngles>& joints, double heading) {
             sender_->SetPosture(joints, heading);

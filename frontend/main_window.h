@@ -86,6 +86,7 @@ class MainWindow : public QMainWindow {
   QPushButton* load_button(EntryKind kind) const { return load_buttons_[static_cast<int>(kind)]; }
   MaterialPanel* material_panel() const { return material_; }
   SolverPanel* solver_panel() const { return solver_; }
+  CollisionPanel* collision_panel() const { return collision_; }
   PosturePanel* posture_panel() const { return posture_; }
   QAction* play_action() const { return play_; }
   QAction* pause_action() const { return pause_; }
@@ -168,6 +169,7 @@ class MainWindow : public QMainWindow {
   QPushButton* load_buttons_[3] = {};
   MaterialPanel* material_ = nullptr;
   SolverPanel* solver_ = nullptr;
+  CollisionPanel* collision_ = nullptr;
   PosturePanel* posture_ = nullptr;
   QAction* play_ = nullptr;
   QAction* pause_ = nullptr;

@@ -252,6 +252,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_UNDO: Undo(); return;
     case C::KIND_REDO: Redo(); return;
     case C::KIND_SET_SOLVER: SetSolver(command.solver); return;
+    case C::KIND_SET_COLLISION: SetCollision(command.collision); return;
     case C::KIND_SET_POSTURE: SetPosture(command); return;
     case C::KIND_LOAD_AVATAR: Load(LoadKind::kAvatar, command); return;
     case C::KIND_LOAD_COSTUME: Load(LoadKind::kCostume, command); return;
@@ -261,7 +262,7 @@ void SimServer::ApplyCommand(const costume_lcm::command& command) {
     case C::KIND_SET_SELECTION_RADIUS: return;  // the haptic server's (the grab's radius)
     default:
       ++ignored_.commands_refused;
-      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 15); ignored");
+      Warn("command kind = " + std::to_string(command.kind) + ": unknown (1 to 16); ignored");
   }
 }
 
@@ -338,6 +339,22 @@ void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string("command SET_SOLVER refused, solver unchanged: ") + error.what());
+  }
+}
+
+// Only how cloth collides changes (Simulation::SetCollision), as with SET_SOLVER: the state,
+// the edits and their history, the grab, the frame number and the avatar's clock stay.
+void SimServer::SetCollision(const costume_lcm::collision_parameters& collision) {
+  try {
+    const sim::CollisionSettings settings = bus::FromMessage(collision);
+    simulation_->SetCollision(settings);
+    sim::ApplyCollisionSettings(settings, scene_);
+    if (!scene_.avatar) {
+      Warn("command SET_COLLISION: the scene has no avatar; only self_collision applied");
+    }
+  } catch (const sim::InputError& error) {
+    ++ignored_.commands_refused;
+    Warn(std::string("command SET_COLLISION refused, collision unchanged: ") + error.what());
   }
 }
 

@@ -200,6 +200,7 @@ class SimServer {
   void Undo();
   void Redo();
   void SetSolver(const costume_lcm::solver_parameters& solver);
+  void SetCollision(const costume_lcm::collision_parameters& collision);
   void SetPosture(const costume_lcm::command& command);
   SceneCatalog* OpenCatalog(const std::string& command_name);
   void Load(LoadKind kind, const costume_lcm::command& command);

@@ -256,4 +256,29 @@ void ValidateScene(const SceneDescription& scene) {
   }
 }
 
+CollisionSettings CollisionSettingsOf(const SceneDescription& scene) {
+  const AvatarSpec avatar = scene.avatar ? *scene.avatar : AvatarSpec{};
+  CollisionSettings settings;
+  settings.method = avatar.collision;
+  settings.superquadric_map_mb = avatar.superquadric_map_mb;
+  settings.thickness = avatar.thickness;
+  settings.friction = avatar.friction;
+  settings.max_skin_travel = avatar.max_skin_travel;
+  settings.max_steps_per_frame = avatar.max_steps_per_frame;
+  settings.self_collision = scene.effects.self_collision;
+  return settings;
+}
+
+void ApplyCollisionSettings(const CollisionSettings& settings, SceneDescription& scene) {
+  scene.effects.self_collision = settings.self_collision;
+  if (!scene.avatar) return;
+  AvatarSpec& avatar = *scene.avatar;
+  avatar.collision = settings.method;
+  avatar.superquadric_map_mb = settings.superquadric_map_mb;
+  avatar.thickness = settings.thickness;
+  avatar.friction = settings.friction;
+  avatar.max_skin_travel = settings.max_skin_travel;
+  avatar.max_steps_per_frame = settings.max_steps_per_frame;
+}
+
 }  // namespace costume::sim

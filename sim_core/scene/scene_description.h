@@ -172,6 +172,26 @@ struct SceneDescription {
   std::optional<AvatarSpec> avatar;
 };
 
+/// How cloth collides, as a running scene changes it (Simulation::SetCollision, the GUI's
+/// Collision tab): the avatar's collision fields (AvatarSpec, which documents them) and the
+/// self-collision switch (Effects). Filled from a scene by CollisionSettingsOf.
+struct CollisionSettings {
+  BodyCollisionMethod method = BodyCollisionMethod::kMesh;
+  double superquadric_map_mb = 0.0;  ///< [MB]
+  double thickness = 0.0;            ///< [m]
+  double friction = 0.0;             ///< [-]
+  double max_skin_travel = 0.0;      ///< [m]; 0: never split a frame
+  int max_steps_per_frame = 1;
+  bool self_collision = false;
+};
+
+/// The scene's collision settings: its avatar's, or AvatarSpec's defaults when it has none.
+CollisionSettings CollisionSettingsOf(const SceneDescription& scene);
+
+/// Writes `settings` into `scene`: effects.self_collision, and the avatar's fields when it
+/// has an avatar (without one they have nothing to act on and are dropped).
+void ApplyCollisionSettings(const CollisionSettings& settings, SceneDescription& scene);
+
 /// Checks ranges that do not need a file (solver, rates, obstacles, garments have a shape);
 /// throws InputError naming scene.source and the field. BuildSimulation calls it.
 /// Messages read `<source>[:<line>]: <field> = <value>: <allowed range>`, e.g.

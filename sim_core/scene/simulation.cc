@@ -163,6 +163,37 @@ void Append(ClothModelData& whole, const ClothModelData& part) {
   }
 }
 
+/// The collider the scene's avatar asks for, following the avatar where it stands now
+/// (`h` [s]: the step its skin velocities are taken over until the next Update).
+std::unique_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
+                                                 const AvatarMotion& avatar, double h) {
+  const AvatarSpec& spec = *scene.avatar;
+  BodyCollisionSettings contact;
+  contact.thickness = spec.thickness;
+  contact.friction = scene.effects.friction ? spec.friction : 0.0;
+  auto body = MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
+  body->Update(avatar.joint_world(), avatar.vertices(), h);
+  return body;
+}
+
+/// Self-collision as the scene sets it (null when off: off costs nothing); the cloth keeps
+/// the avatar's thickness off itself too.
+std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
+                                                 std::shared_ptr<const ClothModel> model) {
+  if (!scene.effects.self_collision) return nullptr;
+  SelfCollisionSettings self;
+  if (scene.avatar) self.thickness = scene.avatar->thickness;
+  return std::make_unique<SelfCollision>(std::move(model), self);
+}
+
+/// Whether a collider built for `a` would differ from one built for `b` (what the
+/// constructor takes; the skin's travel per step is the simulation's own).
+bool SameCollider(const AvatarSpec& a, const AvatarSpec& b, const Effects& ea,
+                  const Effects& eb) {
+  return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb &&
+         a.thickness == b.thickness && a.friction == b.friction && ea.friction == eb.friction;
+}
+
 }  // namespace
 
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
@@ -248,19 +279,11 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   if (scene_.avatar) {
     const AvatarSpec& spec = *scene_.avatar;
     avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, spec.motion);
-    BodyCollisionSettings contact;
-    contact.thickness = spec.thickness;
-    contact.friction = scene_.effects.friction ? spec.friction : 0.0;
-    body_ = MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
-    body_->Update(avatar_->joint_world(), avatar_->vertices(), step());
+    body_ = MakeAvatarCollider(scene_, *avatar_, step());
     attachments_ = std::move(attachments);
   }
-  if (scene_.effects.self_collision) {
-    SelfCollisionSettings self;
-    if (scene_.avatar) self.thickness = scene_.avatar->thickness;
-    self_collision_ = std::make_unique<SelfCollision>(model_, self);
-    start_positions_ = state_.positions;
-  }
+  self_collision_ = MakeSelfCollision(scene_, model_);
+  if (self_collision_) start_positions_ = state_.positions;
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
 }
@@ -521,6 +544,27 @@ void Simulation::SetSolver(const SolverSettings& solver) {
   BuildSolver(StepperSettingsOf(scene));
   scene_ = std::move(scene);
   for (std::vector<std::shared_ptr<const ClothModel>>& revision : undo_) revision.resize(1);
+}
+
+void Simulation::SetCollision(const CollisionSettings& settings) {
+  SceneDescription scene = scene_;
+  ApplyCollisionSettings(settings, scene);
+  ValidateScene(scene);  // throws before anything changes
+  // Built before anything is replaced, so a failure leaves the old colliders in place.
+  std::unique_ptr<BodyCollider> body;
+  if (avatar_ && !SameCollider(*scene.avatar, *scene_.avatar, scene.effects, scene_.effects)) {
+    body = MakeAvatarCollider(scene, *avatar_, step());
+  }
+  const bool self_changed =
+      scene.effects.self_collision != scene_.effects.self_collision ||
+      (scene.avatar && scene.avatar->thickness != scene_.avatar->thickness);
+  std::unique_ptr<SelfCollision> self = self_changed ? MakeSelfCollision(scene, model_) : nullptr;
+  if (body) body_ = std::move(body);
+  if (self_changed) {
+    self_collision_ = std::move(self);
+    if (self_collision_) start_positions_ = state_.positions;
+  }
+  scene_ = std::move(scene);
 }
 
 bool Simulation::SetPosture(const Pose& posture, double transition_time) {

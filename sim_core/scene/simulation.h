@@ -130,6 +130,17 @@ class Simulation {
   /// nothing for settings the scene would refuse.
   void SetSolver(const SolverSettings& solver);
 
+  /// Changes how cloth collides (CollisionSettings: the avatar's method, thickness, friction,
+  /// skin travel per step and map memory, and self-collision) in place, as SetSolver does:
+  /// the state, the edits, the undo history, the grab and the avatar's clock are kept, and
+  /// the next step uses the new settings. A new method, thickness, friction or map memory
+  /// builds a new collider around the avatar where it stands (the superquadric method fits
+  /// its segments again: 0.5–0.8 s; its stored drawings are dropped); self-collision
+  /// switched on is built, switched off freed. Without an avatar only self-collision
+  /// applies. Throws InputError (ValidateScene) and changes nothing for settings the scene
+  /// would refuse.
+  void SetCollision(const CollisionSettings& settings);
+
   /// Edits that UndoEdit can still take back.
   int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
 

@@ -95,5 +95,44 @@ TEST(SettingsCodec, MaterialFieldsSurviveTheTrip) {
   EXPECT_DOUBLE_EQ(back.bending_spring_k, 3.5);
 }
 
+TEST(SettingsCodec, EveryCollisionSettingSurvivesTheTrip) {
+  for (sim::BodyCollisionMethod method :
+       {sim::BodyCollisionMethod::kSuperquadric, sim::BodyCollisionMethod::kMesh}) {
+    for (bool self : {false, true}) {
+      sim::CollisionSettings s;
+      s.method = method;
+      s.thickness = 0.007;
+      s.friction = 0.8;
+      s.max_skin_travel = 0.03;
+      s.max_steps_per_frame = 12;
+      s.superquadric_map_mb = 64.0;
+      s.self_collision = self;
+      const sim::CollisionSettings back = FromMessage(ToMessage(s));
+      EXPECT_EQ(back.method, method);
+      EXPECT_DOUBLE_EQ(back.thickness, 0.007);
+      EXPECT_DOUBLE_EQ(back.friction, 0.8);
+      EXPECT_DOUBLE_EQ(back.max_skin_travel, 0.03);
+      EXPECT_EQ(back.max_steps_per_frame, 12);
+      EXPECT_DOUBLE_EQ(back.superquadric_map_mb, 64.0);
+      EXPECT_EQ(back.self_collision, self);
+    }
+  }
+  sim::CollisionSettings mesh;
+  mesh.method = sim::BodyCollisionMethod::kMesh;
+  EXPECT_EQ(ToMessage(mesh).method, costume_lcm::collision_parameters::METHOD_MESH);
+}
+
+TEST(SettingsCodec, AnUnknownCollisionMethodIsRefusedNamingTheField) {
+  costume_lcm::collision_parameters bad{};
+  bad.method = 2;
+  try {
+    FromMessage(bad);
+    FAIL() << "method 2 accepted";
+  } catch (const sim::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("collision.method = 2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("superquadric"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace costume::bus

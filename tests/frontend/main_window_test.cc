@@ -167,6 +167,48 @@ TEST_F(MainWindowTest, SolverControlsSendSetSolver) {
   EXPECT_EQ(One().solver.method, costume_lcm::solver_parameters::METHOD_DIRECT);
 }
 
+// Shown in mm and cm, sent in metres; the map memory only for superquadrics, the step cap
+// only while frames may be split.
+TEST_F(MainWindowTest, CollisionControlsSendSetCollision) {
+  CollisionPanel* panel = window_->collision_panel();
+  EXPECT_EQ(panel->method->currentIndex(), 0);  // the scene's (the default: mesh)
+  EXPECT_DOUBLE_EQ(panel->thickness_mm->value(), 4.0);
+  EXPECT_FALSE(panel->map_memory_mb->isEnabled());
+  panel->method->setCurrentIndex(1);
+  EXPECT_TRUE(panel->map_memory_mb->isEnabled());
+  panel->thickness_mm->setValue(7.0);
+  panel->friction->setValue(0.8);
+  panel->max_skin_travel_cm->setValue(3.0);
+  panel->max_steps_per_frame->setValue(12);
+  panel->map_memory_mb->setValue(64.0);
+  panel->self_collision->setChecked(true);
+  panel->apply->click();
+  Command c = One();
+  EXPECT_EQ(c.kind, Command::KIND_SET_COLLISION);
+  EXPECT_EQ(c.collision.method, costume_lcm::collision_parameters::METHOD_SUPERQUADRIC);
+  EXPECT_DOUBLE_EQ(c.collision.thickness, 0.007);
+  EXPECT_DOUBLE_EQ(c.collision.friction, 0.8);
+  EXPECT_DOUBLE_EQ(c.collision.max_skin_travel, 0.03);
+  EXPECT_EQ(c.collision.max_steps_per_frame, 12);
+  EXPECT_DOUBLE_EQ(c.collision.superquadric_map_mb, 64.0);
+  EXPECT_TRUE(c.collision.self_collision);
+
+  panel->max_skin_travel_cm->setValue(0.0);
+  EXPECT_FALSE(panel->max_steps_per_frame->isEnabled());
+  panel->method->setCurrentIndex(0);
+  panel->apply->click();
+  c = One();
+  EXPECT_EQ(c.collision.method, costume_lcm::collision_parameters::METHOD_MESH);
+  EXPECT_EQ(c.collision.max_skin_travel, 0.0);
+
+  sim::CollisionSettings thick = panel->settings();
+  thick.thickness = 0.2;
+  QString reason;
+  EXPECT_FALSE(panel->SetSettings(thick, &reason));
+  EXPECT_TRUE(reason.contains("thickness = 200")) << reason.toStdString();
+  EXPECT_DOUBLE_EQ(panel->thickness_mm->value(), 7.0);  // unchanged
+}
+
 TEST_F(MainWindowTest, PlaybackAndModeControlsSendTheirKinds) {
   window_->play_action()->trigger();
   EXPECT_EQ(One().kind, Command::KIND_PLAY);

@@ -18,6 +18,7 @@
 #include "assets/scene_file.h"
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
+#include "bus/settings_codec.h"
 #include "bus/typed_bus.h"
 #include "sim_core/app/sim_server.h"
 #include "sim_core/avatar/hanim.h"
@@ -804,6 +805,44 @@ TEST_F(PostureTest, UnknownJointsAndNonFiniteAnglesAreRefusedNamingTheField) {
   EXPECT_EQ(server_->ignored().commands_refused, 3);
   Step(35);
   EXPECT_EQ(server_->simulation().avatar()->pose().orientation.coeffs(), before.coeffs());
+}
+
+// SET_COLLISION on the garment scene: the method changes in place (the frames carry on, the
+// server's scene follows for a later rebuild); a thickness out of range is refused with a
+// warning naming the field, and the collider stays.
+TEST_F(PostureTest, SetCollisionChangesTheMethodInPlaceAndRefusesBadValues) {
+  Step(5);
+  const std::int64_t frame = received_.frame;
+  command c{};
+  c.kind = command::KIND_SET_COLLISION;
+  c.collision = bus::ToMessage(sim::CollisionSettingsOf(server_->scene()));
+  const bool was_mesh = server_->scene().avatar->collision == sim::BodyCollisionMethod::kMesh;
+  const sim::BodyCollisionMethod wanted =
+      was_mesh ? sim::BodyCollisionMethod::kSuperquadric : sim::BodyCollisionMethod::kMesh;
+  c.collision.method = was_mesh ? costume_lcm::collision_parameters::METHOD_SUPERQUADRIC
+                                : costume_lcm::collision_parameters::METHOD_MESH;
+  c.collision.max_skin_travel = 0.03;
+  SendCommand(c);
+  Step();
+  EXPECT_TRUE(server_->pending_warnings().empty());
+  EXPECT_EQ(received_.frame, frame + 1);  // no rebuild
+  EXPECT_EQ(server_->simulation().scene().avatar->collision, wanted);
+  EXPECT_EQ(server_->scene().avatar->collision, wanted);
+  EXPECT_EQ(server_->scene().avatar->max_skin_travel, 0.03);
+  const sim::BodyCollider* collider = server_->simulation().body_collider();
+  c.collision.thickness = 0.2;
+  received_.statuses.clear();
+  SendCommand(c);
+  Step();  // the warning makes the status go out at the end of the Step
+  Step();
+  ASSERT_FALSE(received_.statuses.empty());
+  const std::vector<std::string>& w = received_.statuses.back().warnings;
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("SET_COLLISION refused"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("avatar.thickness = 0.2"), std::string::npos) << w[0];
+  EXPECT_EQ(server_->simulation().body_collider(), collider);
+  EXPECT_EQ(server_->scene().avatar->thickness, 0.004);
+  EXPECT_EQ(server_->ignored().commands_refused, 1);
 }
 
 TEST_F(SimServerTest, SetPostureWithoutAnAvatarIsRefused) {
