@@ -62,7 +62,7 @@ FabricParameters BuiltInGarmentFabric() {
   f.shear_stiffness = 300.0;
   f.bend_stiffness = 5e-6;
   f.damping = 1e-3;
-  f.friction = 0.3;
+  f.friction = 0.5;
   return f;
 }
 

@@ -95,6 +95,7 @@ sim::SceneDescription GarmentScene(std::shared_ptr<const sim::Avatar> avatar,
   cotton.density = 0.15;
   cotton.stretch_stiffness = cotton.shear_stiffness = 300.0;
   cotton.bending_rigidity = 5e-6;
+  cotton.friction = 0.5;  // scenes/garment.toml's: on the skin's 0.5, contacts at 0.5
   scene.materials.push_back(cotton);
   sim::GarmentSpec garment;
   garment.name = options.garment;

@@ -25,7 +25,9 @@ struct Material {
   double damping = 1e-3;
   /// Linear air drag [N·s/m per m² of cloth]: a particle of area a feels −air_drag·a·v.
   double air_drag = 0.02;
-  /// Coulomb friction coefficient against obstacles [-].
+  /// Coulomb friction coefficient against obstacles [-]: a contact's coefficient is the
+  /// geometric mean of this and the obstacle's (the avatar's or a sphere's friction;
+  /// MixFriction, sim_core/collision/contact.h).
   double friction = 0.3;
   /// When > 0, the spring constants below override the sheet stiffnesses [N/m] for every
   /// spring of that kind (used for like-for-like runs against Blender's per-spring presets).

@@ -3,6 +3,8 @@
 /// A cloth particle touching an obstacle, as the implicit solve sees it.
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 
 namespace costume::sim {
 
@@ -23,5 +25,13 @@ struct Contact {
   /// by the stepper.
   double normal_impulse = 0.0;
 };
+
+/// The friction coefficient of a fabric of coefficient `fabric` on an obstacle of
+/// coefficient `obstacle` (the avatar's skin, a sphere) [-]: their geometric mean, Box2D's
+/// mixing rule (b2MixFriction). Either at 0 gives 0 (a frictionless body, or fabric), equal
+/// coefficients give that coefficient, and a slippery fabric slides on any body.
+inline double MixFriction(double fabric, double obstacle) {
+  return std::sqrt(std::max(0.0, fabric) * std::max(0.0, obstacle));
+}
 
 }  // namespace costume::sim

@@ -186,6 +186,24 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
   return std::make_unique<SelfCollision>(std::move(model), self);
 }
 
+/// Each particle's fabric friction (MixFriction's `fabric`), from its garment's material;
+/// -1 for a prebuilt garment whose material the scene does not know (its contacts keep the
+/// obstacle's coefficient).
+std::vector<double> FabricFriction(const SceneDescription& scene,
+                                   const std::vector<GarmentRange>& garments, int num_particles) {
+  std::vector<double> friction(num_particles, -1.0);
+  for (std::size_t g = 0; g < garments.size() && g < scene.garments.size(); ++g) {
+    double value = -1.0;
+    try {
+      value = ResolveMaterial(scene, scene.garments[g]).friction;
+    } catch (const InputError&) {
+      if (!scene.garments[g].model) throw;  // BuildGarment resolved it: cannot happen
+    }
+    std::fill_n(friction.begin() + garments[g].first_particle, garments[g].num_particles, value);
+  }
+  return friction;
+}
+
 /// Whether a collider built for `a` would differ from one built for `b` (what the
 /// constructor takes; the skin's travel per step is the simulation's own).
 bool SameCollider(const AvatarSpec& a, const AvatarSpec& b, const Effects& ea,
@@ -286,6 +304,7 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   if (self_collision_) start_positions_ = state_.positions;
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
+  fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
 }
 
 int Simulation::num_frames() const {
@@ -342,6 +361,10 @@ void Simulation::FindContacts(double h, FrameReport& report) {
     body_->FindContacts(state_.positions, state_.velocities, h, 0.5 * scene_.avatar->thickness,
                         contacts_);
     report.collision_ms += MillisecondsSince(start);
+  }
+  for (Contact& contact : contacts_) {
+    const double fabric = fabric_friction_[contact.particle];
+    if (fabric >= 0.0) contact.friction = MixFriction(fabric, contact.friction);
   }
 }
 

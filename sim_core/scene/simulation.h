@@ -254,6 +254,8 @@ class Simulation {
   /// where a frame is split for the skin's travel, and friction needs the force).
   std::vector<double> normal_impulse_;
   double last_step_ = 0.0;
+  /// Each particle's fabric friction, mixed into its contacts' (MixFriction); -1: none.
+  std::vector<double> fabric_friction_;
   /// The skin where the frame starts (StepsThisFrame's measure).
   Points frame_start_skin_;
 };

@@ -125,6 +125,7 @@ SuitRun RunSuit(bool fit, double walk_seconds,
   cotton.density = 0.15;
   cotton.stretch_stiffness = cotton.shear_stiffness = 300.0;
   cotton.bending_rigidity = 5e-6;
+  cotton.friction = 0.5;  // as scenes/garment.toml's skirt_cotton
   scene.materials.push_back(cotton);
   GarmentSpec suit;
   suit.name = garment;
