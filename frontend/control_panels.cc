@@ -57,7 +57,9 @@ MaterialPanel::MaterialPanel(std::vector<FabricPreset> presets, QWidget* parent)
   shear = Field(r.shear, 1, "N/m", "Sheet shear stiffness");
   bending = Field(r.bending, 8, "N·m", "Bending rigidity");
   damping = Field(r.damping, 5, "s", "Spring damping time (c = damping · k)");
-  friction = Field(r.friction, 2, "", "Coulomb friction against the body");
+  friction = Field(r.friction, 2, "",
+                   "The fabric's Coulomb coefficient: a contact's is the geometric mean of "
+                   "this and the body's (the skin's, a sphere's)");
   air_drag = Field(r.air_drag, 3, "N·s/m³", "Air drag per m² of cloth");
   preset = new QComboBox;
   preset->addItem("custom");
@@ -203,7 +205,9 @@ CollisionPanel::CollisionPanel(QWidget* parent) : QGroupBox("Collision", parent)
       "one per body segment with the skin mapped over it, fastest on a looping clip's later "
       "passes, when its map drawings are reused (docs/collision.md)");
   thickness_mm = Field({0.0, 50.0}, 1, "mm", "Cloth kept off the skin (and off itself)");
-  friction = Field({0.0, 2.0}, 2, "", "Coulomb friction between cloth and skin");
+  friction = Field({0.0, 2.0}, 2, "",
+                   "The skin's Coulomb coefficient: a contact's is the geometric mean of "
+                   "this and the fabric's friction");
   max_skin_travel_cm = Field({0.0, 100.0}, 1, "cm",
                              "Farthest the skin near the cloth may move in one step: a frame "
                              "in which a limb moves farther is split into more steps, so a "
@@ -221,7 +225,7 @@ CollisionPanel::CollisionPanel(QWidget* parent) : QGroupBox("Collision", parent)
   auto* form = new QFormLayout(this);
   form->addRow("Method", method);
   form->addRow("Thickness", thickness_mm);
-  form->addRow("Friction on skin", friction);
+  form->addRow("Skin friction", friction);
   form->addRow("Skin travel per step", max_skin_travel_cm);
   form->addRow("Steps per frame, at most", max_steps_per_frame);
   form->addRow("Map memory", map_memory_mb);

@@ -28,6 +28,9 @@ struct Options {
   bool write_frames = true;
   bool quiet = false;
   double duration = 0.0;
+  /// Overrides of the scene's collision method and self-collision switch ("" keeps them).
+  std::string collision;
+  std::string self_collision;
 };
 
 costume::sim::SceneDescription LoadScene(const Options& options) {
@@ -64,23 +67,49 @@ void PrintFrame(int frame, int num_frames, const Simulation& sim, const FrameRep
               r.rolled_back_steps ? "  [non-finite step undone]" : "");
 }
 
+/// The command line's overrides of how cloth collides (CollisionSettings, as the GUI's
+/// Collision tab sets them).
+void ApplyCollisionOverrides(const Options& options, costume::sim::SceneDescription& scene) {
+  costume::sim::CollisionSettings settings = costume::sim::CollisionSettingsOf(scene);
+  if (!options.collision.empty()) {
+    if (!scene.avatar) {
+      throw costume::sim::InputError(scene.source + ": --collision " + options.collision +
+                                     ": the scene has no avatar to collide with");
+    }
+    settings.method = options.collision == "mesh" ? costume::sim::BodyCollisionMethod::kMesh
+                                                  : costume::sim::BodyCollisionMethod::kSuperquadric;
+  }
+  if (!options.self_collision.empty()) settings.self_collision = options.self_collision == "on";
+  costume::sim::ApplyCollisionSettings(settings, scene);
+}
+
+const char* CollisionName(const costume::sim::SceneDescription& scene) {
+  if (!scene.avatar) return "none";
+  return scene.avatar->collision == costume::sim::BodyCollisionMethod::kMesh ? "mesh"
+                                                                             : "superquadric";
+}
+
 int Run(const Options& options) {
   costume::sim::SceneDescription scene = LoadScene(options);
   if (options.duration > 0) scene.duration = options.duration;
+  ApplyCollisionOverrides(options, scene);
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   auto sim = Simulation::Build(scene);
   const std::filesystem::path out = std::filesystem::path(options.out_dir) / scene.name;
   if (options.write_frames) std::filesystem::create_directories(out);
   const int num_frames = sim->num_frames();
-  std::printf("%d particles, %d springs, %d frames at %.0f Hz, solver %s, %d substep(s)\n",
+  std::printf("%d particles, %d springs, %d frames at %.0f Hz, solver %s, %d substep(s), "
+              "avatar collision %s, self-collision %s\n",
               sim->model().num_particles(), sim->model().num_springs(), num_frames,
               scene.frame_rate, costume::sim::SolverMethodName(scene.solver.method),
-              scene.solver.substeps);
-  std::vector<double> frame_ms;
+              scene.solver.substeps, CollisionName(scene),
+              scene.effects.self_collision ? "on" : "off");
+  std::vector<double> frame_ms, collision_ms;
   int rolled_back = 0;
   for (int frame = 1; frame <= num_frames; ++frame) {
     const FrameReport report = sim->AdvanceFrame();
     frame_ms.push_back(report.wall_ms);
+    collision_ms.push_back(report.collision_ms + report.collision_update_ms);
     rolled_back += report.rolled_back_steps;
     if (!options.quiet) PrintFrame(frame, num_frames, *sim, report);
     if (options.write_frames) {
@@ -91,8 +120,12 @@ int Run(const Options& options) {
     }
   }
   const auto strain = costume::sim::StructuralStrain(sim->model(), sim->state().positions);
-  std::printf("done: median %.2f ms/frame, max strain %.2f%%, mean |strain| %.3f%%%s\n",
-              Median(frame_ms), 100 * strain.max, 100 * strain.mean,
+  char collision[64] = "";
+  if (sim->body_collider()) {
+    std::snprintf(collision, sizeof(collision), " (avatar collision %.2f)", Median(collision_ms));
+  }
+  std::printf("done: median %.2f ms/frame%s, max strain %.2f%%, mean |strain| %.3f%%%s\n",
+              Median(frame_ms), collision, 100 * strain.max, 100 * strain.mean,
               rolled_back ? ", some steps undone (see above)" : "");
   if (options.write_frames) std::printf("frames written to %s/frame_*.obj\n", out.c_str());
   return 0;
@@ -116,6 +149,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 3600.0));
   app.add_flag("!--no-frames", options.write_frames, "Do not write OBJ frames");
   app.add_flag("--quiet", options.quiet, "Print only the summary");
+  app.add_option("--collision", options.collision,
+                 "Override the avatar's collision method: superquadric (fast on a looping "
+                 "clip's later passes) or mesh (accurate; docs/collision.md)")
+      ->check(CLI::IsMember({"superquadric", "mesh"}));
+  app.add_option("--self-collision", options.self_collision,
+                 "Override the scene's self-collision (off costs nothing)")
+      ->check(CLI::IsMember({"on", "off"}));
   CLI11_PARSE(app, argc, argv);
   try {
     return Run(options);
