@@ -279,6 +279,20 @@ bool TriangleWithinReach(double reach, int triangle, const SegmentSkin& skin,
   return std::abs(plane) > 1e-12 * length * c0.norm() && std::abs(plane) < reach * length;
 }
 
+/// The first and last of the grid lines 0..n of a face side at or after (before) the face
+/// coordinate x in [-1, 1] (clamped), within 1e-9 of a line. Grid positions are >= 0 once
+/// clamped, so truncation is floor (std::ceil and floor are library calls on the baseline
+/// x86-64 this builds for).
+int FirstGridLine(double x, int n) {
+  const double g = 0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9;
+  const int floor = static_cast<int>(std::max(g, 0.0));
+  return floor + (floor < g ? 1 : 0);
+}
+
+int LastGridLine(double x, int n) {
+  return std::min(n, static_cast<int>(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9));
+}
+
 /// Calls visit(face, index, lambda) for every map node (a face's grid point `index`) whose
 /// ray passes through `triangle`, lambda being the hit in units of the node's point on the
 /// box (so the radius is lambda times its distance from the centre); `normal` and `plane`
@@ -343,17 +357,8 @@ void RasterizeTriangle(const SkinDistanceMap& map, int triangle, const SegmentSk
       if (s_lo > 1.0 || s_hi < -1.0 || t_lo > 1.0 || t_hi < -1.0) continue;
     }
     const int nj = map.intervals[j], nk = map.intervals[k];
-    // Grid positions are >= 0 once clamped, so truncation is floor (std::ceil and floor
-    // are library calls on the baseline x86-64 this builds for).
-    const auto first = [](double x, int n) {
-      const double g = 0.5 * (std::max(x, -1.0) + 1.0) * n - 1e-9;
-      const int floor = static_cast<int>(std::max(g, 0.0));
-      return floor + (floor < g ? 1 : 0);
-    };
-    const auto last = [](double x, int n) {
-      return std::min(n, static_cast<int>(0.5 * (std::min(x, 1.0) + 1.0) * n + 1e-9));
-    };
-    const int u_hi = last(s_hi, nj), v_lo = first(t_lo, nk), v_hi = last(t_hi, nk);
+    const int u_hi = LastGridLine(s_hi, nj), v_lo = FirstGridLine(t_lo, nk),
+              v_hi = LastGridLine(t_hi, nk);
     // The node (u, v)'s ray runs through its point on the box, B = σ·a_i·e_i +
     // a_j·(2u/nj − 1)·e_j + a_k·(2v/nk − 1)·e_k: computed, not loaded. The inside tests
     // hold for B as for the unit ray, and the hit lies at plane / (normal·B) times |B|.
@@ -368,7 +373,7 @@ void RasterizeTriangle(const SkinDistanceMap& map, int triangle, const SegmentSk
     base[k] = -size[k];
     const double e0v = edge_planes[0].dot(step_v), e1v = edge_planes[1].dot(step_v),
                  e2v = edge_planes[2].dot(step_v), nv = normal.dot(step_v);
-    const int u_lo = first(s_lo, nj);
+    const int u_lo = FirstGridLine(s_lo, nj);
     for (int u = u_lo; u <= u_hi; ++u) {
       const Eigen::Vector3d row = base + u * step_u + v_lo * step_v;
       double b0 = edge_planes[0].dot(row), b1 = edge_planes[1].dot(row),
@@ -389,13 +394,23 @@ void RasterizeTriangle(const SkinDistanceMap& map, int triangle, const SegmentSk
   }
 }
 
+/// Finds, once for the drawing's passes, which triangles can stop a ray within `reach`
+/// and their normals and planes (TriangleWithinReach; SegmentSkin::triangle_reached).
+void ClassifyTriangles(double reach, SegmentSkin& skin) {
+  for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
+    skin.triangle_reached[tri] = TriangleWithinReach(reach, static_cast<int>(tri), skin,
+                                                     skin.triangle_side[tri],
+                                                     skin.triangle_plane[tri]);
+  }
+}
+
 /// Draws one skin triangle into the map: every node whose ray leaves the skin through it
 /// keeps the nearer of its current hit and this one (the ray's first exit).
-void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, SegmentSkin& skin) {
-  Eigen::Vector3d normal;
-  double plane = 0.0;
+void DrawTriangle(const SkinDistanceMap& map, int triangle, SegmentSkin& skin) {
+  const Eigen::Vector3d& normal = skin.triangle_side[triangle];
+  const double plane = skin.triangle_plane[triangle];
   // Rays entering the skin stop nothing here (MarkFoldedRays looks at them).
-  if (!TriangleWithinReach(reach, triangle, skin, normal, plane) || plane < 0.0) return;
+  if (!skin.triangle_reached[triangle] || plane < 0.0) return;
   skin.triangle_normal[triangle] = normal.normalized();
   RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
     double& hit = skin.face_hit[f][index];
@@ -411,13 +426,13 @@ void DrawTriangle(const SkinDistanceMap& map, double reach, int triangle, Segmen
 /// skin, so it need not be where the ray leaves the body (MakeHuman's kick pushes the
 /// thigh's skin through the groin's, and the thigh's centre saw a point 3.6 mm inside the
 /// skin 2 mm outside its shell). At most kMaxFoldedRays are marked. Returns whether any.
-bool MarkFoldedRays(const SkinDistanceMap& map, double reach, SegmentSkin& skin) {
+bool MarkFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
     const int triangle = static_cast<int>(tri);
-    Eigen::Vector3d normal;
-    double plane = 0.0;
-    if (!TriangleWithinReach(reach, triangle, skin, normal, plane) || plane > 0.0) continue;
-    RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
+    const double plane = skin.triangle_plane[tri];
+    if (!skin.triangle_reached[tri] || plane > 0.0) continue;
+    RasterizeTriangle(map, triangle, skin, skin.triangle_side[tri], plane,
+                      [&](int f, int index, double lambda) {
       const double hit = skin.face_hit[f][index];
       int& slot = skin.face_slot[f][index];
       if (hit < 0.0 || lambda >= hit || slot >= 0 || skin.num_folded == kMaxFoldedRays) return;
@@ -429,19 +444,54 @@ bool MarkFoldedRays(const SkinDistanceMap& map, double reach, SegmentSkin& skin)
   return skin.num_folded > 0;
 }
 
+/// The grid box of each face's folded rays (SegmentSkin::folded_box).
+void BoxFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
+  for (std::array<int, 4>& box : skin.folded_box) box = {1, 0, 1, 0};  // empty
+  for (int slot = 0; slot < skin.num_folded; ++slot) {
+    const auto [f, index] = skin.folded_ray[slot];
+    const int rows = map.intervals[(f / 2 + 2) % 3] + 1;  // a face's points are u-major
+    const int u = index / rows, v = index % rows;
+    std::array<int, 4>& box = skin.folded_box[f];
+    if (box[0] > box[1]) box = {u, u, v, v};
+    box = {std::min(box[0], u), std::max(box[1], u), std::min(box[2], v), std::max(box[3], v)};
+  }
+}
+
+/// Whether `triangle`, its corners all towards one face, projects onto none of that face's
+/// folded rays: RasterizeTriangle, which visits the same grid box, would then visit none
+/// of them. A triangle over several faces is not decided here (false).
+bool MissesFoldedRays(const SkinDistanceMap& map, int triangle, const SegmentSkin& skin) {
+  const Eigen::Vector3i& corners = skin.triangles[triangle];
+  const int f = skin.face[corners[0]];
+  if (skin.face[corners[1]] != f || skin.face[corners[2]] != f) return false;
+  const std::array<int, 4>& box = skin.folded_box[f];
+  if (box[0] > box[1]) return true;
+  const int i = f / 2, nj = map.intervals[(i + 1) % 3], nk = map.intervals[(i + 2) % 3];
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double s_lo = kInf, s_hi = -kInf, t_lo = kInf, t_hi = -kInf;
+  for (int c = 0; c < 3; ++c) {
+    const Eigen::Vector2d& st = skin.face_point[corners[c]];
+    s_lo = std::min(s_lo, st.x()), s_hi = std::max(s_hi, st.x());
+    t_lo = std::min(t_lo, st.y()), t_hi = std::max(t_hi, st.y());
+  }
+  return FirstGridLine(s_lo, nj) > box[1] || LastGridLine(s_hi, nj) < box[0] ||
+         FirstGridLine(t_lo, nk) > box[3] || LastGridLine(t_hi, nk) < box[2];
+}
+
 /// Moves each folded ray's hit to where it leaves the skin the map holds for good: its
 /// crossings with every triangle, in order, wind it in (entry) and out (exit) from 1 at
 /// the centre, and the first exit that takes the count to 0 holds. A ray whose count never
 /// gets there (its skin's other side is not in the map) or that crosses more than
 /// kMaxCrossingsPerRay triangles keeps its first exit.
-void ResolveFoldedRays(const SkinDistanceMap& map, double reach, SegmentSkin& skin) {
+void ResolveFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
+  BoxFoldedRays(map, skin);
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
     const int triangle = static_cast<int>(tri);
-    Eigen::Vector3d normal;
-    double plane = 0.0;
-    if (!TriangleWithinReach(reach, triangle, skin, normal, plane)) continue;
+    if (!skin.triangle_reached[tri] || MissesFoldedRays(map, triangle, skin)) continue;
+    const double plane = skin.triangle_plane[tri];
     const int signed_triangle = plane > 0.0 ? triangle + 1 : -(triangle + 1);
-    RasterizeTriangle(map, triangle, skin, normal, plane, [&](int f, int index, double lambda) {
+    RasterizeTriangle(map, triangle, skin, skin.triangle_side[tri], plane,
+                      [&](int f, int index, double lambda) {
       const int slot = skin.face_slot[f][index];
       if (slot < 0) return;
       int& count = skin.folded_count[slot];
@@ -547,10 +597,11 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
                                  : Eigen::Vector2d::Zero();
   }
   for (int f = 0; f < 6; ++f) std::fill(skin.face_hit[f].begin(), skin.face_hit[f].end(), -1.0);
+  ClassifyTriangles(segment.reach, skin);
   for (std::size_t tri = 0; tri < skin.triangles.size(); ++tri) {
-    DrawTriangle(map, segment.reach, static_cast<int>(tri), skin);
+    DrawTriangle(map, static_cast<int>(tri), skin);
   }
-  if (MarkFoldedRays(map, segment.reach, skin)) ResolveFoldedRays(map, segment.reach, skin);
+  if (MarkFoldedRays(map, skin)) ResolveFoldedRays(map, skin);
   // The faces' grids share their edge nodes: the nearest hit of each holds.
   std::fill(skin.hit_radius.begin(), skin.hit_radius.end(), -1.0);
   for (int f = 0; f < 6; ++f) {
@@ -1037,6 +1088,9 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   skin.face.assign(skin.vertices.size(), 0);
   skin.face_point.assign(skin.vertices.size(), Eigen::Vector2d::Zero());
   skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
+  skin.triangle_reached.assign(skin.triangles.size(), 0);
+  skin.triangle_side.assign(skin.triangles.size(), Eigen::Vector3d::Zero());
+  skin.triangle_plane.assign(skin.triangles.size(), 0.0);
   skin.distance.assign(skin.vertices.size(), 0.0);
   skin.edge.resize(skin.triangles.size());
   for (std::size_t t = 0; t < skin.triangles.size(); ++t) {

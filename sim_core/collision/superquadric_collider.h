@@ -167,6 +167,12 @@ struct SegmentSkin {
   std::vector<Eigen::Vector2d> face_point;
   /// Per triangle its outward unit normal at the last refresh (front-facing ones only).
   std::vector<Eigen::Vector3d> triangle_normal;
+  /// Per triangle at the last refresh, found once for the drawing's passes: whether it can
+  /// stop a ray within the reach, its normal (unnormalised) and plane (normal·corner: > 0
+  /// seen from outside, an exit; < 0 an entry).
+  std::vector<char> triangle_reached;
+  std::vector<Eigen::Vector3d> triangle_side;
+  std::vector<double> triangle_plane;
   /// Per corner its distance from the centre at the last refresh [m]; per triangle a bound
   /// on its longest edge [m] (the rest length with a margin for skinning's stretch).
   std::vector<double> distance;
@@ -205,6 +211,9 @@ struct SegmentSkin {
   std::vector<int> folded_count;
   std::vector<std::pair<double, int>> folded_crossing;
   int num_folded = 0;
+  /// Per face the grid box of its folded rays (u_lo, u_hi, v_lo, v_hi; empty when
+  /// u_lo > u_hi): a triangle projecting outside it crosses none of them.
+  std::array<std::array<int, 4>, 6> folded_box{};
   /// The drawing, per node: the distance from the centre to the skin along the ray [m]
   /// (where the ray first leaves the skin the map holds, at most the segment's reach;
   /// minus SkinDistanceMap::surface_radius it is the paper's mapped distance), the skin's
