@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// The solver, material and collision settings as they travel in a command
-/// (KIND_SET_SOLVER, KIND_SET_MATERIAL, KIND_SET_COLLISION): one pair of conversions, used by the GUI that sends them and the
-/// simulation server that applies them, so the two cannot drift apart.
+/// (KIND_SET_SOLVER, KIND_SET_MATERIAL, KIND_SET_COLLISION): one pair of conversions each,
+/// used by the GUI that sends them and the simulation server that applies them, so the two
+/// cannot drift apart.
 
 #include "lcm_types/costume_lcm/collision_parameters.hpp"
 #include "lcm_types/costume_lcm/material_parameters.hpp"

@@ -50,7 +50,7 @@ class CommandSender {
   bool Stop();
   /// SET_MATERIAL for garment `garment` (-1 = every garment).
   bool SetMaterial(int garment, const sim::Material& material);
-  /// SET_SOLVER with every field of `settings` (the server restarts from frame 0 with it).
+  /// SET_SOLVER with every field of `settings` (the server changes it in place).
   bool SetSolver(const sim::SolverSettings& settings);
   /// SET_COLLISION with every field of `settings` (the server changes them in place).
   bool SetCollision(const sim::CollisionSettings& settings);

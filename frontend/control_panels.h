@@ -1,11 +1,11 @@
 #pragma once
 /// @file
 /// The parameter panels of the main window: fabric, solver, collision and the avatar's
-/// posture. Each
-/// holds validated fields with units and emits one request signal when the designer applies
-/// it; the window turns requests into commands (command_sender.h). Ranges are physical
-/// ranges (docs/frontend.md): a spin box refuses a typed value outside its range, and the
-/// Set* methods refuse (returning false with the reason) values outside it too.
+/// posture. Each holds validated fields with units and emits one request signal when the
+/// designer applies it; the window turns requests into commands (command_sender.h). Ranges
+/// are physical ranges (docs/frontend.md): a spin box refuses a typed value outside its
+/// range, and the Set* methods refuse (returning false with the reason) values outside it
+/// too.
 
 #include <QCheckBox>
 #include <QComboBox>

@@ -204,8 +204,8 @@ std::vector<double> FabricFriction(const SceneDescription& scene,
   return friction;
 }
 
-/// Whether a collider built for `a` would differ from one built for `b` (what the
-/// constructor takes; the skin's travel per step is the simulation's own).
+/// Whether colliders built for `a` and for `b` are alike: they differ only in what a
+/// collider is built with (the skin's travel per step is the simulation's own).
 bool SameCollider(const AvatarSpec& a, const AvatarSpec& b, const Effects& ea,
                   const Effects& eb) {
   return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb &&
