@@ -84,9 +84,7 @@ void ApplyCollisionOverrides(const Options& options, costume::sim::SceneDescript
 }
 
 const char* CollisionName(const costume::sim::SceneDescription& scene) {
-  if (!scene.avatar) return "none";
-  return scene.avatar->collision == costume::sim::BodyCollisionMethod::kMesh ? "mesh"
-                                                                             : "superquadric";
+  return scene.avatar ? costume::sim::BodyCollisionMethodName(scene.avatar->collision) : "none";
 }
 
 int Run(const Options& options) {
