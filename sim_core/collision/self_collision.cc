@@ -10,6 +10,7 @@
 #include <string>
 #include <map>
 
+#include "sim_core/collision/contact.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -35,6 +36,12 @@ constexpr double kPinnedWeightFactor = 1e9;
 /// Gauss-Seidel sweeps of the proximity stage per settings.max_iterations: the sweeps are
 /// cheap (cached closest points) and neighbouring pairs need several to agree.
 constexpr int kProximitySweepsPerIteration = 4;
+/// Edges meeting at a smaller sine than this are parallel for the proximity normal (their
+/// common perpendicular is ill defined); so are triangles as thin.
+constexpr double kParallelSine = 0.05;
+/// A proximity pair counts when its gap is within acos(0.7) ≈ 45° of the face normal or of
+/// the edges' common perpendicular (FacingNormal).
+constexpr double kMinFacingCosine = 0.7;
 
 Vec3 Row(const Points& p, int i) { return p.row(i).transpose(); }
 
@@ -202,6 +209,39 @@ Vec3 ContactNormal(const Proximity& p, const Vec3& plane_normal, const Vec3& fal
   return n;
 }
 
+/// A proximity pair's normal and distance along it, or false for a pair that meets only at
+/// a rim. The normal is the face's (point–triangle) or the edges' common perpendicular
+/// (edge–edge), signed to the first primitive's side; the distance is the gap along it.
+/// Along the gap itself, pairs whose closest point is clamped to a corner or an edge's end
+/// lean their normals over: a patch lying on a sheet met such pairs wherever its corners
+/// passed the sheet's edges, and each stopped part of its sliding as if it were approach,
+/// so a frictionless patch stuck on a 30° slope (docs/collision.md, "Self-collision").
+/// Pairs whose gap leaves the face normal by more than ~45° are left to the rims' own pairs
+/// and to continuous detection, as in Bridson's proximity test, which asks for the point's
+/// projection to fall on the face.
+bool FacingNormal(SelfCollision::PrimitivePair::Kind kind, const Vec3 x[4], const Proximity& p,
+                  const Vec3& fallback_side, Vec3* normal, double* distance) {
+  const Vec3 plane_normal = PlaneNormal(kind, x);
+  // |a × b| against |a|·|b|: the sine between the edges, or twice the triangle's area
+  // against its two sides' product.
+  const bool triangle = kind == SelfCollision::PrimitivePair::kPointTriangle;
+  const double scale = triangle ? (x[2] - x[1]).norm() * (x[3] - x[1]).norm()
+                                : (x[1] - x[0]).norm() * (x[3] - x[2]).norm();
+  const double plane_norm = plane_normal.norm();
+  if (!(plane_norm > kParallelSine * scale)) {  // near-parallel edges, a sliver
+    *normal = ContactNormal(p, plane_normal, fallback_side);
+    *distance = p.distance;
+    return true;
+  }
+  const Vec3 n = plane_normal / plane_norm;
+  const double along = p.gap.dot(n);
+  if (p.distance > 1e-12 && std::abs(along) < kMinFacingCosine * p.distance) return false;
+  *normal = ContactNormal(p, plane_normal, fallback_side);
+  if (p.distance > 1e-12) *normal = along < 0.0 ? Vec3(-n) : n;
+  *distance = std::abs(along);
+  return true;
+}
+
 /// Roots of a·t³ + b·t² + c·t + d in [0, 1], ascending; also the ends and turning points
 /// where the cubic nearly vanishes (grazing contacts). Returns how many (at most 6).
 int CubicRootsInUnitInterval(double a, double b, double c, double d, double roots[6]) {
@@ -338,6 +378,14 @@ void ValidateSelfCollisionSettings(const SelfCollisionSettings& settings,
                                    const std::string& context) {
   RequirePositive(context + ".thickness", settings.thickness, "m");
   RequireNonNegative(context + ".friction", settings.friction, "");
+  for (std::size_t i = 0; i < settings.particle_friction.size(); ++i) {
+    const double mu = settings.particle_friction[i];
+    if (!(mu < 0.0 || std::isfinite(mu))) {  // negative: the default; NaN and +inf refused
+      throw InputError(context + ".particle_friction[" + std::to_string(i) + "] = " +
+                       std::to_string(mu) + ": allowed is a finite value >= 0, or < 0 for " +
+                       "friction");
+    }
+  }
   RequireNonNegative(context + ".stiffness", settings.stiffness, "N/m");
   RequireInRange(context + ".max_iterations", settings.max_iterations, 0, 1000, "");
 }
@@ -348,6 +396,12 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
   const std::string context = "self-collision of '" + model_->name() + "'";
   ValidateSelfCollisionSettings(settings_, context);
   const int n = model_->num_particles();
+  if (!settings_.particle_friction.empty() &&
+      settings_.particle_friction.size() != static_cast<std::size_t>(n)) {
+    throw InputError(context + ": particle_friction has " +
+                     std::to_string(settings_.particle_friction.size()) +
+                     " values: allowed are none or one per particle (" + std::to_string(n) + ")");
+  }
   const auto& triangles = model_->triangles();
   const int num_triangles = static_cast<int>(triangles.size());
   for (int t = 0; t < num_triangles; ++t) {
@@ -510,19 +564,31 @@ void SelfCollision::ProximityStage(const Points& start, double h, ClothState& st
       x1[k] = x0[k] + h * Row(path_velocity_, index[k]);
     }
     ++report.pairs_tested;
+    // Near at the start, or else at the end: a point sliding faster than a triangle is wide
+    // is near a triangle at the end that it was beside at the start, where its gap leans.
     const Proximity p0 = Closest(pair.kind, index, x0);
-    if (p0.distance >= thickness && Closest(pair.kind, index, x1).distance >= thickness) continue;
-    const Vec3 side = -Combine(path_velocity_, p0.stencil);  // approaching from the normal side
+    const bool near_at_start = p0.distance < thickness;
+    const Proximity p = near_at_start ? p0 : Closest(pair.kind, index, x1);
+    if (p.distance >= thickness) continue;
+    const Vec3 side = -Combine(path_velocity_, p.stencil);  // approaching from the normal side
     NearPair near;
-    near.stencil = p0.stencil;
-    near.normal = ContactNormal(p0, PlaneNormal(pair.kind, x0), side);
-    near.distance = p0.distance;
-    near.inverse_mass = InverseEffectiveMass(p0.stencil, inverse_mass_);
+    near.stencil = p.stencil;
+    if (!FacingNormal(pair.kind, near_at_start ? x0 : x1, p, side, &near.normal,
+                      &near.distance)) {
+      continue;
+    }
+    if (!near_at_start) {  // the distance the step starts from, along the end's normal
+      Vec3 start_gap = Vec3::Zero();
+      for (int k = 0; k < 4; ++k) start_gap += p.stencil.weight[k] * x0[k];
+      near.distance = std::max(start_gap.dot(near.normal), 0.0);
+    }
+    near.inverse_mass = InverseEffectiveMass(p.stencil, inverse_mass_);
     if (near.inverse_mass <= 0.0) continue;  // all four pinned
+    near.friction = PairFriction(p.stencil);
     // Bridson's bound: stopping the approach is always allowed; pushing apart only as far
     // as the repulsion spring's impulse h·k·d goes.
-    const double approach = std::max(-Combine(path_velocity_, p0.stencil).dot(near.normal), 0.0);
-    const double overlap = std::max(thickness - p0.distance, 0.0);
+    const double approach = std::max(-Combine(path_velocity_, p.stencil).dot(near.normal), 0.0);
+    const double overlap = std::max(thickness - near.distance, 0.0);
     near.max_impulse = approach / near.inverse_mass + h * settings_.stiffness * overlap;
     proximities_.push_back(near);
   }
@@ -531,6 +597,15 @@ void SelfCollision::ProximityStage(const Points& start, double h, ClothState& st
     int acted = 0;
     for (NearPair& near : proximities_) acted += Repel(near, h, state) ? 1 : 0;
     if (acted == 0) break;
+  }
+  // Friction once, from each pair's final normal impulse: applied at every sweep's increment
+  // it also counted the impulses later sweeps took back, and a patch on a sheet at μ 0.32
+  // slid at a fifth of Coulomb's acceleration.
+  for (const NearPair& near : proximities_) {
+    ApplyFriction(path_velocity_, near.stencil, inverse_mass_, near.normal,
+                  near.path_impulse * near.inverse_mass, near.friction);
+    ApplyFriction(state.velocities, near.stencil, inverse_mass_, near.normal,
+                  near.state_impulse * near.inverse_mass, near.friction);
   }
   for (const NearPair& near : proximities_) {
     report.proximity_impulses += near.path_impulse > 0.0 || near.state_impulse > 0.0 ? 1 : 0;
@@ -560,15 +635,29 @@ bool SelfCollision::Repel(NearPair& near, double h, ClothState& state) {
   const bool state_acts = h * std::abs(state_delta) > tolerance;
   if (path_acts) {
     ApplyRelativeChange(path_velocity_, stencil, inverse_mass_, n, path_delta);
-    ApplyFriction(path_velocity_, stencil, inverse_mass_, n, path_delta, settings_.friction);
     near.path_impulse = path_impulse;
   }
   if (state_acts) {
     ApplyRelativeChange(state.velocities, stencil, inverse_mass_, n, state_delta);
-    ApplyFriction(state.velocities, stencil, inverse_mass_, n, state_delta, settings_.friction);
     near.state_impulse = state_impulse;
   }
   return path_acts || state_acts;
+}
+
+// The stencil's positive weights are one side of the gap (the point, or edge A's point),
+// its negative weights the other; each side's coefficient is its particles' weighted mean.
+double SelfCollision::PairFriction(const Stencil& stencil) const {
+  if (settings_.particle_friction.empty()) return settings_.friction;
+  double side[2] = {0.0, 0.0}, weight[2] = {0.0, 0.0};
+  for (int k = 0; k < 4; ++k) {
+    const double own = settings_.particle_friction[stencil.index[k]];
+    const int s = stencil.weight[k] > 0.0 ? 0 : 1;
+    const double w = std::abs(stencil.weight[k]);
+    side[s] += w * (own < 0.0 ? settings_.friction : own);
+    weight[s] += w;
+  }
+  if (weight[0] <= 0.0 || weight[1] <= 0.0) return settings_.friction;
+  return MixFriction(side[0] / weight[0], side[1] / weight[1]);
 }
 
 // Bridson §6 and §7.3: the earliest coplanarity time in the step at which the primitives

@@ -28,8 +28,14 @@ struct SelfCollisionSettings {
   /// Cloth thickness [m] > 0: the distance kept between parts of the cloth that share no
   /// particle (Bridson's h).
   double thickness = 0.004;
-  /// Coulomb friction coefficient between touching parts of the cloth [-] >= 0.
+  /// Coulomb friction coefficient between touching parts of the cloth [-] >= 0, for
+  /// particles `particle_friction` leaves to it.
   double friction = 0.3;
+  /// Each particle's own (its fabric's) coefficient [-] >= 0, or < 0 for `friction`; empty:
+  /// `friction` everywhere. Two touching parts rub with MixFriction of their sides' weighted
+  /// coefficients (contact.h), so one fabric on itself keeps its own coefficient and silk on
+  /// wool slides as it would on a body of wool's coefficient.
+  std::vector<double> particle_friction;
   /// Repulsion spring stiffness [N/m] >= 0: a pair closer than the thickness by d is pushed
   /// apart by at most the impulse h·stiffness·d (Bridson §7.2); 0 disables the push-out (only
   /// the approach is stopped).
@@ -126,6 +132,8 @@ class SelfCollision {
     double distance = 0.0;
     /// Σ α_k²/m_k [1/kg] (> 0: pairs of four pinned particles are dropped).
     double inverse_mass = 0.0;
+    /// Coulomb coefficient of the pair [-] (PairFriction).
+    double friction = 0.0;
     /// Bounds and accumulated values of the pair's normal impulses [N·s] on the path and
     /// on the state velocities (projected Gauss-Seidel).
     double max_impulse = 0.0;
@@ -138,6 +146,7 @@ class SelfCollision {
   void ProximityStage(const Points& start, double h, ClothState& state,
                       SelfCollisionReport& report);
   bool Repel(NearPair& near, double h, ClothState& state);
+  double PairFriction(const Stencil& stencil) const;
   int CollisionPass(const Points& start, double h, ClothState& state, bool merge_zones,
                     SelfCollisionReport& report);
   void ImpactZones(const Points& start, double h, ClothState& state,

@@ -176,16 +176,6 @@ std::unique_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
   return body;
 }
 
-/// Self-collision as the scene sets it (null when off: off costs nothing); the cloth keeps
-/// the avatar's thickness off itself too.
-std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
-                                                 std::shared_ptr<const ClothModel> model) {
-  if (!scene.effects.self_collision) return nullptr;
-  SelfCollisionSettings self;
-  if (scene.avatar) self.thickness = scene.avatar->thickness;
-  return std::make_unique<SelfCollision>(std::move(model), self);
-}
-
 /// Each particle's fabric friction (MixFriction's `fabric`), from its garment's material;
 /// -1 for a prebuilt garment whose material the scene does not know (its contacts keep the
 /// obstacle's coefficient).
@@ -202,6 +192,23 @@ std::vector<double> FabricFriction(const SceneDescription& scene,
     std::fill_n(friction.begin() + garments[g].first_particle, garments[g].num_particles, value);
   }
   return friction;
+}
+
+/// Self-collision as the scene sets it (null when off: off costs nothing); the cloth keeps
+/// the avatar's thickness off itself too, and rubs on itself with its fabrics' friction
+/// (`fabric_friction`, FabricFriction's), none when the scene's friction is off.
+std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
+                                                 std::shared_ptr<const ClothModel> model,
+                                                 const std::vector<double>& fabric_friction) {
+  if (!scene.effects.self_collision) return nullptr;
+  SelfCollisionSettings self;
+  if (scene.avatar) self.thickness = scene.avatar->thickness;
+  if (scene.effects.friction) {
+    self.particle_friction = fabric_friction;
+  } else {
+    self.friction = 0.0;
+  }
+  return std::make_unique<SelfCollision>(std::move(model), self);
 }
 
 /// Whether colliders built for `a` and for `b` are alike: they differ only in what a
@@ -300,11 +307,11 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     body_ = MakeAvatarCollider(scene_, *avatar_, step());
     attachments_ = std::move(attachments);
   }
-  self_collision_ = MakeSelfCollision(scene_, model_);
+  fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
+  self_collision_ = MakeSelfCollision(scene_, model_, fabric_friction_);
   if (self_collision_) start_positions_ = state_.positions;
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
-  fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
 }
 
 int Simulation::num_frames() const {
@@ -581,7 +588,8 @@ void Simulation::SetCollision(const CollisionSettings& settings) {
   const bool self_changed =
       scene.effects.self_collision != scene_.effects.self_collision ||
       (scene.avatar && scene.avatar->thickness != scene_.avatar->thickness);
-  std::unique_ptr<SelfCollision> self = self_changed ? MakeSelfCollision(scene, model_) : nullptr;
+  std::unique_ptr<SelfCollision> self =
+      self_changed ? MakeSelfCollision(scene, model_, fabric_friction_) : nullptr;
   if (body) body_ = std::move(body);
   if (self_changed) {
     self_collision_ = std::move(self);

@@ -206,6 +206,23 @@ TEST(SelfCollision, RefusesBadSettingsNamingTheField) {
   } catch (const std::exception& e) {
     EXPECT_NE(std::string(e.what()).find("thickness"), std::string::npos) << e.what();
   }
+  settings = SelfCollisionSettings{};
+  settings.particle_friction = {0.3, 0.3};  // the model has six particles
+  try {
+    SelfCollision self_collision(model, settings);
+    FAIL() << "expected InputError";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("particle_friction has 2 values"), std::string::npos)
+        << e.what();
+  }
+  settings.particle_friction.assign(model->num_particles(), 0.3);
+  settings.particle_friction[4] = std::nan("");
+  try {
+    SelfCollision self_collision(model, settings);
+    FAIL() << "expected InputError";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("particle_friction[4]"), std::string::npos) << e.what();
+  }
 }
 
 // ---- the test: a folded napkin dropped on a sphere -------------------------------

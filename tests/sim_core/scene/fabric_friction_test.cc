@@ -1,14 +1,19 @@
 // The fabric's friction counts: a contact's coefficient is the geometric mean of the fabric's
-// and the obstacle's (MixFriction). Oracle: Coulomb's law for a small patch on a slope, the
-// slope being a large sphere's surface 30° from its top: it holds while μ > tan 30°, and
-// otherwise slides with acceleration g (sin 30° − μ cos 30°), μ = √(μ_fabric · μ_sphere).
+// and the obstacle's (MixFriction), and cloth rubbing on cloth mixes the two fabrics' alike.
+// Oracle: Coulomb's law for a small patch on a slope, the slope being a large sphere's
+// surface 30° from its top, or a pinned sheet of another fabric tilted 30°: it holds while
+// μ > tan 30°, and otherwise slides with acceleration g (sin 30° − μ cos 30°),
+// μ = √(μ_fabric · μ_slope).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <utility>
 
 #include "sim_core/collision/contact.h"
+#include "sim_core/collision/self_collision.h"
 #include "sim_core/scene/simulation.h"
 
 namespace costume::sim {
@@ -104,6 +109,101 @@ TEST(FabricFriction, ASlipperyFabricSlidesDownASlopeAGrippyOneHolds) {
   std::printf("fabric 1.0: μ 1.00, speed %.1f mm/s at %.1f s, %.1f mm/s at %.1f s\n",
               1000 * a.speed, t0, 1000 * b.speed, t1);
   EXPECT_LT(b.speed, 0.002);  // held (the regularised friction creeps below 1 mm/s)
+}
+
+/// A material of friction `friction`, named `name`.
+Material Fabric(const std::string& name, double friction) {
+  Material material;
+  material.name = name;
+  material.density = 0.1;
+  material.friction = friction;
+  return material;
+}
+
+/// The same patch of friction `fabric` lying on a plane 30° steep that is a sheet of cloth
+/// of friction `kSheetFriction`, pinned at every particle (40 × 12 cm, 1 cm spacing, the
+/// patch near its top), with self-collision on: the patch rests on the sheet through the
+/// self-collision's proximity impulses (Bridson §7.2), whose friction is the one tested.
+constexpr double kSheetFriction = 1.0;
+SceneDescription PatchOnSheet(double fabric) {
+  SceneDescription scene;
+  scene.name = "patch_on_sheet";
+  scene.effects.air_drag = false;
+  scene.effects.self_collision = true;
+  scene.materials = {Fabric("sheet_fabric", kSheetFriction), Fabric("patch_fabric", fabric)};
+  const Eigen::Vector3d normal(std::sin(kSlope), std::cos(kSlope), 0.0);
+  const Eigen::Vector3d downhill(std::cos(kSlope), -std::sin(kSlope), 0.0);
+  const Eigen::Vector3d across = Eigen::Vector3d::UnitZ();
+  GarmentSpec sheet;
+  sheet.name = "sheet";
+  sheet.material = "sheet_fabric";
+  LatticePanel plane;
+  plane.width = 0.40;
+  plane.height = 0.12;
+  plane.cols = 41;
+  plane.rows = 13;
+  plane.u_axis = downhill;
+  plane.v_axis = across;
+  plane.origin = -0.05 * downhill - 0.06 * across;
+  for (int i = 0; i < plane.rows; ++i) {
+    for (int j = 0; j < plane.cols; ++j) {
+      sheet.pin_points.push_back(plane.origin + 0.01 * j * downhill + 0.01 * i * across);
+    }
+  }
+  sheet.panel = plane;
+  GarmentSpec patch;
+  patch.name = "patch";
+  patch.material = "patch_fabric";
+  LatticePanel panel;
+  panel.width = panel.height = 0.06;
+  panel.cols = panel.rows = 7;
+  // Turned 30° in the plane: no edge of the patch parallel to one of the sheet's, whose
+  // closest points would be ill defined and catch the lattices on each other like teeth.
+  const Eigen::AngleAxisd turn(kSlope, normal);
+  panel.u_axis = turn * downhill;
+  panel.v_axis = turn * across;
+  // At the self-collision's thickness (4 mm without an avatar) above the sheet.
+  panel.origin = SelfCollisionSettings{}.thickness * normal - 0.03 * panel.u_axis -
+                 0.03 * panel.v_axis;
+  patch.panel = panel;
+  scene.garments = {sheet, patch};
+  return scene;
+}
+
+/// The patch's speed down the sheet (the mean of its particles' velocities) [m/s], at
+/// simulated times t0 < t1 [s].
+std::pair<double, double> SlideOnSheet(double fabric, double t0, double t1) {
+  auto simulation = Simulation::Build(PatchOnSheet(fabric));
+  const int patch = simulation->garments().back().first_particle;
+  const Eigen::Vector3d downhill(std::cos(kSlope), -std::sin(kSlope), 0.0);
+  auto speed = [&] {
+    const Points& v = simulation->state().velocities;
+    return v.bottomRows(v.rows() - patch).colwise().mean().dot(downhill.transpose());
+  };
+  while (simulation->state().time < t0 - 1e-9) simulation->AdvanceFrame();
+  const double a = speed();
+  while (simulation->state().time < t1 - 1e-9) simulation->AdvanceFrame();
+  return {a, speed()};
+}
+
+// Before cloth on cloth took its fabrics' friction, every pair rubbed with 0.3, whatever the
+// fabrics: the frictionless patch slid at 9.81 (sin 30° − 0.3 cos 30°) = 2.36 m/s² instead of
+// 4.91, and the grippy one slid too.
+TEST(FabricFriction, ClothOnClothMixesTheTwoFabrics) {
+  const double g = 9.81, t0 = 0.1, t1 = 0.25;
+  for (double fabric : {0.0, 0.1}) {
+    const auto [a, b] = SlideOnSheet(fabric, t0, t1);
+    const double mu = MixFriction(fabric, kSheetFriction);
+    const double law = g * (std::sin(kSlope) - mu * std::cos(kSlope));
+    const double measured = (b - a) / (t1 - t0);
+    std::printf("patch on sheet, fabric %.1f: μ %.2f, acceleration %.2f m/s² (Coulomb %.2f)\n",
+                fabric, mu, measured, law);
+    EXPECT_NEAR(measured, law, 0.1 * law) << "fabric " << fabric;
+  }
+  const auto [a, b] = SlideOnSheet(1.0, t0, t1);
+  std::printf("patch on sheet, fabric 1.0: speed %.1f mm/s at %.2f s, %.1f mm/s at %.2f s\n",
+              1000 * a, t0, 1000 * b, t1);
+  EXPECT_LT(std::abs(b), 0.002);  // held
 }
 
 }  // namespace
