@@ -127,8 +127,7 @@ MainWindow::MainWindow(bus::MessageBus& bus, FrontendOptions options,
   ConnectSignals();
   FillLists();
   // The fields start at the scene's settings, so Apply without changes is a no-op request.
-  solver_->SetSettings(mirror_->scene().solver);
-  collision_->SetSettings(sim::CollisionSettingsOf(mirror_->scene()));
+  SyncSettingsPanels();
   Log("scene '" + QString::fromStdString(mirror_->scene().name) + "' mirrored: " +
       QString::number(mirror_->num_particles()) + " particles; catalogue: " +
       QString::fromStdString(catalog_->Describe()));
@@ -231,8 +230,19 @@ bool MainWindow::AdoptPendingMirror(const ClothFrame& frame) {
   mirror_ = std::move(pending_mirror_);
   view_->SetMirror(mirror_.get());
   warned_mismatch_ = false;
+  SyncSettingsPanels();
   Log(QString("the view follows the loaded scene: %1 particles").arg(count));
   return true;
+}
+
+void MainWindow::SyncSettingsPanels() {
+  solver_->SetSettings(mirror_->scene().solver);
+  collision_->SetSettings(sim::CollisionSettingsOf(mirror_->scene()));
+}
+
+void MainWindow::ForEachMirror(const std::function<void(SceneMirror&)>& change) {
+  change(*mirror_);
+  if (pending_mirror_) change(*pending_mirror_);
 }
 
 QWidget* MainWindow::BuildEditing() {
@@ -369,18 +379,20 @@ void MainWindow::ConnectSignals() {
   });
   connect(solver_, &SolverPanel::solverRequested, this, [this](const sim::SolverSettings& s) {
     sender_->SetSolver(s);
+    ForEachMirror([&s](SceneMirror& mirror) { mirror.SetSolver(s); });
     Log("solver sent: the server changes it in place, the cloth keeping its state");
   });
   connect(collision_, &CollisionPanel::collisionRequested, this,
           [this](const sim::CollisionSettings& s) {
             sender_->SetCollision(s);
+            ForEachMirror([&s](SceneMirror& mirror) { mirror.SetCollision(s); });
             Log("collision sent: the server changes it in place (a new method, thickness or "
                 "friction builds a new collider: superquadrics take about a second)");
           });
   connect(posture_, &PosturePanel::postureRequested, this,
           [this](const std::vector<JointAngles>& joints, double heading) {
             sender_->SetPosture(joints, heading);
-            mirror_->SetPosture(joints, heading);
+            ForEachMirror([&](SceneMirror& mirror) { mirror.SetPosture(joints, heading); });
             view_->update();
           });
   connect(play_, &QAction::triggered, this, [this] { sender_->Play(); });

@@ -17,6 +17,7 @@
 #include <QPlainTextEdit>
 #include <QPushButton>
 #include <QRadioButton>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -141,6 +142,11 @@ class MainWindow : public QMainWindow {
   /// Switches to the pending mirror when `frame` is of it: its particle count, and either a
   /// rebuilt simulation (frame number went down) or a count the current mirror does not have.
   bool AdoptPendingMirror(const ClothFrame& frame);
+  /// Shows the mirrored scene's solver and collision settings on their tabs: after a load
+  /// they are the server's (a first avatar brings the default collision settings).
+  void SyncSettingsPanels();
+  /// `change` on the mirror and on the pending one, as the server applies it to its scene.
+  void ForEachMirror(const std::function<void(SceneMirror&)>& change);
   void ConnectSignals();
   /// Shows the server's mode on the switch without sending a command.
   void SyncMode(bool editing);

@@ -56,6 +56,14 @@ class SceneMirror {
   std::vector<std::string> SetPosture(const std::vector<JointAngles>& joints,
                                       double heading_degrees);
 
+  /// Applies solver or collision settings to the scene as the server's KIND_SET_SOLVER and
+  /// KIND_SET_COLLISION do (in place; without an avatar only self_collision counts), so a
+  /// scene loaded on top of this one carries them, as the server's does.
+  void SetSolver(const sim::SolverSettings& solver) { scene_.solver = solver; }
+  void SetCollision(const sim::CollisionSettings& collision) {
+    sim::ApplyCollisionSettings(collision, scene_);
+  }
+
   /// Box around the avatar's rest pose and the cloth as built [m].
   Eigen::AlignedBox3d Bounds() const;
 

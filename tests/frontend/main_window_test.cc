@@ -511,5 +511,42 @@ TEST(MainWindowLoads, TheViewFollowsALoadedCostumeOnceTheServerRunsIt) {
   EXPECT_EQ(window.last_frame()->frame, 0);
 }
 
+// The server keeps SET_SOLVER's and SET_COLLISION's settings through a load (it loads into
+// its scene); the mirror does too, and the tabs show the loaded scene's settings.
+TEST(MainWindowLoads, ALoadedSceneKeepsTheSettingsSentBeforeIt) {
+  costume::testing::TestApp();
+  bus::LcmBus bus("memq://");
+  MainWindow window(bus, FrontendOptions{}, MakeBuiltInCatalog());
+  CollisionPanel* collision = window.collision_panel();
+  collision->thickness_mm->setValue(7.0);
+  collision->self_collision->setChecked(true);
+  collision->apply->click();
+  window.solver_panel()->substeps->setValue(3);
+  window.solver_panel()->apply->click();
+  EXPECT_DOUBLE_EQ(window.mirror().scene().avatar->thickness, 0.007);
+
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  costumes->setCurrentItem(costumes->findItems("cape", Qt::MatchExactly).at(0));
+  window.load_button(EntryKind::kCostume)->click();
+  ASSERT_NE(window.pending_mirror(), nullptr);
+  collision->friction->setValue(0.9);  // sent while the load is pending: the load keeps it
+  collision->apply->click();
+  int seq = 0;
+  PublishFrame(bus, window.pending_mirror()->rest_positions(), Eigen::Vector3f::Zero(), 0, 1,
+               seq);
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+  ASSERT_EQ(window.pending_mirror(), nullptr);
+  const sim::SceneDescription& scene = window.mirror().scene();
+  EXPECT_EQ(scene.garments.front().pattern, "cape");
+  EXPECT_DOUBLE_EQ(scene.avatar->thickness, 0.007);
+  EXPECT_DOUBLE_EQ(scene.avatar->friction, 0.9);
+  EXPECT_TRUE(scene.effects.self_collision);
+  EXPECT_EQ(scene.solver.substeps, 3);
+  EXPECT_DOUBLE_EQ(collision->thickness_mm->value(), 7.0);
+  EXPECT_DOUBLE_EQ(collision->friction->value(), 0.9);
+  EXPECT_EQ(window.solver_panel()->substeps->value(), 3);
+}
+
 }  // namespace
 }  // namespace costume::frontend
