@@ -23,9 +23,9 @@ namespace {
 constexpr double kFitClearanceExtra = 0.001;
 
 /// The farthest a skin vertex that can reach the cloth moves from `start` to `end` relative
-/// to the body's root, which moves by `root_shift` [m]: garments hang from the body and go
-/// where its root takes them, so a clip travelling across the room is no faster for the
-/// cloth than one in place. A vertex counts when its start lies within its own travel of the
+/// to the body's root, which moves by `root_shift` [m] (zero for cloth pinned in the room):
+/// garments hang from the body and go where its root takes them, so a clip travelling across
+/// the room is no faster for the cloth than one in place. A vertex counts when its start lies within its own travel of the
 /// cloth's bounding box grown by the thickness (a hand swinging far from a skirt does not).
 double SkinTravelNearCloth(const Points& start, const Points& end,
                            const Eigen::Vector3d& root_shift, const Points& cloth,
@@ -42,6 +42,17 @@ double SkinTravelNearCloth(const Points& start, const Points& end,
     if (outside.matrix().norm() <= travel) farthest = travel;
   }
   return farthest;
+}
+
+/// Whether a pinned particle of `model` is held by no joint (`attachments`): cloth pinned in
+/// the room, which a body travelling across it meets at the root's speed too.
+bool PinnedInRoom(const ClothModel& model, const std::vector<BodyAttachment>& attachments) {
+  std::vector<bool> held(model.num_particles(), false);
+  for (const BodyAttachment& a : attachments) held[a.particle] = true;
+  for (int i = 0; i < model.num_particles(); ++i) {
+    if (model.is_pinned()[i] && !held[i]) return true;
+  }
+  return false;
 }
 
 /// Wall-clock time since `start` [ms], for the frame report.
@@ -308,6 +319,7 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     attachments_ = std::move(attachments);
   }
   fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
+  pinned_in_room_ = PinnedInRoom(*model_, attachments_);
   self_collision_ = MakeSelfCollision(scene_, model_, fabric_friction_);
   if (self_collision_) start_positions_ = state_.positions;
   contacts_.reserve(model_->num_particles());
@@ -395,10 +407,13 @@ int Simulation::StepsThisFrame(bool& posed_at_end) {
   const Eigen::Vector3d root = avatar_->joint_world()[0].translation();  // joint 0 is a root
   avatar_->Evaluate(AvatarTimeAfter(frame), PostureBlendAfter(frame));
   posed_at_end = true;
-  const double travel =
-      SkinTravelNearCloth(frame_start_skin_, avatar_->vertices(),
-                          avatar_->joint_world()[0].translation() - root, state_.positions,
-                          spec.thickness);
+  // Cloth hanging from the body goes where its root takes it; cloth pinned in the room
+  // does not, and meets a body walking into it at the walk's speed too.
+  const Eigen::Vector3d root_shift =
+      pinned_in_room_ ? Eigen::Vector3d::Zero()
+                      : Eigen::Vector3d(avatar_->joint_world()[0].translation() - root);
+  const double travel = SkinTravelNearCloth(frame_start_skin_, avatar_->vertices(), root_shift,
+                                            state_.positions, spec.thickness);
   const double needed = std::ceil(travel / spec.max_skin_travel);
   const int most = std::max(steps, spec.max_steps_per_frame);
   return needed >= most ? most : std::max(steps, static_cast<int>(needed));

@@ -258,6 +258,9 @@ class Simulation {
   std::vector<double> fabric_friction_;
   /// The skin where the frame starts (StepsThisFrame's measure).
   Points frame_start_skin_;
+  /// Whether some cloth is pinned in the room rather than held by the avatar: the skin's
+  /// travel then counts the root's too (StepsThisFrame).
+  bool pinned_in_room_ = false;
 };
 
 /// The stepper settings a scene asks for.

@@ -87,6 +87,47 @@ TEST(FastLimbs, TheWholeBodyTravellingDoesNotSplitAFrame) {
   EXPECT_GT((simulation->avatar()->vertices() - before).rowwise().norm().minCoeff(), 0.4);
 }
 
+// The same slide towards a curtain pinned in the room just in front of the body: the curtain
+// does not go with the body, so the skin meets it at the root's speed too, and frames are
+// split (before, judged relative to the root as for the skirt, none was). At most as many
+// steps as the body's fastest vertex needs.
+TEST(FastLimbs, TheBodyTravellingTowardsClothPinnedInTheRoomSplitsFrames) {
+  SceneDescription scene = StandingSkirt(0.01);
+  GarmentSpec curtain;
+  curtain.name = "curtain";
+  curtain.material = scene.garments.front().material;
+  LatticePanel panel;
+  panel.origin = Eigen::Vector3d(-0.3, 0.6, 0.35);  // in the xy plane, 35 cm before the body
+  panel.u_axis = Eigen::Vector3d::UnitX();
+  panel.v_axis = Eigen::Vector3d::UnitY();
+  panel.width = 0.6;
+  panel.height = 0.6;
+  panel.cols = panel.rows = 7;
+  for (int j = 0; j < panel.cols; ++j) {  // its top row, held in the room
+    curtain.pin_points.push_back(panel.origin + panel.height * panel.v_axis +
+                                 0.1 * j * panel.u_axis);
+  }
+  curtain.panel = panel;
+  scene.garments.push_back(curtain);
+  auto simulation = Simulation::Build(scene);
+  for (int f = 0; f < 12; ++f) EXPECT_EQ(simulation->AdvanceFrame().steps, 1) << "frame " << f;
+  Pose moved = PostureOf(*simulation);
+  moved.root_translation += Eigen::Vector3d(0.0, 0.0, 0.5);
+  ASSERT_TRUE(simulation->SetPosture(moved, 0.25));
+  int most = 0;
+  for (int f = 0; f < 14; ++f) {
+    const Points before = simulation->avatar()->vertices();
+    const int steps = simulation->AdvanceFrame().steps;
+    const double farthest = (simulation->avatar()->vertices() - before).rowwise().norm().maxCoeff();
+    EXPECT_LE(steps, std::max(1, static_cast<int>(std::ceil(farthest / 0.01)))) << "frame " << f;
+    most = std::max(most, steps);
+  }
+  // The slide's mean speed alone, 33 mm a frame, needs 4 steps of 1 cm.
+  EXPECT_GE(most, 4);
+  std::printf("body sliding towards a curtain pinned in the room: up to %d steps a frame\n",
+              most);
+}
+
 // Turning the head moves skin far above the skirt's reach: no split, however fast.
 TEST(FastLimbs, SkinFarFromTheClothDoesNotSplitAFrame) {
   auto simulation = Simulation::Build(StandingSkirt(0.002));
