@@ -25,8 +25,9 @@ constexpr double kFitClearanceExtra = 0.001;
 /// The farthest a skin vertex that can reach the cloth moves from `start` to `end` relative
 /// to the body's root, which moves by `root_shift` [m] (zero for cloth pinned in the room):
 /// garments hang from the body and go where its root takes them, so a clip travelling across
-/// the room is no faster for the cloth than one in place. A vertex counts when its start lies within its own travel of the
-/// cloth's bounding box grown by the thickness (a hand swinging far from a skirt does not).
+/// the room is no faster for the cloth than one in place. A vertex counts when its start lies
+/// within its own travel of the cloth's bounding box grown by the thickness (a hand swinging
+/// far from a skirt does not).
 double SkinTravelNearCloth(const Points& start, const Points& end,
                            const Eigen::Vector3d& root_shift, const Points& cloth,
                            double thickness) {
