@@ -232,8 +232,7 @@ bool FacingNormal(SelfCollision::PrimitivePair::Kind kind, const Vec3 x[4], cons
     // Near-parallel edges have no common perpendicular, and their gap leans with their
     // sideways offset: two sheets whose lattices lie edge over edge caught on every pair
     // (a frictionless patch slid at 2.94 m/s² where g sin 30° is 4.90). Their ends' pairs
-    // with the faces beside the other edge hold them, as Bridson leaves parallel edges to
-    // the point–triangle tests.
+    // with the faces beside the other edge hold them.
     if (!triangle) return false;
     *normal = ContactNormal(p, plane_normal, fallback_side);  // a sliver
     *distance = p.distance;
