@@ -241,8 +241,11 @@ bool FacingNormal(SelfCollision::PrimitivePair::Kind kind, const Vec3 x[4], cons
   const Vec3 n = plane_normal / plane_norm;
   const double along = p.gap.dot(n);
   if (p.distance > 1e-12 && std::abs(along) < kMinFacingCosine * p.distance) return false;
-  *normal = ContactNormal(p, plane_normal, fallback_side);
-  if (p.distance > 1e-12) *normal = along < 0.0 ? Vec3(-n) : n;
+  if (p.distance > 1e-12) {
+    *normal = along < 0.0 ? Vec3(-n) : n;
+  } else {
+    *normal = ContactNormal(p, plane_normal, fallback_side);  // touching: the side decides
+  }
   *distance = std::abs(along);
   return true;
 }
@@ -611,8 +614,6 @@ void SelfCollision::ProximityStage(const Points& start, double h, ClothState& st
                   near.path_impulse * near.inverse_mass, near.friction);
     ApplyFriction(state.velocities, near.stencil, inverse_mass_, near.normal,
                   near.state_impulse * near.inverse_mass, near.friction);
-  }
-  for (const NearPair& near : proximities_) {
     report.proximity_impulses += near.path_impulse > 0.0 || near.state_impulse > 0.0 ? 1 : 0;
   }
 }
