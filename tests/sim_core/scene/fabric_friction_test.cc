@@ -25,29 +25,51 @@ constexpr double kRadius = 5.0;  // m: nearly a plane over the slide (3° over 3
 constexpr double kThickness = 0.005;  // m
 constexpr double kSphereFriction = 1.0;
 
+/// A material of friction `friction`, named `name`.
+Material Fabric(const std::string& name, double friction) {
+  Material material;
+  material.name = name;
+  material.density = 0.1;
+  material.friction = friction;
+  return material;
+}
+
+/// The tests' 6 cm, 7 × 7 patch centred on `centre`, its rows along `u`, its columns along
+/// `v` (unit, perpendicular) [m].
+LatticePanel Patch(const Eigen::Vector3d& centre, const Eigen::Vector3d& u,
+                   const Eigen::Vector3d& v) {
+  LatticePanel panel;
+  panel.width = panel.height = 0.06;
+  panel.cols = panel.rows = 7;
+  panel.u_axis = u;
+  panel.v_axis = v;
+  panel.origin = centre - 0.03 * u - 0.03 * v;
+  return panel;
+}
+
+/// `measure(simulation)` at simulated times t0 < t1 [s] of the scene `scene`.
+template <typename Measure>
+auto AtTwoTimes(const SceneDescription& scene, double t0, double t1, Measure measure) {
+  auto simulation = Simulation::Build(scene);
+  while (simulation->state().time < t0 - 1e-9) simulation->AdvanceFrame();
+  const auto a = measure(*simulation);
+  while (simulation->state().time < t1 - 1e-9) simulation->AdvanceFrame();
+  return std::make_pair(a, measure(*simulation));
+}
+
 /// A 6 cm, 7 × 7 patch of a fabric of friction `fabric` laid on the sphere's shell at 30°
 /// from its top, rows running downhill.
 SceneDescription PatchOnSlope(double fabric) {
   SceneDescription scene;
   scene.name = "patch_on_slope";
   scene.effects.air_drag = false;  // the law has no drag
-  Material material;
-  material.name = "fabric";
-  material.density = 0.1;
-  material.friction = fabric;
-  scene.materials.push_back(material);
+  scene.materials.push_back(Fabric("fabric", fabric));
   const Eigen::Vector3d normal(std::sin(kSlope), std::cos(kSlope), 0.0);
   const Eigen::Vector3d downhill(std::cos(kSlope), -std::sin(kSlope), 0.0);
   GarmentSpec patch;
   patch.name = "patch";
-  patch.material = material.name;
-  LatticePanel panel;
-  panel.width = panel.height = 0.06;
-  panel.cols = panel.rows = 7;
-  panel.u_axis = downhill;
-  panel.v_axis = Eigen::Vector3d::UnitZ();
-  panel.origin = (kRadius + kThickness) * normal - 0.03 * downhill - 0.03 * panel.v_axis;
-  patch.panel = panel;
+  patch.material = "fabric";
+  patch.panel = Patch((kRadius + kThickness) * normal, downhill, Eigen::Vector3d::UnitZ());
   scene.garments.push_back(patch);
   SphereObstacleSpec sphere;
   sphere.center = Eigen::Vector3d::Zero();
@@ -74,11 +96,7 @@ Sliding Measure(const Simulation& simulation) {
 
 /// The patch of fabric friction `fabric` at simulated times t0 < t1 [s].
 std::pair<Sliding, Sliding> Slide(double fabric, double t0, double t1) {
-  auto simulation = Simulation::Build(PatchOnSlope(fabric));
-  while (simulation->state().time < t0 - 1e-9) simulation->AdvanceFrame();
-  const Sliding a = Measure(*simulation);
-  while (simulation->state().time < t1 - 1e-9) simulation->AdvanceFrame();
-  return {a, Measure(*simulation)};
+  return AtTwoTimes(PatchOnSlope(fabric), t0, t1, Measure);
 }
 
 TEST(FabricFriction, IsTheGeometricMeanOfTheFabricsAndTheObstacles) {
@@ -109,15 +127,6 @@ TEST(FabricFriction, ASlipperyFabricSlidesDownASlopeAGrippyOneHolds) {
   std::printf("fabric 1.0: μ 1.00, speed %.1f mm/s at %.1f s, %.1f mm/s at %.1f s\n",
               1000 * a.speed, t0, 1000 * b.speed, t1);
   EXPECT_LT(b.speed, 0.002);  // held (the regularised friction creeps below 1 mm/s)
-}
-
-/// A material of friction `friction`, named `name`.
-Material Fabric(const std::string& name, double friction) {
-  Material material;
-  material.name = name;
-  material.density = 0.1;
-  material.friction = friction;
-  return material;
 }
 
 /// The same patch of friction `fabric` lying on a plane 30° steep that is a sheet of cloth
@@ -156,16 +165,9 @@ SceneDescription PatchOnSheet(double fabric, double turn_angle) {
   GarmentSpec patch;
   patch.name = "patch";
   patch.material = "patch_fabric";
-  LatticePanel panel;
-  panel.width = panel.height = 0.06;
-  panel.cols = panel.rows = 7;
   const Eigen::AngleAxisd turn(turn_angle, normal);
-  panel.u_axis = turn * downhill;
-  panel.v_axis = turn * across;
   // At the self-collision's thickness (4 mm without an avatar) above the sheet.
-  panel.origin = SelfCollisionSettings{}.thickness * normal - 0.03 * panel.u_axis -
-                 0.03 * panel.v_axis;
-  patch.panel = panel;
+  patch.panel = Patch(SelfCollisionSettings{}.thickness * normal, turn * downhill, turn * across);
   scene.garments = {sheet, patch};
   return scene;
 }
@@ -173,17 +175,12 @@ SceneDescription PatchOnSheet(double fabric, double turn_angle) {
 /// The patch's speed down the sheet (the mean of its particles' velocities) [m/s], at
 /// simulated times t0 < t1 [s].
 std::pair<double, double> SlideOnSheet(double fabric, double turn, double t0, double t1) {
-  auto simulation = Simulation::Build(PatchOnSheet(fabric, turn));
-  const int patch = simulation->garments().back().first_particle;
   const Eigen::Vector3d downhill(std::cos(kSlope), -std::sin(kSlope), 0.0);
-  auto speed = [&] {
-    const Points& v = simulation->state().velocities;
+  return AtTwoTimes(PatchOnSheet(fabric, turn), t0, t1, [&](const Simulation& simulation) {
+    const int patch = simulation.garments().back().first_particle;
+    const Points& v = simulation.state().velocities;
     return v.bottomRows(v.rows() - patch).colwise().mean().dot(downhill.transpose());
-  };
-  while (simulation->state().time < t0 - 1e-9) simulation->AdvanceFrame();
-  const double a = speed();
-  while (simulation->state().time < t1 - 1e-9) simulation->AdvanceFrame();
-  return {a, speed()};
+  });
 }
 
 // Before 2026-11-26 every pair rubbed with 0.3 whatever the fabrics, took its normal along
