@@ -75,14 +75,16 @@ StealTicks ParseStealTicks(std::string_view proc_stat) {
 int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
                    std::int64_t* total) {
   int count = 0;
+  std::int64_t sum = 0;
   ForEachCpuSteal(proc_stat, [&](int cpu, std::int64_t steal) {
-    if (cpu < 0) {
-      *total = steal;
-    } else if (cpu < max_cpus) {
+    if (cpu < 0) return;
+    sum += steal;
+    if (cpu < max_cpus) {
       per_cpu[cpu] = steal;
       ++count;
     }
   });
+  if (count > 0) *total = sum;
   return count;
 }
 

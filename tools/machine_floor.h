@@ -40,8 +40,11 @@ StealTicks StealDelta(const StealTicks& before, const StealTicks& after);
 StealTicks StealSum(const StealTicks& a, const StealTicks& b);
 
 /// Writes the steal column of each "cpuN" line of /proc/stat text into `per_cpu` (CPU N at
-/// index N, at most `max_cpus`) and the aggregate line's into `*total`; returns how many CPU
-/// lines were read (0: none with a steal column). Never allocates: for sampling in a tick.
+/// index N, at most `max_cpus`) and the sum of all CPU lines' into `*total`; returns how many
+/// CPU lines were read (0: none with a steal column; `*total` is then left). Never allocates:
+/// for sampling in a tick. The sum, not the aggregate "cpu" line: the kernel adds that line up
+/// in a pass before it prints the CPUs' own, so a tick can show in a CPU's line and not yet in
+/// the aggregate, and a period's all-CPU count came out below one CPU's.
 int ParseStealInto(std::string_view proc_stat, std::int64_t* per_cpu, int max_cpus,
                    std::int64_t* total);
 
@@ -52,7 +55,10 @@ struct GapRecord {
   /// The period [ns].
   std::int64_t gap_ns = 0;
   /// The thread's run time over it [ns] (/proc/thread-self/schedstat, first field; with
-  /// paravirtual steal accounting, time the host took is not in it).
+  /// paravirtual steal accounting, time the host took is not in it). The kernel brings a
+  /// running thread's count up to date only at its ticks and switches, so a reading can miss
+  /// up to a tick of run time, which the next reading's count then includes; a loop that
+  /// sleeps between ticks reads just after a switch.
   std::int64_t exec_ns = 0;
   /// Time it waited runnable on a run queue of this kernel [ns] (second field).
   std::int64_t run_delay_ns = 0;

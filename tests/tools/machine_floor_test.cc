@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <thread>
 #include <vector>
@@ -60,6 +61,15 @@ TEST(StealTicks, ParseIntoFixedStorageAgreesWithTheAllocatingParser) {
   EXPECT_EQ(per_cpu[1], 1291);
   // CPUs beyond the storage are skipped, lines without a steal column are not counted.
   EXPECT_EQ(ParseStealInto(kProcStat, per_cpu.data(), 1, &total), 1);
+  EXPECT_EQ(total, 2581);  // every CPU's line counts in the total, stored or not
+  // The total is the CPUs' lines added up, not the aggregate line, which the kernel sums
+  // before it prints them: a tick in between shows in a CPU's line only.
+  EXPECT_EQ(ParseStealInto("cpu  0 0 0 0 0 0 0 10 0 0\n"
+                           "cpu0 0 0 0 0 0 0 0 6 0 0\n"
+                           "cpu1 0 0 0 0 0 0 0 5 0 0\n",
+                           per_cpu.data(), 4, &total),
+            2);
+  EXPECT_EQ(total, 11);
   EXPECT_EQ(ParseStealInto("cpu  1 2 3 4 5 6 7\ncpu0 1 2\n", per_cpu.data(), 4, &total), 0);
 }
 
@@ -72,19 +82,31 @@ TEST(GapWitness, RecordsALongPeriodWithWhatTheThreadDidInIt) {
   witness.Sample(start);
   if (!witness.available()) GTEST_SKIP() << "no /proc/thread-self/schedstat here";
   // A short period, not kept, unless a loaded machine kept this thread off its CPU for
-  // longer than the threshold between the two samples: the timestamps say which.
+  // longer than the threshold between the two samples: the timestamps say which. The sleep
+  // before it has the kernel bring the thread's run time up to date: without it the reading
+  // lagged by the test process's start-up, up to a tick, and the long period's count
+  // included it (2.5 ms once).
+  std::this_thread::sleep_for(std::chrono::microseconds(200));
   const std::int64_t short_end = sim::MonotonicNs();
   witness.Sample(short_end);
-  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  constexpr std::int64_t kSleep = 5'000'000;
+  std::this_thread::sleep_for(std::chrono::nanoseconds(kSleep));
   witness.Sample(sim::MonotonicNs());
+  // The witness reads the thread's counters inside Sample, after the timestamp it is given,
+  // so its counts cover the time between the two reads, which lies within [short_end, end]:
+  // on a loaded machine the thread may wait longer between a timestamp and its read than the
+  // period lasts, so the counts are bounded by that span, not by the period.
+  const std::int64_t end = sim::MonotonicNs();
   const int short_kept = short_end - start > kThreshold ? 1 : 0;
   ASSERT_EQ(witness.num_long(), 1 + short_kept);
   const GapRecord& r = witness.records().at(short_kept);
-  EXPECT_GE(r.gap_ns, 5'000'000);
+  EXPECT_GE(r.gap_ns, kSleep);
   EXPECT_GE(r.exec_ns, 0);
-  EXPECT_LT(r.exec_ns, r.gap_ns / 2);
+  // Asleep for kSleep of it, the thread ran a sliver (the kernel's run-time count of a
+  // running thread lags by up to a tick, so no tighter than that).
+  EXPECT_LT(r.exec_ns, kSleep / 2);
   EXPECT_GE(r.run_delay_ns, 0);
-  EXPECT_LE(r.run_delay_ns, r.gap_ns);
+  EXPECT_LE(r.run_delay_ns, end - short_end);
   EXPECT_GE(r.steal_ticks_cpu, 0);
   EXPECT_GE(r.steal_ticks_all, r.steal_ticks_cpu);
   EXPECT_GE(r.cpu_before, 0);
