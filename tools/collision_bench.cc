@@ -185,7 +185,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const auto& clip = scene.avatar->clip;
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
-  std::vector<double> first_pass_collision_ms;
+  std::vector<double> first_pass_collision_ms, later_passes_collision_ms;
   long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0;
   for (int f = 0; f < simulation->num_frames(); ++f) {
     const double cpu_start = ThreadCpuMs();
@@ -198,6 +198,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     most_steps = std::max(most_steps, report.steps);
     if (static_cast<int>(total_ms.size()) < first_pass_frames) {
       first_pass_collision_ms.push_back(report.collision_ms);
+    } else {
+      later_passes_collision_ms.push_back(report.collision_ms);
     }
     maps_drawn += report.maps_drawn;
     maps_reused += report.maps_reused;
@@ -249,6 +251,10 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"steps_per_frame_max", most_steps},
           {"collision_ms_median", Median(collision_ms)},
           {"collision_ms_median_first_pass", Median(first_pass_collision_ms)},
+          // The kick's first pass is 90 of the 240 frames of 4 s, so the median of all frames
+          // lies among its frames, where every map is drawn; this one is the loop's steady
+          // state.
+          {"collision_ms_median_later_passes", Median(later_passes_collision_ms)},
           {"collision_update_ms_median", Median(update_ms)},
           {"collision_with_update_ms_median", Median(with_update_ms)},
           {"maps_drawn", maps_drawn},
@@ -305,10 +311,14 @@ void RunAvatar(const std::string& name, const std::vector<std::string>& methods,
   // what each method costs a frame.
   const double fast_all = runs[0]["collision_with_update_ms_median"];
   const double accurate_all = runs[1]["collision_with_update_ms_median"];
+  const double fast_later = runs[0]["collision_ms_median_later_passes"];
+  const double accurate_later = runs[1]["collision_ms_median_later_passes"];
   std::cout << json{{"avatar", name},
                     {"superquadric_speedup_over_mesh", fast > 0 ? accurate / fast : 0.0},
                     {"superquadric_speedup_over_mesh_with_update",
                      fast_all > 0 ? accurate_all / fast_all : 0.0},
+                    {"superquadric_speedup_over_mesh_later_passes",
+                     fast_later > 0 ? accurate_later / fast_later : 0.0},
                     {"target_speedup", 20.0},
                     {"target_penetration_mm", 2.0}}
                    .dump()
