@@ -1027,6 +1027,91 @@ void AddJointShells(const Avatar& avatar, const std::vector<std::array<double, 6
   }
 }
 
+/// Keeps only the skin triangles that come within `keep` [m] of the segment's centre in the
+/// rest pose (`to_local`: world to the superquadric's frame).
+void DropFarTriangles(const Avatar& avatar, const Eigen::Isometry3d& to_local, double keep,
+                      SegmentSkin& skin) {
+  std::vector<Eigen::Vector3i> triangles;
+  std::vector<std::array<double, 6>> burial;
+  std::vector<char> partly;
+  for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = skin.triangles[t];
+    Eigen::Vector3d c[3];
+    double longest = 0.0, nearest = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 3; ++k) {
+      c[k] = to_local * avatar.rest_vertices().row(skin.vertices[tri[k]]).transpose();
+      nearest = std::min(nearest, c[k].norm());
+    }
+    for (int k = 0; k < 3; ++k) longest = std::max(longest, (c[k] - c[(k + 1) % 3]).norm());
+    if (nearest - longest > keep) continue;
+    triangles.push_back(tri);
+    burial.push_back(skin.burial[t]);
+    partly.push_back(skin.partly_buried[t]);
+  }
+  skin.triangles.swap(triangles);
+  skin.burial.swap(burial);
+  skin.partly_buried.swap(partly);
+}
+
+/// The longest each skin triangle's edges may grow under skinning [m], from the rest pose.
+void MeasureEdges(const Avatar& avatar, SegmentSkin& skin) {
+  skin.edge.resize(skin.triangles.size());
+  for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = skin.triangles[t];
+    double longest = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      longest = std::max(longest, (avatar.rest_vertices().row(skin.vertices[tri[c]]) -
+                                   avatar.rest_vertices().row(skin.vertices[tri[(c + 1) % 3]]))
+                                      .norm());
+    }
+    // Skinning stretches the skin a little: a margin on the rest length.
+    skin.edge[t] = kEdgeStretch * longest;
+    skin.longest_edge = std::max(skin.longest_edge, skin.edge[t]);
+  }
+}
+
+/// Allocates the scratch a drawing of the segment's map works in, once, so that drawing
+/// never allocates.
+void AllocateDrawingScratch(SuperquadricSegment& segment) {
+  SegmentSkin& skin = segment.skin;
+  const int nodes = segment.map.num_nodes();
+  skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.scaled.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
+  skin.face.assign(skin.vertices.size(), 0);
+  skin.face_point.assign(skin.vertices.size(), Eigen::Vector2d::Zero());
+  skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
+  skin.triangle_reached.assign(skin.triangles.size(), 0);
+  skin.triangle_side.assign(skin.triangles.size(), Eigen::Vector3d::Zero());
+  skin.triangle_plane.assign(skin.triangles.size(), 0.0);
+  skin.distance.assign(skin.vertices.size(), 0.0);
+  skin.hit_radius.assign(nodes, -1.0);
+  skin.hit_triangle.assign(nodes, -1);
+  skin.hit_folded.assign(nodes, 0);
+  for (int f = 0; f < 6; ++f) {
+    skin.face_hit[f].assign(segment.map.face_nodes[f].size(), -1.0);
+    skin.face_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
+    skin.face_slot[f].assign(segment.map.face_nodes[f].size(), -1);
+    skin.face_folded[f].assign(segment.map.face_nodes[f].size(), 0);
+  }
+  skin.folded_ray.assign(kMaxFoldedRays, {0, 0});
+  skin.folded_count.assign(kMaxFoldedRays, 0);
+  skin.folded_crossing.assign(static_cast<std::size_t>(kMaxFoldedRays) * kMaxCrossingsPerRay,
+                              {0.0, 0});
+  skin.num_folded = 0;
+  skin.state.assign(nodes, 0);
+  skin.queue.reserve(nodes);
+  skin.radius = segment.map.surface_radius;
+  skin.normal = segment.map.ray;
+  skin.capped.assign(nodes, 0);
+  segment.own_nodes.resize(segment.map.num_face_points);
+  skin.topology.emplace(static_cast<int>(skin.vertices.size()), skin.triangles);
+  skin.corners.resize(static_cast<Eigen::Index>(skin.vertices.size()), 3);
+  skin.piece_distance.resize(skin.topology->num_pieces());
+  skin.piece_triangle.resize(skin.topology->num_pieces());
+  skin.piece_point.resize(skin.topology->num_pieces());
+  skin.ray_crossing.reserve(skin.triangles.size());
+}
+
 /// Sizes a segment's map and scratch: the grid spans the box of the skin it holds (its own
 /// vertices, `own`, and the triangles it sees most squarely, segment.viewed) in the
 /// superquadric's frame, and the shell reaches that skin's farthest vertex plus
@@ -1059,78 +1144,9 @@ void PrepareMap(const Avatar& avatar, const std::vector<int>& own, double map_sp
   segment.radius_step = kRadiusRangePerReach * segment.reach / StoredMapNode::kMaxRadiusSteps;
   // Triangles that lie well beyond the reach in the rest pose never stop a ray short of it
   // (bending a joint moves skin by centimetres, not decimetres): they are not drawn.
-  {
-    const double keep = segment.reach + kReachSlack;
-    std::vector<Eigen::Vector3i> triangles;
-    std::vector<std::array<double, 6>> burial;
-    std::vector<char> partly;
-    for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
-      const Eigen::Vector3i& tri = skin.triangles[t];
-      Eigen::Vector3d c[3];
-      double longest = 0.0, nearest = std::numeric_limits<double>::infinity();
-      for (int k = 0; k < 3; ++k) {
-        c[k] = to_local * avatar.rest_vertices().row(skin.vertices[tri[k]]).transpose();
-        nearest = std::min(nearest, c[k].norm());
-      }
-      for (int k = 0; k < 3; ++k) longest = std::max(longest, (c[k] - c[(k + 1) % 3]).norm());
-      if (nearest - longest > keep) continue;
-      triangles.push_back(tri);
-      burial.push_back(skin.burial[t]);
-      partly.push_back(skin.partly_buried[t]);
-    }
-    skin.triangles.swap(triangles);
-    skin.burial.swap(burial);
-    skin.partly_buried.swap(partly);
-  }
-  const int nodes = segment.map.num_nodes();
-  skin.local.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
-  skin.scaled.assign(skin.vertices.size(), Eigen::Vector3d::Zero());
-  skin.face.assign(skin.vertices.size(), 0);
-  skin.face_point.assign(skin.vertices.size(), Eigen::Vector2d::Zero());
-  skin.triangle_normal.assign(skin.triangles.size(), Eigen::Vector3d::UnitZ());
-  skin.triangle_reached.assign(skin.triangles.size(), 0);
-  skin.triangle_side.assign(skin.triangles.size(), Eigen::Vector3d::Zero());
-  skin.triangle_plane.assign(skin.triangles.size(), 0.0);
-  skin.distance.assign(skin.vertices.size(), 0.0);
-  skin.edge.resize(skin.triangles.size());
-  for (std::size_t t = 0; t < skin.triangles.size(); ++t) {
-    const Eigen::Vector3i& tri = skin.triangles[t];
-    double longest = 0.0;
-    for (int c = 0; c < 3; ++c) {
-      longest = std::max(longest, (avatar.rest_vertices().row(skin.vertices[tri[c]]) -
-                                   avatar.rest_vertices().row(skin.vertices[tri[(c + 1) % 3]]))
-                                      .norm());
-    }
-    // Skinning stretches the skin a little: a margin on the rest length.
-    skin.edge[t] = kEdgeStretch * longest;
-    skin.longest_edge = std::max(skin.longest_edge, skin.edge[t]);
-  }
-  skin.hit_radius.assign(nodes, -1.0);
-  skin.hit_triangle.assign(nodes, -1);
-  skin.hit_folded.assign(nodes, 0);
-  for (int f = 0; f < 6; ++f) {
-    skin.face_hit[f].assign(segment.map.face_nodes[f].size(), -1.0);
-    skin.face_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
-    skin.face_slot[f].assign(segment.map.face_nodes[f].size(), -1);
-    skin.face_folded[f].assign(segment.map.face_nodes[f].size(), 0);
-  }
-  skin.folded_ray.assign(kMaxFoldedRays, {0, 0});
-  skin.folded_count.assign(kMaxFoldedRays, 0);
-  skin.folded_crossing.assign(static_cast<std::size_t>(kMaxFoldedRays) * kMaxCrossingsPerRay,
-                              {0.0, 0});
-  skin.num_folded = 0;
-  skin.state.assign(nodes, 0);
-  skin.queue.reserve(nodes);
-  skin.radius = segment.map.surface_radius;
-  skin.normal = segment.map.ray;
-  skin.capped.assign(nodes, 0);
-  segment.own_nodes.resize(segment.map.num_face_points);
-  skin.topology.emplace(static_cast<int>(skin.vertices.size()), skin.triangles);
-  skin.corners.resize(static_cast<Eigen::Index>(skin.vertices.size()), 3);
-  skin.piece_distance.resize(skin.topology->num_pieces());
-  skin.piece_triangle.resize(skin.topology->num_pieces());
-  skin.piece_point.resize(skin.topology->num_pieces());
-  skin.ray_crossing.reserve(skin.triangles.size());
+  DropFarTriangles(avatar, to_local, segment.reach + kReachSlack, skin);
+  MeasureEdges(avatar, skin);
+  AllocateDrawingScratch(segment);
 }
 
 SuperquadricSegment MakeSegment(const SegmentSuperquadricFit& fit) {
