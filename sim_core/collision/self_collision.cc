@@ -398,21 +398,21 @@ void ValidateSelfCollisionSettings(const SelfCollisionSettings& settings,
   RequireInRange(context + ".max_iterations", settings.max_iterations, 0, 1000, "");
 }
 
-SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
-                             const SelfCollisionSettings& settings)
-    : model_(std::move(model)), settings_(settings), tree_(std::make_unique<btDbvt>()) {
-  const std::string context = "self-collision of '" + model_->name() + "'";
-  ValidateSelfCollisionSettings(settings_, context);
-  const int n = model_->num_particles();
-  if (!settings_.particle_friction.empty() &&
-      settings_.particle_friction.size() != static_cast<std::size_t>(n)) {
+namespace {
+
+/// Throws InputError, naming `context`, for per-particle frictions of the wrong count or a
+/// triangle that repeats a particle.
+void ValidateClothForSelfCollision(const ClothModel& model, const SelfCollisionSettings& settings,
+                                   const std::string& context) {
+  const int n = model.num_particles();
+  if (!settings.particle_friction.empty() &&
+      settings.particle_friction.size() != static_cast<std::size_t>(n)) {
     throw InputError(context + ": particle_friction has " +
-                     std::to_string(settings_.particle_friction.size()) +
+                     std::to_string(settings.particle_friction.size()) +
                      " values: allowed are none or one per particle (" + std::to_string(n) + ")");
   }
-  const auto& triangles = model_->triangles();
-  const int num_triangles = static_cast<int>(triangles.size());
-  for (int t = 0; t < num_triangles; ++t) {
+  const auto& triangles = model.triangles();
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];
     if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
       throw InputError(context + ": triangles[" + std::to_string(t) + "] = (" +
@@ -421,14 +421,33 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
                        "distinct particles");
     }
   }
+}
+
+}  // namespace
+
+SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
+                             const SelfCollisionSettings& settings)
+    : model_(std::move(model)), settings_(settings), tree_(std::make_unique<btDbvt>()) {
+  const std::string context = "self-collision of '" + model_->name() + "'";
+  ValidateSelfCollisionSettings(settings_, context);
+  ValidateClothForSelfCollision(*model_, settings_, context);
+  const int n = model_->num_particles();
   inverse_mass_.resize(n);
   for (int i = 0; i < n; ++i) {
     inverse_mass_[i] = model_->is_pinned()[i] ? 0.0 : 1.0 / model_->masses()[i];
   }
+  AssignOwnership();
+  BuildTree();
+  ReserveScratch();
+}
+
+void SelfCollision::AssignOwnership() {
   // Each particle and edge belongs to the first triangle that holds it.
+  const auto& triangles = model_->triangles();
+  const int num_triangles = static_cast<int>(triangles.size());
   edges_ = UniqueEdges(*model_);
   owned_.assign(num_triangles, Owned{});
-  std::vector<bool> vertex_taken(n, false);
+  std::vector<bool> vertex_taken(model_->num_particles(), false);
   for (int t = 0; t < num_triangles; ++t) {
     for (int k = 0; k < 3; ++k) {
       const int v = triangles[t][k];
@@ -449,7 +468,12 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
     Owned& o = owned_[edge_owner.at(edges_[e])];
     o.edges[o.num_edges++] = e;
   }
+}
+
+void SelfCollision::BuildTree() {
   // The tree's topology comes from the rest shape (top-down, balanced); steps only refit it.
+  const auto& triangles = model_->triangles();
+  const int num_triangles = static_cast<int>(triangles.size());
   leaves_.assign(num_triangles, nullptr);
   for (int t = 0; t < num_triangles; ++t) {
     btVector3 lo(1e300, 1e300, 1e300), hi(-1e300, -1e300, -1e300);
@@ -478,16 +502,22 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
     }
   }
   std::reverse(internal_nodes_.begin(), internal_nodes_.end());
+}
+
+void SelfCollision::ReserveScratch() {
+  const int n = model_->num_particles();
+  const std::size_t num_triangles = model_->triangles().size();
+  const auto rows = static_cast<Eigen::Index>(num_triangles);
   // Typical peaks for a cloth: a few dozen overlapping pairs per triangle.
-  triangle_pairs_.reserve(32 * static_cast<std::size_t>(num_triangles) + 64);
-  pairs_.reserve(64 * static_cast<std::size_t>(num_triangles) + 64);
-  proximities_.reserve(16 * static_cast<std::size_t>(num_triangles) + 64);
+  triangle_pairs_.reserve(32 * num_triangles + 64);
+  pairs_.reserve(64 * num_triangles + 64);
+  proximities_.reserve(16 * num_triangles + 64);
   box_lo_.resize(n, 3);
   box_hi_.resize(n, 3);
   edge_lo_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
   edge_hi_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
-  triangle_lo_.resize(num_triangles, 3);
-  triangle_hi_.resize(num_triangles, 3);
+  triangle_lo_.resize(rows, 3);
+  triangle_hi_.resize(rows, 3);
   path_velocity_.resize(n, 3);
   zone_parent_.resize(n);
   zone_size_.resize(n);

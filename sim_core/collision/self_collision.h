@@ -141,6 +141,11 @@ class SelfCollision {
     double state_impulse = 0.0;
   };
 
+  /// Construction: which triangle owns each particle and edge (Owned), the tree over the
+  /// rest shape with its refit order, the per-step scratch.
+  void AssignOwnership();
+  void BuildTree();
+  void ReserveScratch();
   void Refit(const Points& start, double h, double margin);
   void CollectPairs(double margin);
   void ProximityStage(const Points& start, double h, ClothState& state,
