@@ -11,6 +11,7 @@
 #include <cstring>
 #include <ctime>
 #include <fstream>
+#include <numeric>
 #include <sstream>
 #include <thread>
 
@@ -69,6 +70,10 @@ StealTicks ParseStealTicks(std::string_view proc_stat) {
       ticks.per_cpu.push_back(steal);
     }
   });
+  // As ParseStealInto: the CPUs' own lines, read after the aggregate was summed.
+  if (!ticks.per_cpu.empty()) {
+    ticks.total = std::accumulate(ticks.per_cpu.begin(), ticks.per_cpu.end(), std::int64_t{0});
+  }
   return ticks;
 }
 

@@ -20,7 +20,8 @@ namespace costume::tools {
 struct StealTicks {
   /// False when the text had no cpu line with a steal column (not Linux, or a kernel < 2.6.11).
   bool available = false;
-  /// The aggregate "cpu" line.
+  /// All CPUs: the "cpuN" lines added up (ParseStealInto says why not the aggregate "cpu"
+  /// line), or the aggregate line where there are none.
   std::int64_t total = 0;
   /// "cpu0", "cpu1", ... in order.
   std::vector<std::int64_t> per_cpu;

@@ -70,6 +70,11 @@ TEST(StealTicks, ParseIntoFixedStorageAgreesWithTheAllocatingParser) {
                            per_cpu.data(), 4, &total),
             2);
   EXPECT_EQ(total, 11);
+  EXPECT_EQ(ParseStealTicks("cpu  0 0 0 0 0 0 0 10 0 0\n"
+                            "cpu0 0 0 0 0 0 0 0 6 0 0\n"
+                            "cpu1 0 0 0 0 0 0 0 5 0 0\n")
+                .total,
+            11);
   EXPECT_EQ(ParseStealInto("cpu  1 2 3 4 5 6 7\ncpu0 1 2\n", per_cpu.data(), 4, &total), 0);
 }
 
