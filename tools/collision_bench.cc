@@ -185,7 +185,6 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const auto& clip = scene.avatar->clip;
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
-  std::vector<double> first_pass_collision_ms, later_passes_collision_ms;
   long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0;
   for (int f = 0; f < simulation->num_frames(); ++f) {
     const double cpu_start = ThreadCpuMs();
@@ -196,11 +195,6 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     if (f < fit_frames) continue;  // the clip is measured, not the fitting
     steps += report.steps;
     most_steps = std::max(most_steps, report.steps);
-    if (static_cast<int>(total_ms.size()) < first_pass_frames) {
-      first_pass_collision_ms.push_back(report.collision_ms);
-    } else {
-      later_passes_collision_ms.push_back(report.collision_ms);
-    }
     maps_drawn += report.maps_drawn;
     maps_reused += report.maps_reused;
     skin_checks += report.skin_checks;
@@ -239,6 +233,11 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
       ++strain_near[motion.avatar().skeleton().joint(NearestJoint(motion, middle)).name];
     }
   }
+  // The measured frames in order: the clip's first pass, then the later passes.
+  const auto first_pass_end =
+      collision_ms.begin() + std::min<std::ptrdiff_t>(first_pass_frames, collision_ms.size());
+  const std::vector<double> first_pass_collision_ms(collision_ms.begin(), first_pass_end);
+  const std::vector<double> later_passes_collision_ms(first_pass_end, collision_ms.end());
   const auto& s = scene.avatar.value();
   return {{"avatar", avatar_name},
           {"clip", s.clip ? s.clip->name : "none"},
