@@ -6,6 +6,7 @@
 #include <chrono>
 #include <fstream>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 
 #include "assets/scene_file.h"
@@ -244,6 +245,47 @@ fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {
   return real;
 }
 
+namespace {
+
+/// Loads the candidate through its importer in a child process under the request's limits,
+/// so a file that makes an importer allocate or loop without bound costs this process
+/// nothing; then, when thumbnails are wanted, here again (the same bytes, now known to load
+/// within the limits; the renderer's threads rule out drawing in the child): the request
+/// for the thumbnail. Throws sim::InputError naming the file.
+std::optional<ThumbnailRequest> CheckCandidate(const Candidate& c, const ImportRequest& request) {
+  const auto check = [&] {
+    return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
+                          c.entry.fabric.value_or(FabricParameters{}), c.shown);
+  };
+  const process::ChildResult trial = process::RunLimited(
+      [&] {
+        check();
+        return std::string();
+      },
+      request.check_limits);
+  switch (trial.ending) {
+    case process::ChildEnding::kReturned:
+      break;
+    case process::ChildEnding::kThrew:
+      throw sim::InputError(trial.output);
+    case process::ChildEnding::kNotStarted: {
+      // No child (out of processes): checked here, unguarded.
+      ThumbnailRequest here = check();
+      if (!request.thumbnails) return std::nullopt;
+      return here;
+    }
+    default:
+      throw sim::InputError(c.shown + ": reading it " +
+                            process::DescribeEnding(trial, request.check_limits,
+                                                    "--check-memory-mb", "--check-seconds") +
+                            "; the file is likely damaged");
+  }
+  if (!request.thumbnails) return std::nullopt;
+  return check();
+}
+
+}  // namespace
+
 std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& request,
                                       std::ostream& progress) {
   if (request.files.empty()) throw sim::InputError("import: no files given");
@@ -279,16 +321,14 @@ std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& req
                          : c.entry.data.format == "garment-toml" ? FabricOfGarmentFile(c.path)
                                                                  : FabricParameters{};
       }
-      ThumbnailRequest thumbnail =
-          CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
-                         c.entry.fabric.value_or(FabricParameters{}), c.shown);
+      std::optional<ThumbnailRequest> thumbnail = CheckCandidate(c, request);
       progress << " loaded in " << std::fixed << std::setprecision(1) << SecondsSince(start) << " s"
                << std::flush;
-      if (request.thumbnails) {
+      if (thumbnail) {
         progress << "; thumbnail..." << std::flush;
-        thumbnail.size = request.thumbnail_size;
+        thumbnail->size = request.thumbnail_size;
         try {
-          c.entry.thumbnail_png = request.thumbnails(thumbnail);
+          c.entry.thumbnail_png = request.thumbnails(*thumbnail);
         } catch (const std::exception& error) {
           progress << " (none: " << error.what() << ")";
         }

@@ -4,8 +4,9 @@
 /// and garments in every format the assets layer reads. Files must lie inside the import
 /// folder (--root): a path escaping it, through "..", an absolute path or a symbolic link,
 /// is refused. Every file is loaded through its importer (from a private copy of the bytes
-/// that will be stored) before anything is written; the entries are then added in one
-/// transaction, so a bad file leaves the catalogue unchanged.
+/// that will be stored) before anything is written, first in a child process under memory and
+/// time limits (a damaged file can make a third-party importer allocate without bound); the
+/// entries are then added in one transaction, so a bad file leaves the catalogue unchanged.
 
 #include <cstdint>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "catalog/catalog.h"
+#include "process/limited_child.h"
 
 namespace costume::catalog {
 
@@ -44,6 +46,14 @@ struct ImportRequest {
   /// Thumbnails (none when empty).
   ThumbnailMaker thumbnails;
   int thumbnail_size = 128;
+  /// What checking one file may take: memory beyond the importing process's own, processor
+  /// time (`costume-catalog import --check-memory-mb`, `--check-seconds`). A file that needs
+  /// more is refused. The real assets of ../shared/data need under 0.12 GB and 0.3 s each;
+  /// a 1 KB Collada file with "nan" among its indices makes assimp 5.2 allocate without end.
+  process::ChildLimits check_limits{.memory_bytes = kDefaultCheckMemoryMb << 20,
+                                    .cpu_seconds = kDefaultCheckSeconds};
+  static constexpr std::uint64_t kDefaultCheckMemoryMb = 4096;
+  static constexpr int kDefaultCheckSeconds = 300;
 };
 
 /// The canonical path of `file` (symbolic links and ".." resolved), which must exist and lie

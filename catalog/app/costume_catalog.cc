@@ -120,6 +120,19 @@ int main(int argc, char** argv) {
                      "<motion folder>/../characters/humanoid3d.txt)");
   import->add_option("--label", request.label, "garments: the first version's label")
       ->capture_default_str();
+  std::uint64_t check_memory_mb = costume::catalog::ImportRequest::kDefaultCheckMemoryMb;
+  import
+      ->add_option("--check-memory-mb", check_memory_mb,
+                   "memory one file's check may use; a file needing more is refused as "
+                   "damaged [MB]")
+      ->check(CLI::Range(std::uint64_t{64}, std::uint64_t{1} << 20))
+      ->capture_default_str();
+  import
+      ->add_option("--check-seconds", request.check_limits.cpu_seconds,
+                   "processor time one file's check may take; a file needing more is "
+                   "refused as damaged [s]")
+      ->check(CLI::Range(1, 86400))
+      ->capture_default_str();
 
   std::string list_kind;
   auto* list = app.add_subcommand("list", "list the entries");
@@ -149,6 +162,7 @@ int main(int argc, char** argv) {
     const auto catalog = Catalog::Open(url, options);
     if (*import) {
       request.kind = costume::catalog::ParseKind(kind_name);
+      request.check_limits.memory_bytes = check_memory_mb << 20;
       if (!no_thumbnails) request.thumbnails = costume::catalog::RenderedThumbnails();
       costume::catalog::ImportFiles(*catalog, request, std::cout);
     } else if (*list) {

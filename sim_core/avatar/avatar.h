@@ -36,8 +36,9 @@ class Avatar {
  public:
   /// Validates and builds. Throws InputError naming the avatar, the field, the offending
   /// vertex/triangle and the allowed range for: no skeleton; no vertices; non-finite
-  /// positions; a triangle index out of range; an influence joint out of range; negative
-  /// weights or weights not summing to 1 within 1e-6 after the importer's normalisation.
+  /// positions, or a coordinate beyond kMaxCoordinate; a triangle index out of range; an
+  /// influence joint out of range; negative weights or weights not summing to 1 within 1e-6
+  /// after the importer's normalisation.
   static std::shared_ptr<const Avatar> Create(AvatarData data);
 
   const std::string& name() const { return data_.name; }

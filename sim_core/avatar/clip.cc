@@ -86,6 +86,12 @@ void ValidateClip(const Clip& clip) {
     if (!pose.root_translation.allFinite() || !pose.orientation.coeffs().allFinite()) {
       throw InputError(frame + ": non-finite root translation or orientation");
     }
+    const double distance = pose.root_translation.lpNorm<Eigen::Infinity>();
+    if (distance > kMaxCoordinate) {
+      throw InputError(frame + ": root translation coordinate " + FormatValue(distance) +
+                       " m (allowed: within ±" + FormatValue(kMaxCoordinate) +
+                       " m of the clip's origin)");
+    }
   }
 }
 

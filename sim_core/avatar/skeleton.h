@@ -29,7 +29,8 @@ class Skeleton {
  public:
   /// Validates and builds. Throws InputError naming `name`, the joint and the field for: no
   /// joints, an empty or repeated name, a parent index not smaller than the joint's own, a
-  /// non-rigid or non-finite rest transform, an H-Anim id used twice.
+  /// non-rigid or non-finite rest transform, a rest offset with a coordinate beyond
+  /// kMaxCoordinate, an H-Anim id used twice.
   static std::shared_ptr<const Skeleton> Create(std::string name, std::vector<Joint> joints);
 
   const std::string& name() const { return name_; }

@@ -31,7 +31,10 @@ void ValidateParticles(const ClothModelData& data) {
   }
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::string p = Where(data) + "particle " + std::to_string(i) + " ";
-    for (int c = 0; c < 3; ++c) RequireFinite(p + "position", data.rest_positions(i, c), "m");
+    for (int c = 0; c < 3; ++c) {
+      RequireInRange(p + "position", data.rest_positions(i, c), -kMaxCoordinate, kMaxCoordinate,
+                     "m");
+    }
     RequirePositive(p + "mass", data.masses[i], "kg");
     RequireNonNegative(p + "area", data.areas[i], "m²");
     RequireNonNegative(p + "drag", data.drag[i], "N·s/m");

@@ -34,4 +34,11 @@ void RequireInRange(const std::string& field, double value, double lo, double hi
 /// Throws InputError unless `value` is finite.
 void RequireFinite(const std::string& field, double value, const std::string& unit);
 
+/// Largest coordinate a position in a model may have [m]: a cloth particle's, a skin
+/// vertex's (from the avatar's origin), a joint's rest offset (from its parent), a clip's
+/// root translation (from the clip's origin). Far beyond any stage, and far below where
+/// arithmetic fails: a clip whose root jumped 1e298 m for one frame (a damaged BVH) left the
+/// cloth non-finite for good.
+inline constexpr double kMaxCoordinate = 1e4;
+
 }  // namespace costume::sim

@@ -308,7 +308,8 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
       pyramid_(MakePyramid(model_, settings)),
       stepper_(std::make_unique<ImplicitStepper>(model_, settings,
                                                  MakeStepSolver(*model_, settings, pyramid_))),
-      state_(ClothState::AtRest(*model_)) {
+      state_(ClothState::AtRest(*model_)),
+      last_finite_(state_) {
   for (const SphereObstacleSpec& s : scene_.spheres) {
     spheres_.push_back({s.center, s.radius, s.thickness,
                         scene_.effects.friction ? s.friction : 0.0});
@@ -427,16 +428,26 @@ void Simulation::StepOnce(double h, bool avatar_posed, FrameReport& report) {
   ReleaseAdhesiveContacts(h);
   if (self_collision_) start_positions_ = state_.positions;
   const StepReport step_report = stepper_->Step(state_, h, contacts_);
-  std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
-  for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
-  last_step_ = h;
   report.steps += 1;
   report.iterations += step_report.iterations;
   report.coarse_iterations += step_report.coarse_iterations;
   report.converged = report.converged && step_report.converged;
   report.rolled_back_steps += step_report.rolled_back ? 1 : 0;
   report.num_contacts += step_report.num_contacts;
-  if (step_report.rolled_back) return;
+  if (step_report.rolled_back) {
+    KeepFinite(/*stepper_rolled_back=*/true, report);
+    return;
+  }
+  CorrectAfterSolve(h, report);
+  if (!KeepFinite(/*stepper_rolled_back=*/false, report)) return;
+  // Friction's memory of this step, for the next one: only from a step that stands (an
+  // undone step's contacts hold no impulse, and the next step would slide without friction).
+  std::fill(normal_impulse_.begin(), normal_impulse_.end(), 0.0);
+  for (const Contact& c : contacts_) normal_impulse_[c.particle] = c.normal_impulse;
+  last_step_ = h;
+}
+
+void Simulation::CorrectAfterSolve(double h, FrameReport& report) {
   if (scene_.solver.strain_limit > 0.0) ApplyStrainLimit(report);
   for (const SphereObstacle& sphere : spheres_) {
     report.max_penetration = std::max(
@@ -464,6 +475,19 @@ void Simulation::StepOnce(double h, bool avatar_posed, FrameReport& report) {
     report.unresolved_self_collisions += self.remaining_collisions;
     report.self_collision_ms += MillisecondsSince(start);
   }
+}
+
+bool Simulation::KeepFinite(bool stepper_rolled_back, FrameReport& report) {
+  if (state_.positions.allFinite() && state_.velocities.allFinite()) {
+    last_finite_ = state_;  // same sizes every step: copies without allocating
+    return true;
+  }
+  // A clip whose root jumped 1e298 m for one frame put the attached particles there, and
+  // the cloth never came back: each later step started from, and rolled back to, that state.
+  state_ = last_finite_;
+  if (!stepper_rolled_back) ++report.rolled_back_steps;
+  if (grabbing_) grab_feedback_ = GrabFeedback(*model_, state_, grabbed_, is_grabbed_);
+  return false;
 }
 
 bool Simulation::SetGrab(const Grab& grab) {

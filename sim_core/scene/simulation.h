@@ -205,7 +205,16 @@ class Simulation {
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts(double h);
+  /// After the solve: the strain limit, the obstacles' and the body's position corrections,
+  /// the attachments, the grab's feedback, self-collision.
+  void CorrectAfterSolve(double h, FrameReport& report);
   void ApplyStrainLimit(FrameReport& report);
+  /// Keeps the state finite: a step that ends non-finite anywhere (the stepper undoes only
+  /// its solve; the corrections after it work with what the body gives) returns to the last
+  /// finite state, counted in `rolled_back_steps` unless the stepper counted it
+  /// (`stepper_rolled_back`). Returns whether the state was finite (the step stands). Never
+  /// throws or allocates.
+  bool KeepFinite(bool stepper_rolled_back, FrameReport& report);
 
   SceneDescription scene_;
   std::shared_ptr<const ClothModel> model_;
@@ -223,6 +232,8 @@ class Simulation {
   std::unique_ptr<SelfCollision> self_collision_;
   /// Positions at the start of the step, for self-collision's continuous tests.
   Points start_positions_;
+  /// The state after the last step that ended finite (KeepFinite).
+  ClothState last_finite_;
   std::vector<Contact> contacts_;
   /// The grab and what it does; `applied_` is what the stepper adds (n×3) [N].
   Grab grab_;

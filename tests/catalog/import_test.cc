@@ -55,9 +55,14 @@ class ImportTest : public testing::Test {
   std::vector<std::int64_t> Import(ImportRequest request) {
     if (request.root.empty()) request.root = root_.string();
     std::ostringstream progress;
-    auto ids = ImportFiles(*catalog_, request, progress);
-    progress_ = progress.str();
-    return ids;
+    try {
+      auto ids = ImportFiles(*catalog_, request, progress);
+      progress_ = progress.str();
+      return ids;
+    } catch (...) {
+      progress_ = progress.str();
+      throw;
+    }
   }
 
   /// The error ImportFiles throws for `request` (empty when it imports).
@@ -164,6 +169,52 @@ TEST_F(ImportTest, OneBadFileStopsTheWholeBatch) {
   request.files.pop_back();
   Import(request);
   EXPECT_TRUE(catalog_->Find(Kind::kGarment, "good"));
+}
+
+/// One triangle in Collada whose index list ends in "nan": assimp 5.2 reads it by allocating
+/// without end (13 GB within a minute here, uncapped).
+const char kCollapsingCollada[] = R"(<?xml version="1.0" encoding="utf-8"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <library_geometries><geometry id="g"><mesh>
+    <source id="p"><float_array id="pa" count="9">0 0 0 1 0 0 0 1 0</float_array>
+      <technique_common><accessor source="#pa" count="3" stride="3">
+        <param name="X" type="float"/><param name="Y" type="float"/><param name="Z" type="float"/>
+      </accessor></technique_common></source>
+    <vertices id="v"><input semantic="POSITION" source="#p"/></vertices>
+    <triangles count="1"><input semantic="VERTEX" source="#v" offset="0"/><p>0 1 nan</p></triangles>
+  </mesh></geometry></library_geometries>
+  <library_visual_scenes><visual_scene id="s"><node id="n"><instance_geometry url="#g"/></node>
+  </visual_scene></library_visual_scenes>
+  <scene><instance_visual_scene url="#s"/></scene>
+</COLLADA>
+)";
+
+TEST_F(ImportTest, AFileThatMakesTheImporterAllocateWithoutEndIsRefusedAtTheLimit) {
+  ImportRequest request;
+  request.kind = Kind::kAvatar;
+  request.files = {Write("damaged.dae", kCollapsingCollada)};
+  request.check_limits.memory_bytes = 256ull << 20;
+  const std::string message = ImportError(request);
+  EXPECT_TRUE(Contains(message, "damaged.dae: reading it needed more than 256 MB of memory "
+                                "(--check-memory-mb)"))
+      << message;
+  // The same check with the limit set free would be this process's end: so it ran apart.
+  EXPECT_TRUE(Contains(progress_, "damaged.dae (1 KB, dae): checking... refused")) << progress_;
+}
+
+TEST_F(ImportTest, AFileThatKeepsTheImporterBusyIsRefusedAtTheTimeLimit) {
+  // The largest lattice a garment file allows, 1025 × 1025 particles: its model takes about
+  // 3 s of processor time to build here.
+  ImportRequest request;
+  request.kind = Kind::kGarment;
+  request.files = {Write("huge.toml",
+                         "[[garment]]\nname = \"huge\"\n[garment.panel]\n"
+                         "resolution = [1025, 1025]\n")};
+  request.check_limits.cpu_seconds = 1;
+  const std::string message = ImportError(request);
+  EXPECT_TRUE(Contains(message, "huge.toml: reading it took more than 1 s of processor time "
+                                "(--check-seconds)"))
+      << message;
 }
 
 // ---- garments from files -----------------------------------------------------------------------

@@ -122,6 +122,10 @@ TEST(AvatarCreate, RefusalsNameTheField) {
   ExpectRefused(data, {"rest_vertices", "row 2"});
 
   data = ThreeVertices();
+  data.rest_vertices(1, 2) = 1e308;
+  ExpectRefused(data, {"rest_vertices row 1 has coordinate 1e+308 m", "±10000 m"});
+
+  data = ThreeVertices();
   data.triangles.push_back({0, 1, 3});
   ExpectRefused(data, {"triangles[1]", "0..2"});
 

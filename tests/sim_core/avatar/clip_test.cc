@@ -124,6 +124,12 @@ TEST(ValidateClip, RefusalsNameTheClipAndField) {
   clip = ThreeFrames(true);
   clip.frames[0].root_translation.y() = std::nan("");
   expect(clip, "root translation");
+  // A damaged BVH's root jumped 2.5e298 m for one frame: refused, as a stage is far smaller.
+  clip = ThreeFrames(true);
+  clip.frames[1].root_translation.x() = -2.5e298;
+  expect(clip, "frame 1: root translation coordinate 2.5e+298 m (allowed: within ±10000 m");
+  clip.frames[1].root_translation.x() = kMaxCoordinate;
+  EXPECT_NO_THROW(ValidateClip(clip));
 }
 
 // ---- retargeting ------------------------------------------------------------------------

@@ -92,6 +92,18 @@ TEST(SkeletonCreate, RefusesNonRigidOrNonFiniteRestTransforms) {
   EXPECT_NE(message.find("non-finite"), std::string::npos) << message;
 }
 
+TEST(SkeletonCreate, RefusesAnOffsetBeyondAnyStageButKeepsOneAtTheLimit) {
+  std::vector<Joint> joints = Chain();
+  joints[1].rest_local.translation() = Eigen::Vector3d(0.0, -kMaxCoordinate, 0.0);
+  EXPECT_NO_THROW(Skeleton::Create("rig", joints));
+  // Finite, and its square overflows: the coordinate is reported, not an infinite norm.
+  joints[1].rest_local.translation() = Eigen::Vector3d(0.0, -2.5e298, 1e298);
+  const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  EXPECT_NE(message.find("'hip'): rest offset coordinate 2.5e+298 m (allowed: within ±10000 m"),
+            std::string::npos)
+      << message;
+}
+
 TEST(SkeletonCreate, AcceptsRotationsAndRefusesHAnimUsedTwice) {
   std::vector<Joint> joints = Chain();
   joints[1].rest_local.linear() =

@@ -116,6 +116,10 @@ TEST(ClothModelCreate, RefusesEachKindOfBadModel) {
   bad = good;
   bad.rest_positions(1, 2) = INFINITY;
   expect_refused(bad, "position = inf");
+  bad = good;  // a damaged edited-garment file's flipped bit
+  bad.rest_positions(1, 0) = -1.4e37;
+  expect_refused(bad,
+                 "particle 1 position = -1.4e+37 m is out of range: allowed -10000 to 10000 m");
   bad = good;
   bad.springs[3].stiffness = -5;
   expect_refused(bad, "stiffness = -5 N/m");

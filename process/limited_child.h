@@ -1,0 +1,56 @@
+#pragma once
+/// @file
+/// Work run in a forked child under memory and processor-time limits, for code this process
+/// cannot trust with itself: third-party parsers reading a user's file. assimp 5.2 reading a
+/// Collada file whose index list holds "nan" allocates without bound (13 GB within a minute
+/// here, then the machine's memory); in a child under a limit the same file costs a second
+/// and an error message (docs/catalog.md, "Safety").
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+namespace costume::process {
+
+/// Limits for RunLimited; 0 leaves that resource unlimited.
+struct ChildLimits {
+  /// Address space the work may map beyond what this process maps when it calls [bytes].
+  std::uint64_t memory_bytes = 0;
+  /// Processor time the child may use [s].
+  int cpu_seconds = 0;
+};
+
+/// How the work in the child ended.
+enum class ChildEnding {
+  kReturned,     ///< it returned; ChildResult::output holds its value
+  kThrew,        ///< it threw; output holds the exception's message
+  kOutOfMemory,  ///< an allocation failed (std::bad_alloc, caught by the work or not); output
+                 ///< holds the message
+  kOutOfTime,    ///< stopped at the processor-time limit
+  kCrashed,      ///< killed by another signal (ChildResult::signal) or ended without a result
+  kNotStarted,   ///< the pipe or the fork failed; output says why
+};
+
+/// What RunLimited brings back from the child.
+struct ChildResult {
+  ChildEnding ending = ChildEnding::kNotStarted;
+  std::string output;
+  int signal = 0;  ///< the signal that ended the child, 0 when none did
+};
+
+/// Runs `work` in a forked child under `limits` and waits for it. Only `work`'s return value
+/// or exception message comes back (through a pipe); whatever else it changes stays in the
+/// child. An exception whose message names std::bad_alloc counts as out of memory, as
+/// libraries that catch their own exceptions (assimp) report it that way. The child has only
+/// the calling thread: `work` must not need locks that other threads of this process may
+/// hold (plain parsing and computing is fine; rendering is not). Flush buffered output
+/// before calling, or the child's exit may repeat it. Never throws (but std::bad_alloc).
+ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimits& limits);
+
+/// A phrase for an error message about a child that did not return, naming the limit it hit
+/// and `memory_option` / `time_option` (the user's setting for it), e.g. "needed more than
+/// 4096 MB of memory (--check-memory-mb)". Empty for kReturned.
+std::string DescribeEnding(const ChildResult& result, const ChildLimits& limits,
+                           const std::string& memory_option, const std::string& time_option);
+
+}  // namespace costume::process

@@ -1,0 +1,118 @@
+// Work run in a forked child under limits: each way it can end comes back as that ending,
+// and nothing it does reaches this process.
+
+#include "process/limited_child.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <vector>
+
+namespace costume::process {
+namespace {
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(RunLimited, BringsBackWhatTheWorkReturnsWholeAndLeavesThisProcessUntouched) {
+  int touched = 0;
+  // 3 MB: many times a pipe's buffer, so the parent must read while the child writes.
+  const ChildResult result = RunLimited(
+      [&] {
+        touched = 1;
+        std::string bytes(3 << 20, '\0');
+        for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>(i * 7 % 251);
+        return bytes;
+      },
+      {});
+  ASSERT_EQ(result.ending, ChildEnding::kReturned);
+  ASSERT_EQ(result.output.size(), std::size_t{3} << 20);
+  for (std::size_t i = 0; i < result.output.size(); i += 4099) {
+    ASSERT_EQ(result.output[i], static_cast<char>(i * 7 % 251)) << "byte " << i;
+  }
+  EXPECT_EQ(touched, 0) << "the child's change reached the parent";
+  EXPECT_EQ(result.signal, 0);
+}
+
+TEST(RunLimited, AnExceptionComesBackAsItsMessage) {
+  const ChildResult result =
+      RunLimited([]() -> std::string { throw std::runtime_error("file.dae:3: bad index"); }, {});
+  EXPECT_EQ(result.ending, ChildEnding::kThrew);
+  EXPECT_EQ(result.output, "file.dae:3: bad index");
+  EXPECT_EQ(DescribeEnding(result, {}, "--m", "--t"), "file.dae:3: bad index");
+}
+
+TEST(RunLimited, WorkAllocatingBeyondTheMemoryLimitEndsOutOfMemory) {
+  const ChildLimits limits{.memory_bytes = 64ull << 20, .cpu_seconds = 0};
+  // Touching 512 MB page by page: fails at the limit, far below what the machine has.
+  const ChildResult result = RunLimited(
+      [] {
+        std::vector<std::vector<char>> blocks;
+        for (int i = 0; i < 512; ++i) blocks.emplace_back(1 << 20, 'x');
+        return std::to_string(blocks.size());
+      },
+      limits);
+  EXPECT_EQ(result.ending, ChildEnding::kOutOfMemory) << result.output;
+  EXPECT_EQ(DescribeEnding(result, limits, "--check-memory-mb", "--t"),
+            "needed more than 64 MB of memory (--check-memory-mb)");
+}
+
+TEST(RunLimited, AnAllocationFailureALibraryCaughtAndReportedCountsAsOutOfMemory) {
+  // assimp catches std::bad_alloc itself and reports its what() as an error string.
+  const ChildResult result = RunLimited(
+      []() -> std::string {
+        throw std::runtime_error("a.dae: cannot read the avatar file: std::bad_alloc");
+      },
+      {});
+  EXPECT_EQ(result.ending, ChildEnding::kOutOfMemory);
+}
+
+TEST(RunLimited, WorkThatNeverEndsStopsAtTheProcessorTimeLimit) {
+  const ChildLimits limits{.memory_bytes = 0, .cpu_seconds = 1};
+  const auto start = std::chrono::steady_clock::now();
+  const ChildResult result = RunLimited(
+      [] {
+        volatile unsigned long spin = 0;
+        for (;;) spin = spin + 1;
+        return std::string();
+      },
+      limits);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(result.ending, ChildEnding::kOutOfTime);
+  EXPECT_EQ(result.signal, SIGXCPU);
+  // 1 s of processor time; more of the wall clock on a loaded machine, never the hard limit's 3.
+  EXPECT_GE(seconds, 0.9);
+  EXPECT_EQ(DescribeEnding(result, limits, "--m", "--check-seconds"),
+            "took more than 1 s of processor time (--check-seconds)");
+}
+
+TEST(RunLimited, ACrashIsReportedWithItsSignal) {
+  const ChildResult result = RunLimited(
+      []() -> std::string {
+        std::abort();
+      },
+      {});
+  EXPECT_EQ(result.ending, ChildEnding::kCrashed);
+  EXPECT_EQ(result.signal, SIGABRT);
+  EXPECT_TRUE(Contains(DescribeEnding(result, {}, "--m", "--t"), "SIGABRT"))
+      << DescribeEnding(result, {}, "--m", "--t");
+}
+
+TEST(RunLimited, AChildThatExitsWithoutAResultIsNotTakenForSuccess) {
+  const ChildResult result = RunLimited(
+      []() -> std::string {
+        std::_Exit(0);
+      },
+      {});
+  EXPECT_EQ(result.ending, ChildEnding::kCrashed);
+  EXPECT_EQ(DescribeEnding(result, {}, "--m", "--t"), "ended without a result");
+}
+
+}  // namespace
+}  // namespace costume::process
