@@ -132,6 +132,10 @@ constexpr Range kAnyNumber{};
 constexpr Range kPositive{0.0, kInfinity, true, true};
 constexpr Range kNonNegative{0.0, kInfinity, false, true};
 constexpr Range kDurationRange{0.0, 3600.0, true, false};
+constexpr Range kCoordinateRange{-sim::kMaxCoordinate, sim::kMaxCoordinate, false, false};
+constexpr Range kGravityRange{-sim::kMaxGravity, sim::kMaxGravity, false, false};
+constexpr Range kThicknessRange{0.0, sim::kMaxThickness, false, false};
+constexpr Range kFrictionRange{0.0, sim::kMaxFriction, false, false};
 constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
 constexpr Range kToleranceRange{0.0, 1.0, true, true};
 constexpr Range kStrainLimitRange{0.0, 10.0, false, false};
@@ -303,10 +307,11 @@ const toml::array& ReadArray(const Field& field, std::optional<std::size_t> leng
   return *array;
 }
 
-Eigen::Vector3d ReadVector3(const Field& field, const std::string& unit) {
+Eigen::Vector3d ReadVector3(const Field& field, const std::string& unit,
+                            const Range& range = kAnyNumber) {
   ReadArray(field, 3, "an array of 3 numbers [x, y, z]", unit);
   Eigen::Vector3d vector;
-  for (int i = 0; i < 3; ++i) vector[i] = ReadNumber(field.Element(i), kAnyNumber, unit);
+  for (int i = 0; i < 3; ++i) vector[i] = ReadNumber(field.Element(i), range, unit);
   return vector;
 }
 
@@ -326,7 +331,7 @@ std::vector<Eigen::Vector3d> ReadPoints(const Field& field, const std::string& u
       ReadArray(field, std::nullopt, "an array of points [[x, y, z], ...]", unit);
   std::vector<Eigen::Vector3d> points;
   for (std::size_t i = 0; i < array.size(); ++i)
-    points.push_back(ReadVector3(field.Element(i), unit));
+    points.push_back(ReadVector3(field.Element(i), unit, kCoordinateRange));
   return points;
 }
 
@@ -347,9 +352,10 @@ bool BoolOr(const TableView& table, std::string_view key, bool fallback) {
 }
 
 Eigen::Vector3d Vector3Or(const TableView& table, std::string_view key,
-                          const Eigen::Vector3d& fallback, const std::string& unit) {
+                          const Eigen::Vector3d& fallback, const std::string& unit,
+                          const Range& range) {
   const std::optional<Field> field = table.Find(key);
-  return field ? ReadVector3(*field, unit) : fallback;
+  return field ? ReadVector3(*field, unit, range) : fallback;
 }
 
 /// The sub-table `key` (a [header] or an inline table), or nullopt when absent.
@@ -496,7 +502,7 @@ void RefuseSkewAxes(const TableView& table, const sim::LatticePanel& panel) {
 sim::LatticePanel ParsePanel(const TableView& table) {
   table.RefuseUnknownKeys({"origin", "u_axis", "v_axis", "size", "resolution"});
   sim::LatticePanel panel;
-  panel.origin = Vector3Or(table, "origin", panel.origin, "m");
+  panel.origin = Vector3Or(table, "origin", panel.origin, "m", kCoordinateRange);
   if (const std::optional<Field> u_axis = table.Find("u_axis"))
     panel.u_axis = ReadDirection(*u_axis);
   if (const std::optional<Field> v_axis = table.Find("v_axis"))
@@ -527,7 +533,7 @@ sim::SurfaceMesh ParseMesh(const TableView& table) {
   const Field file = table.Require("file");
   MeshImportOptions options;
   options.scale = NumberOr(table, "scale", options.scale, kPositive, "m per file unit");
-  options.offset = Vector3Or(table, "offset", options.offset, "m");
+  options.offset = Vector3Or(table, "offset", options.offset, "m", kCoordinateRange);
   const double weld = NumberOr(table, "weld_below", 0.0, {0.0, 0.1, false, false}, "m");
   const std::string path = ResolvePath(table.source().base_dir, ReadName(file));
   try {
@@ -600,10 +606,11 @@ sim::SphereObstacleSpec ParseSphere(const TableView& table) {
   table.RefuseUnknownKeys({"center", "radius", "thickness", "friction"});
   sim::SphereObstacleSpec sphere;
   sphere.source_line = table.line();
-  sphere.center = Vector3Or(table, "center", sphere.center, "m");
-  sphere.radius = NumberOr(table, "radius", sphere.radius, kPositive, "m");
-  sphere.thickness = NumberOr(table, "thickness", sphere.thickness, kNonNegative, "m");
-  sphere.friction = NumberOr(table, "friction", sphere.friction, kNonNegative, "");
+  sphere.center = Vector3Or(table, "center", sphere.center, "m", kCoordinateRange);
+  sphere.radius =
+      NumberOr(table, "radius", sphere.radius, {0.0, sim::kMaxCoordinate, true, false}, "m");
+  sphere.thickness = NumberOr(table, "thickness", sphere.thickness, kThicknessRange, "m");
+  sphere.friction = NumberOr(table, "friction", sphere.friction, kFrictionRange, "");
   return sphere;
 }
 
@@ -662,8 +669,8 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
   }
   avatar.superquadric_map_mb = NumberOr(table, "superquadric_map_mb", avatar.superquadric_map_mb,
                                         {0.0, sim::kMaxSuperquadricMapMb, false, false}, "MB");
-  avatar.thickness = NumberOr(table, "thickness", avatar.thickness, {0.0, 0.05, false, false}, "m");
-  avatar.friction = NumberOr(table, "friction", avatar.friction, {0.0, 2.0, false, false}, "");
+  avatar.thickness = NumberOr(table, "thickness", avatar.thickness, kThicknessRange, "m");
+  avatar.friction = NumberOr(table, "friction", avatar.friction, kFrictionRange, "");
   avatar.max_skin_travel =
       NumberOr(table, "max_skin_travel", avatar.max_skin_travel, {0.0, 1.0, false, false}, "m");
   avatar.max_steps_per_frame = IntegerOr(table, "max_steps_per_frame", avatar.max_steps_per_frame,
@@ -673,7 +680,7 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
   avatar.motion.blend_time =
       NumberOr(table, "blend_time", avatar.motion.blend_time, {0.0, 60.0, false, false}, "s");
   avatar.motion.posture.root_translation =
-      Vector3Or(table, "position", Eigen::Vector3d::Zero(), "m");
+      Vector3Or(table, "position", Eigen::Vector3d::Zero(), "m", kCoordinateRange);
   const double heading = NumberOr(table, "heading", 0.0, {-360.0, 360.0, false, false}, "degrees");
   avatar.motion.posture.orientation =
       Eigen::AngleAxisd(heading * std::acos(-1.0) / 180.0, Eigen::Vector3d::UnitY());
@@ -698,7 +705,7 @@ sim::SceneDescription ParseScene(const TableView& root) {
   if (const std::optional<Field> name = root.Find("name")) scene.name = ReadName(*name);
   scene.duration = NumberOr(root, "duration", scene.duration, kDurationRange, "s");
   scene.frame_rate = NumberOr(root, "frame_rate", scene.frame_rate, kFrameRateRange, "Hz");
-  scene.gravity = Vector3Or(root, "gravity", scene.gravity, "m/s²");
+  scene.gravity = Vector3Or(root, "gravity", scene.gravity, "m/s²", kGravityRange);
   if (const std::optional<TableView> solver = FindTable(root, "solver", "[solver]")) {
     scene.solver = ParseSolver(*solver);
   }

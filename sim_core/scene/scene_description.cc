@@ -84,6 +84,15 @@ class Refuser {
     Refuse(field, FormatVector(value) + " " + unit, "must be finite");
   }
 
+  /// Refuses `value` unless each coordinate is finite and within ±`bound`.
+  void RequireWithin(const std::string& field, const Eigen::Vector3d& value, double bound,
+                     const std::string& unit) const {
+    RequireFinite(field, value, unit);
+    if (value.lpNorm<Eigen::Infinity>() <= bound) return;
+    Refuse(field, FormatVector(value) + " " + unit,
+           "allowed: each coordinate within ±" + FormatValue(bound));
+  }
+
  private:
   std::string source_;
   int line_;
@@ -194,10 +203,11 @@ void ValidateSphere(const SphereObstacleSpec& sphere, std::size_t index,
                     const Refuser& scene_refuser) {
   const Refuser refuser = scene_refuser.AtLine(sphere.source_line);
   const std::string field = "sphere[" + std::to_string(index) + "]";
-  refuser.RequireFinite(field + ".center", sphere.center, "m");
-  refuser.RequirePositive(field + ".radius", sphere.radius, "m");
-  refuser.RequireNonNegative(field + ".thickness", sphere.thickness, "m");
-  refuser.RequireNonNegative(field + ".friction", sphere.friction, "");
+  refuser.RequireWithin(field + ".center", sphere.center, kMaxCoordinate, "m");
+  refuser.RequireNumber(field + ".radius", sphere.radius, 0.0, kMaxCoordinate, true, false, "m");
+  refuser.RequireNumber(field + ".thickness", sphere.thickness, 0.0, kMaxThickness, false, false,
+                        "m");
+  refuser.RequireNumber(field + ".friction", sphere.friction, 0.0, kMaxFriction, false, false, "");
 }
 
 void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser) {
@@ -224,8 +234,11 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
   const AvatarSpec& avatar = *scene.avatar;
   const Refuser refuser = scene_refuser.AtLine(avatar.source_line);
   if (!avatar.avatar) refuser.Refuse("avatar", "none", "the avatar was not loaded");
-  refuser.RequireNumber("avatar.thickness", avatar.thickness, 0.0, 0.05, false, false, "m");
-  refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, 2.0, false, false, "");
+  refuser.RequireNumber("avatar.thickness", avatar.thickness, 0.0, kMaxThickness, false, false,
+                        "m");
+  refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, kMaxFriction, false, false, "");
+  refuser.RequireWithin("avatar.position", avatar.motion.posture.root_translation,
+                        kMaxCoordinate, "m");
   refuser.RequireNumber("avatar.superquadric_map_mb", avatar.superquadric_map_mb, 0.0,
                         kMaxSuperquadricMapMb, false, false, "MB");
   refuser.RequireNumber("avatar.max_skin_travel", avatar.max_skin_travel, 0.0, 1.0, false, false,
@@ -246,7 +259,7 @@ void ValidateScene(const SceneDescription& scene) {
   const Refuser refuser(scene.source);
   refuser.RequireNumber("duration", scene.duration, 0.0, 3600.0, true, false, "s");
   refuser.RequireNumber("frame_rate", scene.frame_rate, 1.0, 1000.0, false, false, "Hz");
-  refuser.RequireFinite("gravity", scene.gravity, "m/s²");
+  refuser.RequireWithin("gravity", scene.gravity, kMaxGravity, "m/s²");
   ValidateSolver(scene.solver, refuser);
   ValidateMaterials(scene.materials, refuser);
   ValidateGarments(scene, refuser);

@@ -103,6 +103,16 @@ constexpr double kMaxSuperquadricMapMb = 16384.0;
 /// The most steps AvatarSpec::max_steps_per_frame may allow.
 constexpr int kMaxStepsPerFrame = 64;
 
+/// Largest gravity component a scene may set [m/s²]: ten times the Earth's. A scene file with
+/// a gravity of 1e9 m/s² ran, stretching the cloth by 66 million per cent without a word.
+constexpr double kMaxGravity = 100.0;
+
+/// Largest cloth thickness kept off the avatar's skin or a sphere [m].
+constexpr double kMaxThickness = 0.05;
+
+/// Largest skin or sphere friction coefficient [-].
+constexpr double kMaxFriction = 2.0;
+
 /// The avatar a scene dresses, already loaded (the assets layer resolves files and names).
 struct AvatarSpec {
   std::shared_ptr<const Avatar> avatar;
@@ -141,12 +151,13 @@ struct AvatarSpec {
 
 /// A fixed analytic sphere obstacle.
 struct SphereObstacleSpec {
+  /// Centre [m], each coordinate within ±kMaxCoordinate.
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  /// Radius [m] > 0.
+  /// Radius [m] in (0, kMaxCoordinate].
   double radius = 0.25;
-  /// Cloth thickness kept between cloth and surface [m] >= 0.
+  /// Cloth thickness kept between cloth and surface [m] in [0, kMaxThickness].
   double thickness = 0.005;
-  /// Coulomb friction coefficient [-] >= 0 (used when effects.friction is on).
+  /// Coulomb friction coefficient [-] in [0, kMaxFriction] (used when effects.friction is on).
   double friction = 0.3;
   int source_line = 0;
 };

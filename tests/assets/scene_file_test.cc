@@ -279,8 +279,16 @@ TEST(ParseSceneText, StatesTheAllowedRangeOfEachField) {
       {"[solver]\ntolerance = 2", "solver.tolerance = 2", "(0, 1)"},
       {"[solver]\nmax_iterations = 0", "solver.max_iterations = 0", "[1, 100000]"},
       {"[solver]\nsubsteps = 5000", "solver.substeps = 5000", "[1, 1000]"},
-      {"[[sphere]]\nradius = 0", "sphere[0].radius = 0 m", "> 0"},
-      {"[[sphere]]\nthickness = -0.1", "sphere[0].thickness = -0.1 m", ">= 0"},
+      {"[[sphere]]\nradius = 0", "sphere[0].radius = 0 m", "(0, 10000]"},
+      {"[[sphere]]\nthickness = -0.1", "sphere[0].thickness = -0.1 m", "[0, 0.05]"},
+      // Values a damaged scene file ran with, silently (tools/fuzz_import.py's damage): the
+      // cloth stretched 1.9e12 % round a sphere 2e9 m thick, 66 million % under 1e9 m/s².
+      {"[[sphere]]\nthickness = 2147483648", "sphere[0].thickness = 2147483648 m", "[0, 0.05]"},
+      {"[[sphere]]\nradius = 1e308", "sphere[0].radius = 1e+308 m", "(0, 10000]"},
+      {"[[sphere]]\nfriction = 1e308", "sphere[0].friction = 1e+308", "[0, 2]"},
+      {"[[sphere]]\ncenter = [0, -1e308, 0]", "sphere[0].center[1] = -1e+308 m",
+       "[-10000, 10000]"},
+      {"gravity = [0, -999999999, 0]", "gravity[1] = -999999999 m/s²", "[-100, 100]"},
       {"[[material]]\nname = \"m\"\ndamping = -1", "material[0].damping = -1 s", ">= 0"},
   };
   for (const Case& c : cases) {
@@ -553,6 +561,32 @@ TEST(ValidateScene, NamesTheSourceFieldAndRange) {
   } catch (const InputError& error) {
     EXPECT_TRUE(Contains(error.what(), "built-in: solver.tolerance = 2: allowed range (0, 1)"));
   }
+}
+
+TEST(ValidateScene, BoundsGravityAndTheSpheresAsTheFileParserDoes) {
+  // Scenes built in code (the simulation server's) get the same ranges as files.
+  const auto message = [](const SceneDescription& scene) {
+    try {
+      sim::ValidateScene(scene);
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  SceneDescription scene = LoadBuiltInScene("drape");
+  scene.source = "built-in";
+  EXPECT_EQ(message(scene), "");
+  scene.gravity = Eigen::Vector3d(0.0, -1e9, 0.0);
+  EXPECT_TRUE(Contains(message(scene), "gravity = ")) << message(scene);
+  EXPECT_TRUE(Contains(message(scene), "each coordinate within ±100")) << message(scene);
+  scene = LoadBuiltInScene("drape");
+  scene.spheres[0].thickness = 2147483648.0;
+  EXPECT_TRUE(Contains(message(scene), "sphere[0].thickness = 2.14748e+09 m: allowed range "
+                                       "[0, 0.05]"))
+      << message(scene);
+  scene = LoadBuiltInScene("drape");
+  scene.spheres[0].center.x() = 1e308;
+  EXPECT_TRUE(Contains(message(scene), "each coordinate within ±10000")) << message(scene);
 }
 
 TEST(ValidateScene, RefusesAGarmentWithoutPanelOrMesh) {
