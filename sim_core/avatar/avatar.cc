@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "sim_core/avatar/coordinate_bound.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -65,12 +66,9 @@ std::shared_ptr<const Avatar> Avatar::Create(AvatarData data) {
       throw InputError(where + ": rest_vertices row " + std::to_string(v) +
                        " is not finite (allowed: finite coordinates)");
     }
-    const double distance = data.rest_vertices.row(v).lpNorm<Eigen::Infinity>();
-    if (distance > kMaxCoordinate) {
-      throw InputError(where + ": rest_vertices row " + std::to_string(v) + " has coordinate " +
-                       FormatValue(distance) + " m (allowed: within ±" +
-                       FormatValue(kMaxCoordinate) + " m of the origin)");
-    }
+    RequireWithinReach(data.rest_vertices.row(v).transpose(),
+                       where + ": rest_vertices row " + std::to_string(v) + " has coordinate",
+                       "the origin");
   }
   for (std::size_t t = 0; t < data.triangles.size(); ++t) {
     const Eigen::Vector3i& tri = data.triangles[t];

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "sim_core/avatar/coordinate_bound.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -86,12 +87,8 @@ void ValidateClip(const Clip& clip) {
     if (!pose.root_translation.allFinite() || !pose.orientation.coeffs().allFinite()) {
       throw InputError(frame + ": non-finite root translation or orientation");
     }
-    const double distance = pose.root_translation.lpNorm<Eigen::Infinity>();
-    if (distance > kMaxCoordinate) {
-      throw InputError(frame + ": root translation coordinate " + FormatValue(distance) +
-                       " m (allowed: within ±" + FormatValue(kMaxCoordinate) +
-                       " m of the clip's origin)");
-    }
+    RequireWithinReach(pose.root_translation, frame + ": root translation coordinate",
+                       "the clip's origin");
   }
 }
 

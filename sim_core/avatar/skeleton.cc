@@ -3,6 +3,7 @@
 #include <cmath>
 #include <unordered_set>
 
+#include "sim_core/avatar/coordinate_bound.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -42,13 +43,8 @@ std::shared_ptr<const Skeleton> Skeleton::Create(std::string name, std::vector<J
                        ", parents before children)");
     }
     RequireRigid(where, joint.rest_local);
-    // The largest coordinate, not the norm: that overflows first.
-    const double offset = joint.rest_local.translation().lpNorm<Eigen::Infinity>();
-    if (offset > kMaxCoordinate) {
-      throw InputError(where + ": rest offset coordinate " + FormatValue(offset) +
-                       " m (allowed: within ±" + FormatValue(kMaxCoordinate) +
-                       " m of the parent)");
-    }
+    RequireWithinReach(joint.rest_local.translation(), where + ": rest offset coordinate",
+                       "the parent");
     if (joint.hanim) {
       bool& used = hanim_used[static_cast<int>(*joint.hanim)];
       if (used) {
