@@ -173,7 +173,7 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
     const BundleFile& motion = Member(files, "motion.txt", what);
     const BundleFile& character = Member(files, "character.txt", what);
     options.deepmimic_character =
-        dir.Write(character.name, character.bytes, what + " (character file)");
+        dir.Write(character.name, character.bytes, kCharacterFileLabel);
     const std::string path = dir.Write(motion.name, motion.bytes, what);
     return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }

@@ -40,6 +40,10 @@ sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
 void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene);
 
+/// What messages call a DeepMimic clip's character file (after the clip's own name): the
+/// character is stored in the clip's bundle, its file name lost.
+inline constexpr const char* kCharacterFileLabel = "its character file";
+
 /// Checks that `data` loads as an entry of `kind` (what Catalog users import), returning the
 /// request a ThumbnailMaker needs to draw it. Throws sim::InputError naming `what` (a file
 /// name) and the problem. `fabric` is the garment's fabric (ignored for other kinds).

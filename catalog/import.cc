@@ -28,6 +28,8 @@ struct Candidate {
   /// The main file, resolved inside the root.
   fs::path path;
   NewEntry entry;
+  /// A DeepMimic clip's character file, as messages name it; else empty.
+  std::string character_shown;
 };
 
 std::string Lower(std::string text) {
@@ -178,6 +180,12 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
             request.character.empty()
                 ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
                 : request.character;
+        c.character_shown =
+            request.character.empty()
+                ? (fs::path(shown).parent_path() / ".." / "characters" / "humanoid3d.txt")
+                      .lexically_normal()
+                      .string()
+                : request.character;
         fs::path character;
         try {
           character = ResolveInsideRoot(root, character_file);
@@ -247,6 +255,17 @@ fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {
 
 namespace {
 
+/// `message` naming a DeepMimic clip's character file by the path the user knows it by (the
+/// bundle the check loads from has lost it).
+std::string NameCharacterFile(std::string message, const Candidate& c) {
+  const std::string label = kCharacterFileLabel;
+  const auto at = message.find(label);
+  if (!c.character_shown.empty() && at != std::string::npos) {
+    message.insert(at + label.size(), " " + c.character_shown);
+  }
+  return message;
+}
+
 /// Loads the candidate through its importer in a child process under the request's limits,
 /// so a file that makes an importer allocate or loop without bound costs this process
 /// nothing; then, when thumbnails are wanted, here again (the same bytes, now known to load
@@ -254,8 +273,12 @@ namespace {
 /// for the thumbnail. Throws sim::InputError naming the file.
 std::optional<ThumbnailRequest> CheckCandidate(const Candidate& c, const ImportRequest& request) {
   const auto check = [&] {
-    return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
-                          c.entry.fabric.value_or(FabricParameters{}), c.shown);
+    try {
+      return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
+                            c.entry.fabric.value_or(FabricParameters{}), c.shown);
+    } catch (const sim::InputError& error) {
+      throw sim::InputError(NameCharacterFile(error.what(), c));
+    }
   };
   const process::ChildResult trial = process::RunLimited(
       [&] {

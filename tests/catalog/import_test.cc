@@ -121,6 +121,21 @@ TEST_F(ImportTest, ADeepMimicCharacterOutsideTheFolderIsRefused) {
   EXPECT_TRUE(Contains(ImportError(request), "outside the import folder"));
 }
 
+// A damaged character file is named by its own path, and the motion once (the check loads both
+// from a bundle that has lost the character's name: the message used to name the motion twice,
+// "walk.txt: walk.txt (character file): not valid JSON", and the character not at all).
+TEST_F(ImportTest, ADamagedDeepMimicCharacterIsNamedByItsPath) {
+  const std::string motion = Write("motions/walk.txt", "{\"Loop\": \"none\", \"Frames\": [[0.03]]}");
+  const std::string character = Write("characters/humanoid3d.txt", "{\"Skeleton\": {\"Joi");
+  ImportRequest request;
+  request.kind = Kind::kAnimation;
+  request.files = {motion};
+  const std::string message = ImportError(request);
+  EXPECT_TRUE(Contains(message, motion + ": its character file " + character + ": not valid JSON"))
+      << message;
+  EXPECT_EQ(message.find(motion), message.rfind(motion)) << message;
+}
+
 // ---- bad files ---------------------------------------------------------------------------------
 
 TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
