@@ -136,6 +136,7 @@ constexpr Range kCoordinateRange{-sim::kMaxCoordinate, sim::kMaxCoordinate, fals
 constexpr Range kGravityRange{-sim::kMaxGravity, sim::kMaxGravity, false, false};
 constexpr Range kThicknessRange{0.0, sim::kMaxThickness, false, false};
 constexpr Range kFrictionRange{0.0, sim::kMaxFriction, false, false};
+constexpr Range kStiffnessRange{0.0, sim::kMaxStiffness, false, false};
 constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
 constexpr Range kToleranceRange{0.0, 1.0, true, true};
 constexpr Range kStrainLimitRange{0.0, 10.0, false, false};
@@ -423,7 +424,7 @@ sim::SolverSettings ParseSolver(const TableView& table) {
                                  ? sim::CoarseOperator::kGalerkin
                                  : sim::CoarseOperator::kRediscretised;
   }
-  solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, 1000);
+  solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, sim::kMaxSubsteps);
   solver.strain_limit =
       NumberOr(table, "strain_limit", solver.strain_limit, kStrainLimitRange, "");
   return solver;
@@ -451,18 +452,21 @@ sim::Material ParseMaterial(const TableView& table) {
                            "structural_spring_k", "shear_spring_k", "bending_spring_k"});
   sim::Material m = BaseMaterial(table);
   m.name = ReadName(table.Require("name"));
-  m.density = NumberOr(table, "density", m.density, kPositive, "kg/m²");
+  m.density = NumberOr(table, "density", m.density, {0.0, sim::kMaxDensity, true, false}, "kg/m²");
   m.stretch_stiffness =
-      NumberOr(table, "stretch_stiffness", m.stretch_stiffness, kNonNegative, "N/m");
-  m.shear_stiffness = NumberOr(table, "shear_stiffness", m.shear_stiffness, kNonNegative, "N/m");
-  m.bending_rigidity = NumberOr(table, "bending_rigidity", m.bending_rigidity, kNonNegative, "N·m");
-  m.damping = NumberOr(table, "damping", m.damping, kNonNegative, "s");
-  m.air_drag = NumberOr(table, "air_drag", m.air_drag, kNonNegative, "N·s/m per m²");
-  m.friction = NumberOr(table, "friction", m.friction, kNonNegative, "");
+      NumberOr(table, "stretch_stiffness", m.stretch_stiffness, kStiffnessRange, "N/m");
+  m.shear_stiffness = NumberOr(table, "shear_stiffness", m.shear_stiffness, kStiffnessRange, "N/m");
+  m.bending_rigidity = NumberOr(table, "bending_rigidity", m.bending_rigidity,
+                                {0.0, sim::kMaxBendingRigidity, false, false}, "N·m");
+  m.damping = NumberOr(table, "damping", m.damping, {0.0, sim::kMaxDamping, false, false}, "s");
+  m.air_drag = NumberOr(table, "air_drag", m.air_drag, {0.0, sim::kMaxAirDrag, false, false},
+                        "N·s/m per m²");
+  m.friction = NumberOr(table, "friction", m.friction, kFrictionRange, "");
   m.structural_spring_k =
-      NumberOr(table, "structural_spring_k", m.structural_spring_k, kNonNegative, "N/m");
-  m.shear_spring_k = NumberOr(table, "shear_spring_k", m.shear_spring_k, kNonNegative, "N/m");
-  m.bending_spring_k = NumberOr(table, "bending_spring_k", m.bending_spring_k, kNonNegative, "N/m");
+      NumberOr(table, "structural_spring_k", m.structural_spring_k, kStiffnessRange, "N/m");
+  m.shear_spring_k = NumberOr(table, "shear_spring_k", m.shear_spring_k, kStiffnessRange, "N/m");
+  m.bending_spring_k =
+      NumberOr(table, "bending_spring_k", m.bending_spring_k, kStiffnessRange, "N/m");
   return m;
 }
 

@@ -282,12 +282,16 @@ sim::Material MaterialFromFabric(const FabricParameters& f, const std::string& n
 
 void ValidateFabric(const FabricParameters& f, const std::string& context) {
   const std::string prefix = context + ": fabric.";
-  sim::RequirePositive(prefix + "mass_per_area", f.mass_per_area, "kg/m²");
-  sim::RequirePositive(prefix + "stretch_stiffness", f.stretch_stiffness, "N/m");
-  sim::RequirePositive(prefix + "shear_stiffness", f.shear_stiffness, "N/m");
-  sim::RequireNonNegative(prefix + "bend_stiffness", f.bend_stiffness, "N·m");
-  sim::RequireNonNegative(prefix + "damping", f.damping, "s");
-  sim::RequireNonNegative(prefix + "friction", f.friction, "");
+  sim::RequirePositiveAtMost(prefix + "mass_per_area", f.mass_per_area, sim::kMaxDensity,
+                             "kg/m²");
+  sim::RequirePositiveAtMost(prefix + "stretch_stiffness", f.stretch_stiffness,
+                             sim::kMaxStiffness, "N/m");
+  sim::RequirePositiveAtMost(prefix + "shear_stiffness", f.shear_stiffness, sim::kMaxStiffness,
+                             "N/m");
+  sim::RequireInRange(prefix + "bend_stiffness", f.bend_stiffness, 0.0, sim::kMaxBendingRigidity,
+                      "N·m");
+  sim::RequireInRange(prefix + "damping", f.damping, 0.0, sim::kMaxDamping, "s");
+  sim::RequireInRange(prefix + "friction", f.friction, 0.0, sim::kMaxFriction, "");
 }
 
 std::string DefaultCatalogUrl() {

@@ -8,16 +8,20 @@ namespace costume::sim {
 
 void ValidateMaterial(const Material& material, const std::string& context) {
   const std::string prefix = context + ".";
-  RequirePositive(prefix + "density", material.density, "kg/m²");
-  RequireNonNegative(prefix + "stretch_stiffness", material.stretch_stiffness, "N/m");
-  RequireNonNegative(prefix + "shear_stiffness", material.shear_stiffness, "N/m");
-  RequireNonNegative(prefix + "bending_rigidity", material.bending_rigidity, "N·m");
-  RequireNonNegative(prefix + "damping", material.damping, "s");
-  RequireNonNegative(prefix + "air_drag", material.air_drag, "N·s/m per m²");
-  RequireNonNegative(prefix + "friction", material.friction, "");
-  RequireNonNegative(prefix + "structural_spring_k", material.structural_spring_k, "N/m");
-  RequireNonNegative(prefix + "shear_spring_k", material.shear_spring_k, "N/m");
-  RequireNonNegative(prefix + "bending_spring_k", material.bending_spring_k, "N/m");
+  RequirePositiveAtMost(prefix + "density", material.density, kMaxDensity, "kg/m²");
+  RequireInRange(prefix + "stretch_stiffness", material.stretch_stiffness, 0.0, kMaxStiffness,
+                 "N/m");
+  RequireInRange(prefix + "shear_stiffness", material.shear_stiffness, 0.0, kMaxStiffness, "N/m");
+  RequireInRange(prefix + "bending_rigidity", material.bending_rigidity, 0.0,
+                 kMaxBendingRigidity, "N·m");
+  RequireInRange(prefix + "damping", material.damping, 0.0, kMaxDamping, "s");
+  RequireInRange(prefix + "air_drag", material.air_drag, 0.0, kMaxAirDrag, "N·s/m per m²");
+  RequireInRange(prefix + "friction", material.friction, 0.0, kMaxFriction, "");
+  RequireInRange(prefix + "structural_spring_k", material.structural_spring_k, 0.0,
+                 kMaxStiffness, "N/m");
+  RequireInRange(prefix + "shear_spring_k", material.shear_spring_k, 0.0, kMaxStiffness, "N/m");
+  RequireInRange(prefix + "bending_spring_k", material.bending_spring_k, 0.0, kMaxStiffness,
+                 "N/m");
 }
 
 Material NamedMaterial(const std::string& name) {

@@ -8,6 +8,26 @@
 
 namespace costume::sim {
 
+/// Largest values a fabric (a Material) may have. Each lies far beyond any fabric, so it refuses
+/// only mistakes: a damaged scene file's density of 1e300 kg/m² ran with the cloth frozen, the
+/// solver stopping at once every step, without a word of why. The stability tests' extremes
+/// (tests/sim_core/scene/stability_matrix_test.cc) lie within these.
+/// Mass per area [kg/m²]: heavy leather is about 1.5; the stability tests' heaviest sheet,
+/// 1 kg particles 129 × 129 to the square metre, 1.7e4.
+inline constexpr double kMaxDensity = 1e5;
+/// Sheet stiffness and per-spring constants [N/m]: a 0.5 mm steel sheet's E·t is 1e8; the
+/// stability tests go to 1e7.
+inline constexpr double kMaxStiffness = 1e8;
+/// Bending rigidity [N·m]: a 1 mm steel sheet's E·t³/12 is about 17.
+inline constexpr double kMaxBendingRigidity = 100.0;
+/// Spring damping time [s]: fabrics measure about 1e-3.
+inline constexpr double kMaxDamping = 10.0;
+/// Air drag [N·s/m per m²]: fabrics use about 0.02.
+inline constexpr double kMaxAirDrag = 100.0;
+/// Coulomb friction coefficient [-] of a fabric, the skin or a sphere: rubber on rubber is
+/// about 1.2.
+inline constexpr double kMaxFriction = 2.0;
+
 /// A fabric, in SI units. Defaults are "stiff cotton" of docs/BENCHMARKS.md's scenes.
 struct Material {
   std::string name = "stiff_cotton";
@@ -36,7 +56,8 @@ struct Material {
   double bending_spring_k = 0.0;
 };
 
-/// Checks every field; throws InputError naming `context`.field, its value and range.
+/// Checks every field against its range (0 or above, up to the kMax values above; density
+/// above 0); throws InputError naming `context`.field, its value and range.
 void ValidateMaterial(const Material& material, const std::string& context);
 
 /// Built-in named materials: "stiff_cotton" and "blender_cotton" (the benchmark materials;

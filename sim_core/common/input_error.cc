@@ -35,6 +35,14 @@ void RequireNonNegative(const std::string& field, double value, const std::strin
   }
 }
 
+void RequirePositiveAtMost(const std::string& field, double value, double hi,
+                           const std::string& unit) {
+  if (!(std::isfinite(value) && value > 0 && value <= hi)) {
+    throw InputError(field + " = " + WithUnit(FormatValue(value), unit) +
+                     " is out of range: allowed above 0 up to " + WithUnit(FormatValue(hi), unit));
+  }
+}
+
 void RequireInRange(const std::string& field, double value, double lo, double hi,
                     const std::string& unit) {
   if (!(std::isfinite(value) && value >= lo && value <= hi)) {

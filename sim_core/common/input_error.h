@@ -27,6 +27,10 @@ void RequirePositive(const std::string& field, double value, const std::string& 
 /// Throws InputError unless `value` is finite and value >= 0.
 void RequireNonNegative(const std::string& field, double value, const std::string& unit);
 
+/// Throws InputError unless `value` is finite and 0 < value <= hi.
+void RequirePositiveAtMost(const std::string& field, double value, double hi,
+                           const std::string& unit);
+
 /// Throws InputError unless `value` is finite and lo <= value <= hi.
 void RequireInRange(const std::string& field, double value, double lo, double hi,
                     const std::string& unit);

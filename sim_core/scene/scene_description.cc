@@ -102,7 +102,7 @@ void ValidateSolver(const SolverSettings& solver, const Refuser& refuser) {
   refuser.RequireNumber("solver.tolerance", solver.tolerance, 0.0, 1.0, true, true, "");
   refuser.RequireInteger("solver.max_iterations", solver.max_iterations, 1, 100000);
   refuser.RequireInteger("solver.levels", solver.levels, 0, 16);
-  refuser.RequireInteger("solver.substeps", solver.substeps, 1, 1000);
+  refuser.RequireInteger("solver.substeps", solver.substeps, 1, kMaxSubsteps);
   refuser.RequireNumber("solver.strain_limit", solver.strain_limit, 0.0, 10.0, false, false, "");
 }
 

@@ -110,9 +110,6 @@ constexpr double kMaxGravity = 100.0;
 /// Largest cloth thickness kept off the avatar's skin or a sphere [m].
 constexpr double kMaxThickness = 0.05;
 
-/// Largest skin or sphere friction coefficient [-].
-constexpr double kMaxFriction = 2.0;
-
 /// The avatar a scene dresses, already loaded (the assets layer resolves files and names).
 struct AvatarSpec {
   std::shared_ptr<const Avatar> avatar;

@@ -29,14 +29,21 @@ void RequireStableStep(const ClothModel& model, double h, const std::string& con
   const double ratio = h * h * k_max / m_min;
   if (ratio <= kMaxStiffnessRatio) return;
   const double longest = std::sqrt(kMaxStiffnessRatio * m_min / k_max);
-  const int substeps = static_cast<int>(std::ceil(h / longest));
+  // As a double: the factor overflowed an int for a damaged file's 1e308 N/m ("multiply
+  // solver.substeps by -2147483648").
+  const double factor = std::ceil(h / longest);
+  const std::string remedy =
+      factor <= kMaxSubsteps
+          ? "multiply solver.substeps by " + FormatValue(factor) + ", or use"
+          : "more substeps than the " + std::to_string(kMaxSubsteps) + " allowed would be "
+            "needed (" + FormatValue(factor) + " times as many): use";
   throw InputError(context + ": step h = " + FormatValue(h) + " s is too long for springs of k = " +
                    FormatValue(k_max) + " N/m on particles of m = " + FormatValue(m_min) +
                    " kg: h²k/m = " + FormatValue(ratio) + " exceeds " +
                    FormatValue(kMaxStiffnessRatio) +
                    ", beyond which one linearisation per step can inject energy. Allowed: "
-                   "h <= " + FormatValue(longest) + " s: multiply solver.substeps by " +
-                   std::to_string(substeps) + ", or use a softer material or heavier particles");
+                   "h <= " + FormatValue(longest) + " s: " + remedy +
+                   " a softer material or heavier particles");
 }
 
 ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,

@@ -51,8 +51,9 @@ struct StepReport : SolveReport {
 /// tests/sim_core/scene/stability_matrix_test.cc measured growth from about 1e7 on.
 constexpr double kMaxStiffnessRatio = 1e6;
 
-/// Refuses (InputError naming `context`, the values and the substeps that would do) a step
-/// h [s] whose stiffness ratio for `model` exceeds kMaxStiffnessRatio.
+/// Refuses (InputError naming `context`, the values and the substeps that would do, or that
+/// none up to kMaxSubsteps would) a step h [s] whose stiffness ratio for `model` exceeds
+/// kMaxStiffnessRatio.
 void RequireStableStep(const ClothModel& model, double h, const std::string& context);
 
 class ImplicitStepper {

@@ -32,6 +32,9 @@ enum class CoarseOperator {
   kRediscretised,
 };
 
+/// Most implicit steps a frame may be split into (a scene's solver.substeps).
+constexpr int kMaxSubsteps = 1000;
+
 /// "galerkin" or "rediscretised".
 const char* CoarseOperatorName(CoarseOperator coarse);
 

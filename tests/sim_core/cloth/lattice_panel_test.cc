@@ -96,6 +96,44 @@ TEST(BuildLatticePanel, RefusesBadPanelsNamingTheField) {
   EXPECT_THROW(BuildLatticePanel(panel, Material{}, "skirt"), InputError);
 }
 
+// Each fabric field just beyond its bound is refused, naming the field and the bound; at the
+// bound it is accepted. The bounds lie far beyond real fabrics (catalog/fabric_presets.cc).
+TEST(BuildLatticePanel, RefusesAFabricBeyondItsBoundsNamingTheField) {
+  struct Case {
+    double Material::*field;
+    const char* name;
+    double bound;
+    const char* quoted;
+  };
+  const Case cases[] = {
+      {&Material::density, "density", kMaxDensity, "up to 100000 kg/m²"},
+      {&Material::stretch_stiffness, "stretch_stiffness", kMaxStiffness, "to 1e+08 N/m"},
+      {&Material::shear_stiffness, "shear_stiffness", kMaxStiffness, "to 1e+08 N/m"},
+      {&Material::bending_rigidity, "bending_rigidity", kMaxBendingRigidity, "to 100 N·m"},
+      {&Material::damping, "damping", kMaxDamping, "to 10 s"},
+      {&Material::air_drag, "air_drag", kMaxAirDrag, "to 100 N·s/m per m²"},
+      {&Material::friction, "friction", kMaxFriction, "0 to 2"},
+      {&Material::structural_spring_k, "structural_spring_k", kMaxStiffness, "to 1e+08 N/m"},
+      {&Material::shear_spring_k, "shear_spring_k", kMaxStiffness, "to 1e+08 N/m"},
+      {&Material::bending_spring_k, "bending_spring_k", kMaxStiffness, "to 1e+08 N/m"},
+  };
+  for (const Case& c : cases) {
+    Material material;
+    material.*c.field = c.bound;
+    EXPECT_NO_THROW(BuildLatticePanel(Square(5), material, "skirt")) << c.name;
+    material.*c.field = c.bound * 1.001;
+    try {
+      BuildLatticePanel(Square(5), material, "skirt");
+      ADD_FAILURE() << c.name << " beyond its bound was accepted";
+    } catch (const InputError& error) {
+      const std::string message = error.what();
+      EXPECT_NE(message.find(std::string("garment 'skirt' material.") + c.name), std::string::npos)
+          << message;
+      EXPECT_NE(message.find(c.quoted), std::string::npos) << message;
+    }
+  }
+}
+
 TEST(ClothModelCreate, RefusesEachKindOfBadModel) {
   const auto good = BuildLatticePanel(Square(3), Material{}, "sheet");
   auto expect_refused = [](ClothModelData data, const std::string& words) {

@@ -38,6 +38,18 @@ TEST(RequireInRange, QuotesBothBounds) {
   EXPECT_NE(message.find("allowed 0 to 1"), std::string::npos);
 }
 
+TEST(RequirePositiveAtMost, RefusesZeroAndAboveTheBoundQuotingIt) {
+  const std::string message =
+      MessageOf([] { RequirePositiveAtMost("material.density", 150, 100, "kg/m²"); });
+  EXPECT_NE(message.find("material.density = 150 kg/m²"), std::string::npos) << message;
+  EXPECT_NE(message.find("above 0 up to 100 kg/m²"), std::string::npos) << message;
+  for (double bad : {0.0, -1.0, 100.5, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    EXPECT_THROW(RequirePositiveAtMost("x", bad, 100, ""), InputError) << bad;
+  }
+  EXPECT_NO_THROW(RequirePositiveAtMost("x", 1e-300, 100, ""));
+  EXPECT_NO_THROW(RequirePositiveAtMost("x", 100, 100, ""));
+}
+
 TEST(FormatValue, SpellsOutNonFiniteValues) {
   EXPECT_EQ(FormatValue(std::nan("")), "nan");
   EXPECT_EQ(FormatValue(-std::numeric_limits<double>::infinity()), "-inf");

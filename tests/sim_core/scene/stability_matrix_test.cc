@@ -104,6 +104,9 @@ TEST(StabilityMatrix, EveryExtremeCombinationRunsFiniteOrIsRefusedWithAReason) {
                         // The real-time setting of docs/benchmarks.md: the pyramid's step
                         // at a loose tolerance, where the coarse levels do nearly all the work.
                         {129, SolverMethod::kHierarchical, 5, 0.1, false, 0.5}};
+  // The extremes stay within what a scene may set, so no cell is refused by a material bound.
+  EXPECT_LE(1.0 * 129 * 129, kMaxDensity);
+  EXPECT_LE(1e7, kMaxStiffness);
   int failures = 0;
   for (const Size& size : sizes) {
     std::printf("\nN = %d, solver %s, tolerance %g, strain limit %g, %d steps (ok(cap): PCG "

@@ -12,6 +12,7 @@
 #include <numbers>
 #include <vector>
 
+#include "sim_core/common/input_error.h"
 #include "sim_core/scene/simulation.h"
 #include "tests/support/test_scenes.h"
 
@@ -180,6 +181,29 @@ TEST(ImplicitStepper, TightPcgAgreesWithDirectSolve) {
   }
   const double difference = (pcg->state().positions - direct->state().positions).cwiseAbs().maxCoeff();
   EXPECT_LT(difference, 1e-6);  // m
+}
+
+// h²k/m bounds the step: h = 0.1 s, m = 1 g. k = 1e4 N/m gives 1e5 (allowed); k = 1e6 N/m
+// gives 1e7, so h must shrink by sqrt(10) = 3.16: 4 substeps. At k = 1e308 N/m no number of
+// substeps up to the allowed 1000 will do, and the message says so (it used to print an
+// overflowed int, "multiply solver.substeps by -2147483648").
+TEST(RequireStableStep, NamesTheSubstepsNeededOrThatNoneWouldDo) {
+  EXPECT_NO_THROW(RequireStableStep(*Oscillator(1e4, 1e-3, 0.0), 0.1, "s.toml"));
+  auto message = [](double k) {
+    try {
+      RequireStableStep(*Oscillator(k, 1e-3, 0.0), 0.1, "s.toml");
+    } catch (const InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string stiff = message(1e6);
+  EXPECT_NE(stiff.find("s.toml: step h = 0.1 s"), std::string::npos) << stiff;
+  EXPECT_NE(stiff.find("h²k/m = 1e+07"), std::string::npos) << stiff;
+  EXPECT_NE(stiff.find("multiply solver.substeps by 4,"), std::string::npos) << stiff;
+  const std::string absurd = message(1e308);
+  EXPECT_NE(absurd.find("more substeps than the 1000 allowed"), std::string::npos) << absurd;
+  EXPECT_EQ(absurd.find("-2147483648"), std::string::npos) << absurd;
 }
 
 TEST(ImplicitStepper, RefusesNonPositiveStepWithoutTouchingState) {
