@@ -161,12 +161,12 @@ json MostFrequent(const std::map<std::string, int>& counts, std::size_t count) {
   return top;
 }
 
-/// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
-/// The least any superquadric test must do in one step: one inside-outside evaluation for
-/// each particle and each segment whose shell box (the collider's own cull: the skin, its
-/// thickness and the map's reach, in the segment's frame) holds it, at the step's end.
-/// Without the map, the response or the collider's other work, so a lower bound on what the
-/// paper's test costs; measured to say whether the 20× can be reached at all.
+/// The least the superquadric test evaluates in one step: one inside-outside function for
+/// each particle and each segment whose shell box (`SuperquadricSegment::shell_box`, the box
+/// the collider culls with, in the superquadric's frame, without the allowance it adds for
+/// the step's motion) holds it, at the step's end. No map, no response, none of the
+/// collider's other work: a floor for any collider with these culls and this function,
+/// measured to see how far the 20× lies from it.
 struct FloorFigures {
   double ms = 0.0;  ///< per step [ms]
   long long pairs = 0;  ///< (particle, segment) pairs evaluated per step
@@ -203,6 +203,7 @@ FloorFigures SuperquadricFloor(const sim::SuperquadricCollider& collider, const 
   return floor;
 }
 
+/// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 json Measure(const std::string& avatar_name, const sim::SceneDescription& scene) {
   auto simulation = sim::Simulation::Build(scene);
   const sim::AvatarMotion& motion = *simulation->avatar();
