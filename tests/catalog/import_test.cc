@@ -219,14 +219,20 @@ TEST_F(ImportTest, AFileThatMakesTheImporterAllocateWithoutEndIsRefusedAtTheLimi
 
 TEST_F(ImportTest, AFileThatKeepsTheImporterBusyIsRefusedAtTheTimeLimit) {
   // The largest lattice a garment file allows, 1025 × 1025 particles: its model takes about
-  // 3 s of processor time to build here.
+  // 2.8 s of processor time to build here, so a machine three times as fast would build it
+  // within the 1 s limit. There the import succeeds and the test is skipped, rather than
+  // failed (limited_child_test covers the limit itself with work that never ends).
   ImportRequest request;
   request.kind = Kind::kGarment;
   request.files = {Write("huge.toml",
                          "[[garment]]\nname = \"huge\"\n[garment.panel]\n"
                          "resolution = [1025, 1025]\n")};
   request.check_limits.cpu_seconds = 1;
+  const std::size_t before = Count();
   const std::string message = ImportError(request);
+  if (message.empty() && Count() == before + 1) {
+    GTEST_SKIP() << "this machine checked the 1025 × 1025 garment within 1 s of processor time";
+  }
   EXPECT_TRUE(Contains(message, "huge.toml: reading it took more than 1 s of processor time "
                                 "(--check-seconds)"))
       << message;
