@@ -157,13 +157,6 @@ std::shared_ptr<const sim::Skeleton> BuildSkeleton(const std::string& path, cons
   }
 }
 
-std::string CharacterPath(const std::string& motion, const ClipImportOptions& options) {
-  if (!options.deepmimic_character.empty()) return options.deepmimic_character;
-  return (std::filesystem::path(motion).parent_path() / ".." / "characters" / "humanoid3d.txt")
-      .lexically_normal()
-      .string();
-}
-
 Eigen::Quaterniond ReadQuaternion(const std::string& where, const json& frame, std::size_t at) {
   const Eigen::Quaterniond q(frame[at].get<double>(), frame[at + 1].get<double>(),
                              frame[at + 2].get<double>(), frame[at + 3].get<double>());
@@ -212,6 +205,13 @@ void CheckFrame(const std::string& where, const json& frame, std::size_t expecte
 
 }  // namespace
 
+std::string DeepMimicCharacterPath(const std::string& motion, const ClipImportOptions& options) {
+  if (!options.deepmimic_character.empty()) return options.deepmimic_character;
+  return (std::filesystem::path(motion).parent_path() / ".." / "characters" / "humanoid3d.txt")
+      .lexically_normal()
+      .string();
+}
+
 std::shared_ptr<const sim::Skeleton> LoadDeepMimicSkeleton(const std::string& path, double scale) {
   std::vector<CharacterJoint> character;
   return BuildSkeleton(path, ParseJson(path, "DeepMimic character file"), scale, character);
@@ -231,7 +231,7 @@ sim::Clip LoadDeepMimicClip(const std::string& path, const ClipImportOptions& op
                      " frames (allowed: 1.." + std::to_string(kMaxFrames) + ")");
   }
 
-  const std::string character_path = CharacterPath(path, options);
+  const std::string character_path = DeepMimicCharacterPath(path, options);
   std::vector<CharacterJoint> character;
   sim::Clip clip;
   clip.skeleton = BuildSkeleton(character_path, ParseJson(character_path, "DeepMimic character file"),

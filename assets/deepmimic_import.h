@@ -21,12 +21,15 @@ namespace costume::assets {
 std::shared_ptr<const sim::Skeleton> LoadDeepMimicSkeleton(const std::string& path,
                                                            double scale = 1.0);
 
+/// The character file of the motion file `motion`: options.deepmimic_character, or
+/// <motion folder>/../characters/humanoid3d.txt (DeepMimic's layout).
+std::string DeepMimicCharacterPath(const std::string& motion, const ClipImportOptions& options);
+
 /// Reads a motion file: {"Loop": "wrap"|"none", "Frames": [[dt, root position (3),
 /// root rotation quaternion w,x,y,z (4), then per joint in ID order: spherical 4 numbers
 /// (quaternion w,x,y,z relative to the parent), revolute 1 (angle about the joint's z
 /// axis [rad]), fixed and the root none]]} (44 numbers per frame for humanoid3d).
-/// The character file is options.deepmimic_character, or
-/// <motion folder>/../characters/humanoid3d.txt. Every frame but the last must have the
+/// The character file is DeepMimicCharacterPath's. Every frame but the last must have the
 /// same dt (> 0, within 1 %): the clip's frame_time. A "wrap" clip loops and its last
 /// frame, a copy of the first pose, is dropped. Root rotation goes into the root joint's
 /// rotation, root position (minus the rest root position) into root_translation.

@@ -146,8 +146,10 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
                         "obj, makehuman");
 }
 
+/// `character_what` names a DeepMimic clip's character file in messages.
 std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::ClipCategory category,
-                                              const AssetData& data, const std::string& what) {
+                                              const AssetData& data, const std::string& what,
+                                              const std::string& character_what) {
   if (data.format == "builtin") {
     // Made on the built-in humanoid's skeleton whatever the avatar: the angles assume its
     // world-aligned rest frames, and on an imported avatar's own skeleton (MakeHuman's bones
@@ -172,8 +174,7 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
     const auto files = UnpackBundle(data.bytes, what);
     const BundleFile& motion = Member(files, "motion.txt", what);
     const BundleFile& character = Member(files, "character.txt", what);
-    options.deepmimic_character =
-        dir.Write(character.name, character.bytes, kCharacterFileLabel);
+    options.deepmimic_character = dir.Write(character.name, character.bytes, character_what);
     const std::string path = dir.Write(motion.name, motion.bytes, what);
     return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }
@@ -252,7 +253,8 @@ std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id)
 
 std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id) {
   const EntryInfo entry = EntryOfKind(catalog, id, Kind::kAnimation);
-  return ClipFromData(entry.name, CategoryOf(entry), catalog.Data(id), EntryWhat(entry, 0));
+  return ClipFromData(entry.name, CategoryOf(entry), catalog.Data(id), EntryWhat(entry, 0),
+                      kCharacterFileLabel);
 }
 
 sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version) {
@@ -275,7 +277,8 @@ void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
 }
 
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
-                                const FabricParameters& fabric, const std::string& what) {
+                                const FabricParameters& fabric, const std::string& what,
+                                const std::string& character_what) {
   ThumbnailRequest request;
   request.kind = kind;
   request.name = name;
@@ -285,7 +288,7 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
       break;
     case Kind::kAnimation:
       request.avatar = sim::MakeHumanoid();
-      request.clip = ClipFromData(name, sim::ClipCategory::kBasic, data, what);
+      request.clip = ClipFromData(name, sim::ClipCategory::kBasic, data, what, character_what);
       break;
     case Kind::kGarment: {
       ValidateFabric(fabric, what);

@@ -40,14 +40,17 @@ sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
 void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene);
 
-/// What messages call a DeepMimic clip's character file (after the clip's own name): the
-/// character is stored in the clip's bundle, its file name lost.
+/// What messages call a stored DeepMimic clip's character file (after the clip's own name):
+/// the character is kept in the clip's bundle, its file name lost.
 inline constexpr const char* kCharacterFileLabel = "its character file";
 
 /// Checks that `data` loads as an entry of `kind` (what Catalog users import), returning the
 /// request a ThumbnailMaker needs to draw it. Throws sim::InputError naming `what` (a file
-/// name) and the problem. `fabric` is the garment's fabric (ignored for other kinds).
+/// name) and the problem; a DeepMimic clip's character file is named `character_what` (the
+/// importer passes the user's path). `fabric` is the garment's fabric (ignored for other
+/// kinds).
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
-                                const FabricParameters& fabric, const std::string& what);
+                                const FabricParameters& fabric, const std::string& what,
+                                const std::string& character_what = kCharacterFileLabel);
 
 }  // namespace costume::catalog

@@ -9,6 +9,7 @@
 #include <optional>
 #include <sstream>
 
+#include "assets/deepmimic_import.h"
 #include "assets/scene_file.h"
 #include "catalog/bundle.h"
 #include "catalog/catalog_loader.h"
@@ -176,16 +177,15 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                                    : ".toml (one [[garment]]), .cdgarment (edited garment)"));
       }
       if (format == "deepmimic") {
+        // Resolved from the real motion path (a symbolic link on the way is followed), named
+        // in messages as the user would write it.
         const std::string character_file =
             request.character.empty()
                 ? (path.parent_path() / ".." / "characters" / "humanoid3d.txt").string()
                 : request.character;
-        c.character_shown =
-            request.character.empty()
-                ? (fs::path(shown).parent_path() / ".." / "characters" / "humanoid3d.txt")
-                      .lexically_normal()
-                      .string()
-                : request.character;
+        assets::ClipImportOptions character_given;
+        character_given.deepmimic_character = request.character;
+        c.character_shown = assets::DeepMimicCharacterPath(shown, character_given);
         fs::path character;
         try {
           character = ResolveInsideRoot(root, character_file);
@@ -255,30 +255,18 @@ fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {
 
 namespace {
 
-/// `message` naming a DeepMimic clip's character file by the path the user knows it by (the
-/// bundle the check loads from has lost it).
-std::string NameCharacterFile(std::string message, const Candidate& c) {
-  const std::string label = kCharacterFileLabel;
-  const auto at = message.find(label);
-  if (!c.character_shown.empty() && at != std::string::npos) {
-    message.insert(at + label.size(), " " + c.character_shown);
-  }
-  return message;
-}
-
 /// Loads the candidate through its importer in a child process under the request's limits,
 /// so a file that makes an importer allocate or loop without bound costs this process
 /// nothing; then, when thumbnails are wanted, here again (the same bytes, now known to load
 /// within the limits; the renderer's threads rule out drawing in the child): the request
 /// for the thumbnail. Throws sim::InputError naming the file.
 std::optional<ThumbnailRequest> CheckCandidate(const Candidate& c, const ImportRequest& request) {
+  // The bundle the check loads from has lost the character's file name: the user's is given.
+  const std::string character_what =
+      std::string(kCharacterFileLabel) + (c.character_shown.empty() ? "" : " " + c.character_shown);
   const auto check = [&] {
-    try {
-      return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
-                            c.entry.fabric.value_or(FabricParameters{}), c.shown);
-    } catch (const sim::InputError& error) {
-      throw sim::InputError(NameCharacterFile(error.what(), c));
-    }
+    return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
+                          c.entry.fabric.value_or(FabricParameters{}), c.shown, character_what);
   };
   const process::ChildResult trial = process::RunLimited(
       [&] {
