@@ -72,6 +72,11 @@ class Tokens {
     }
     return value;
   }
+  /// Throws InputError placed at the word just taken, which `message` describes.
+  [[noreturn]] void RefuseLast(const std::string& message) {
+    --next_;
+    throw InputError(Where() + ": " + message);
+  }
   long TakeInteger(const std::string& what, long lo, long hi) {
     const double value = TakeNumber(what);
     if (value != std::floor(value) || value < lo || value > hi) {
@@ -192,11 +197,10 @@ void ParseMotion(Tokens& tokens, BvhFile& file) {
   file.num_frames = tokens.TakeInteger("Frames", 1, kMaxFrames);
   tokens.Expect("Frame");
   tokens.Expect("Time:");
-  const int time_line = tokens.line();
   file.frame_time = tokens.TakeNumber("Frame Time");
   if (!(file.frame_time > 0.0 && file.frame_time <= kMaxFrameTime)) {
-    throw InputError(tokens.Where() + ": Frame Time is " + sim::FormatValue(file.frame_time) +
-                     " s (allowed: (0, 10]) at line " + std::to_string(time_line));
+    tokens.RefuseLast("Frame Time is " + sim::FormatValue(file.frame_time) +
+                      " s (allowed: (0, " + sim::FormatValue(kMaxFrameTime) + "])");
   }
   const long total = file.num_frames * file.num_channels;
   file.values.reserve(static_cast<std::size_t>(std::min<long>(total, 100000000)));

@@ -19,6 +19,34 @@ Eigen::Vector3d RestPosition(const Skeleton& skeleton, HAnimJoint joint) {
   return skeleton.rest_world()[skeleton.Find(joint)].translation();
 }
 
+/// The least hip spread and thigh a retargeting measures a skeleton by [m]: the facing is
+/// taken across the hips and the root's travel scaled by the thighs, so a damaged file
+/// whose offsets collapse either to a point would turn or scale every pose by 0/0.
+constexpr double kMinMeasure = 1e-3;
+
+/// Throws InputError (prefixed `where`) unless `skeleton`'s hips lie apart across the body
+/// and its left thigh has a length, both at least kMinMeasure.
+void RequireMeasurable(const Skeleton& skeleton, const std::string& where) {
+  Eigen::Vector3d across =
+      RestPosition(skeleton, HAnimJoint::kLHip) - RestPosition(skeleton, HAnimJoint::kRHip);
+  across.y() = 0.0;
+  const double thigh =
+      (RestPosition(skeleton, HAnimJoint::kLHip) - RestPosition(skeleton, HAnimJoint::kLKnee))
+          .norm();
+  const auto refuse = [&](const std::string& finding, const std::string& use) {
+    throw InputError(where + ": skeleton '" + skeleton.name() + "': " + finding +
+                     " (allowed: at least " + FormatValue(kMinMeasure) + " m; " + use + ")");
+  };
+  if (!(across.norm() >= kMinMeasure)) {
+    refuse("l_hip and r_hip are " + FormatValue(across.norm()) + " m apart across the body",
+           "the facing is taken across the hips");
+  }
+  if (!(thigh >= kMinMeasure)) {
+    refuse("l_hip to l_knee is " + FormatValue(thigh) + " m",
+           "the root's travel is scaled by the thighs' ratio");
+  }
+}
+
 /// The horizontal direction the skeleton faces in its rest pose: left hip minus right hip,
 /// turned a quarter about +y (x left, y up, z forward).
 Eigen::Vector3d Facing(const Skeleton& skeleton) {
@@ -116,10 +144,11 @@ Retargeter::Retargeter(std::shared_ptr<const Skeleton> source,
       missing += (missing.empty() ? "" : ", ") + std::string(HAnimName(joint));
     }
   }
-  if (!missing.empty()) {
-    throw InputError("retargeting skeleton '" + source_->name() + "' onto '" + target_->name() +
-                     "': both must map the H-Anim joints " + missing);
-  }
+  const std::string where =
+      "retargeting skeleton '" + source_->name() + "' onto '" + target_->name() + "'";
+  if (!missing.empty()) throw InputError(where + ": both must map the H-Anim joints " + missing);
+  RequireMeasurable(*source_, where);
+  RequireMeasurable(*target_, where);
   facing_.setFromTwoVectors(Facing(*source_), Facing(*target_));
   translation_scale_ = LegLength(*target_) / LegLength(*source_);
 

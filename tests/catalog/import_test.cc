@@ -155,6 +155,12 @@ TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
        "exactly one [[garment]]"},
       {Kind::kGarment, "noise.cdgarment", "CDGARMNT but then nothing sensible", "noise.cdgarment"},
       {Kind::kAnimation, "motions/lonely.txt", "{\"Frames\": []}", "lonely.txt"},
+      // Well formed, but a skeleton of one joint: no avatar could play it.
+      {Kind::kAnimation, "alone.bvh",
+       "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Zrotation Xrotation Yrotation\n"
+       "  End Site\n  {\n    OFFSET 0 10 0\n  }\n}\nMOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0\n",
+       "alone.bvh: cannot be put on any avatar: retargeting skeleton 'alone' onto 'built-in "
+       "humanoid': both must map the H-Anim joints humanoid_root, l_hip"},
   };
   for (const Case& c : cases) {
     ImportRequest request;

@@ -137,6 +137,8 @@ TEST(ValidateClip, RefusalsNameTheClipAndField) {
 struct Variant {
   double arm_raise = 0.0;  // [deg] the arms' rest turned up by this much (70: T-pose)
   double scale = 1.0;
+  double hip_half_width = 0.1;  // [m] each hip's distance from the body's midline
+  double thigh = 0.45;          // [m] hip to knee
   Eigen::Vector3d shift = Eigen::Vector3d::Zero();
   Eigen::Quaterniond turn = Eigen::Quaterniond::Identity();
 };
@@ -146,8 +148,8 @@ struct Variant {
 std::shared_ptr<const Skeleton> TestHumanoid(const Variant& variant = {}) {
   using J = HAnimJoint;
   std::map<J, Eigen::Vector3d> at = {
-      {J::kHumanoidRoot, {0, 1, 0}}, {J::kSacroiliac, {0, 1, 0}},       {J::kLHip, {0.1, 0.95, 0}},
-      {J::kLKnee, {0.1, 0.5, 0}},    {J::kLTalocrural, {0.1, 0.08, 0}}, {J::kVl5, {0, 1.1, 0}},
+      {J::kHumanoidRoot, {0, 1, 0}}, {J::kSacroiliac, {0, 1, 0}},       {J::kLHip, {variant.hip_half_width, 0.95, 0}},
+      {J::kLKnee, {variant.hip_half_width, 0.95 - variant.thigh, 0}},    {J::kLTalocrural, {0.1, 0.08, 0}}, {J::kVl5, {0, 1.1, 0}},
       {J::kVc7, {0, 1.45, 0}},       {J::kSkullbase, {0, 1.6, 0}}};
   const double a = 20.0 * kPi / 180.0;
   at[J::kLShoulder] = {0.2, 1.42, 0};
@@ -329,6 +331,35 @@ TEST(Retargeter, RefusesSkeletonsWithoutTheLegsAndArms) {
   EXPECT_NE(message.find("stub"), std::string::npos) << message;
   EXPECT_NE(message.find("l_knee"), std::string::npos) << message;
   EXPECT_EQ(message.find("l_hip"), std::string::npos) << message;
+}
+
+// A damaged file can collapse the hips or a thigh to a point; the facing and the root's
+// scale would then be 0/0, and the avatar would vanish into NaN or infinity when played.
+TEST(Retargeter, RefusesAThighOfNoLength) {
+  Variant collapsed;
+  collapsed.thigh = 0.0;
+  for (bool as_source : {true, false}) {
+    const auto bad = TestHumanoid(collapsed);
+    const std::string message = MessageOf(
+        [&] { as_source ? Retargeter(bad, TestHumanoid()) : Retargeter(TestHumanoid(), bad); });
+    EXPECT_NE(message.find("l_hip to l_knee is 0 m"), std::string::npos) << message;
+    EXPECT_NE(message.find("allowed: at least 0.001 m"), std::string::npos) << message;
+  }
+  collapsed.thigh = 0.002;  // a 2 mm thigh is odd but measurable: the root's travel × 225
+  const Retargeter tiny(TestHumanoid(collapsed), TestHumanoid());
+  const Pose source_pose = RandomPose(*TestHumanoid(collapsed), 3);
+  Pose target_pose;
+  tiny.Apply(source_pose, target_pose);
+  EXPECT_LT((target_pose.root_translation - 225.0 * source_pose.root_translation).norm(), 1e-9);
+}
+
+TEST(Retargeter, RefusesHipsAtOnePoint) {
+  Variant collapsed;
+  collapsed.hip_half_width = 0.0;
+  const std::string message =
+      MessageOf([&] { Retargeter(TestHumanoid(collapsed), TestHumanoid()); });
+  EXPECT_NE(message.find("l_hip and r_hip are 0 m apart"), std::string::npos) << message;
+  EXPECT_NE(message.find("allowed: at least 0.001 m"), std::string::npos) << message;
 }
 
 }  // namespace
