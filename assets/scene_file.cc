@@ -16,6 +16,7 @@
 
 #include "assets/mesh_import.h"
 #include "sim_core/avatar/procedural_clips.h"
+#include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
 
@@ -140,6 +141,7 @@ constexpr Range kStiffnessRange{0.0, sim::kMaxStiffness, false, false};
 constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
 constexpr Range kToleranceRange{0.0, 1.0, true, true};
 constexpr Range kStrainLimitRange{0.0, 10.0, false, false};
+constexpr Range kPostureRange{-sim::kMaxPostureDegrees, sim::kMaxPostureDegrees, false, false};
 
 // ---- fields and tables ------------------------------------------------------------------
 
@@ -641,16 +643,13 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
   const std::vector<std::string_view> allowed(names.begin(), names.end());
   table.RefuseUnknownKeys(allowed);
   posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
-  const double degree = std::acos(-1.0) / 180.0;
   for (sim::HAnimJoint joint : sim::AllHAnimJoints()) {
     const std::optional<Field> field = table.Find(sim::HAnimName(joint));
     if (!field) continue;
-    const Eigen::Vector3d angles = ReadVector3(*field, "degrees");
+    const Eigen::Vector3d angles = ReadVector3(*field, "degrees", kPostureRange);
     const int index = skeleton.Find(joint);
     if (index < 0) field->Refuse("the avatar has no joint mapped onto this H-Anim joint");
-    posture.rotations[index] = Eigen::AngleAxisd(angles.x() * degree, Eigen::Vector3d::UnitX()) *
-                               Eigen::AngleAxisd(angles.y() * degree, Eigen::Vector3d::UnitY()) *
-                               Eigen::AngleAxisd(angles.z() * degree, Eigen::Vector3d::UnitZ());
+    posture.rotations[index] = sim::PostureRotation(angles);
   }
 }
 
@@ -685,9 +684,8 @@ sim::AvatarSpec ParseAvatar(const TableView& table) {
       NumberOr(table, "blend_time", avatar.motion.blend_time, {0.0, 60.0, false, false}, "s");
   avatar.motion.posture.root_translation =
       Vector3Or(table, "position", Eigen::Vector3d::Zero(), "m", kCoordinateRange);
-  const double heading = NumberOr(table, "heading", 0.0, {-360.0, 360.0, false, false}, "degrees");
-  avatar.motion.posture.orientation =
-      Eigen::AngleAxisd(heading * std::acos(-1.0) / 180.0, Eigen::Vector3d::UnitY());
+  const double heading = NumberOr(table, "heading", 0.0, kPostureRange, "degrees");
+  avatar.motion.posture.orientation = sim::PostureRotation({0.0, heading, 0.0});
   if (const std::optional<TableView> posture = FindTable(table, "posture", "[avatar.posture]")) {
     ParsePosture(*posture, avatar.avatar->skeleton(), avatar.motion.posture);
   }

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
 #include "assets/scene_file.h"
 #include "sim_core/avatar/hanim.h"
@@ -87,7 +86,6 @@ std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>&
   sim::Pose posture;
   posture.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
   posture.root_translation = motion_->settings().posture.root_translation;
-  constexpr double kDegree = std::numbers::pi / 180.0;
   for (const JointAngles& joint : joints) {
     const std::optional<sim::HAnimJoint> hanim = sim::ParseHAnimName(joint.joint);
     const int index = hanim ? skeleton.Find(*hanim) : -1;
@@ -95,12 +93,9 @@ std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>&
       unknown.push_back(joint.joint);
       continue;
     }
-    posture.rotations[index] =
-        Eigen::AngleAxisd(joint.degrees.x() * kDegree, Eigen::Vector3d::UnitX()) *
-        Eigen::AngleAxisd(joint.degrees.y() * kDegree, Eigen::Vector3d::UnitY()) *
-        Eigen::AngleAxisd(joint.degrees.z() * kDegree, Eigen::Vector3d::UnitZ());
+    posture.rotations[index] = sim::PostureRotation(joint.degrees);
   }
-  posture.orientation = Eigen::AngleAxisd(heading_degrees * kDegree, Eigen::Vector3d::UnitY());
+  posture.orientation = sim::PostureRotation({0.0, heading_degrees, 0.0});
   motion_->SetPosture(posture);
   scene_.avatar->motion.posture = posture;  // as the server's scene: a rebuild keeps it
   posture_start_ = last_sim_time_;

@@ -14,6 +14,7 @@
 #include "bus/channels.h"
 #include "bus/settings_codec.h"
 #include "sim_core/avatar/hanim.h"
+#include "sim_core/avatar/pose.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/common/monotonic_clock.h"
 #include "sim_core/common/percentile.h"
@@ -468,16 +469,19 @@ std::string FormatAngles(const std::vector<double>& angles) {
 /// field for an unknown or unmapped joint name, non-finite angles or heading.
 sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& skeleton,
                     const Eigen::Vector3d& root_translation) {
-  const double degree = std::acos(-1.0) / 180.0;
   sim::Pose pose;
   pose.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
   pose.root_translation = root_translation;
-  if (!std::isfinite(command.heading_degrees) || std::abs(command.heading_degrees) > 360.0) {
+  const std::string range = "within [-" + sim::FormatValue(sim::kMaxPostureDegrees) + ", " +
+                            sim::FormatValue(sim::kMaxPostureDegrees) + "]";
+  const auto within = [](double degrees) {
+    return std::abs(degrees) <= sim::kMaxPostureDegrees;  // false for NaN too
+  };
+  if (!within(command.heading_degrees)) {
     throw sim::InputError("command SET_POSTURE: heading_degrees = " +
-                          std::to_string(command.heading_degrees) +
-                          ": must be finite, within [-360, 360]");
+                          std::to_string(command.heading_degrees) + ": must be finite, " + range);
   }
-  pose.orientation = Eigen::AngleAxisd(command.heading_degrees * degree, Eigen::Vector3d::UnitY());
+  pose.orientation = sim::PostureRotation({0.0, command.heading_degrees, 0.0});
   for (int i = 0; i < command.num_joints; ++i) {
     const std::string field = "command SET_POSTURE: joint_names[" + std::to_string(i) + "] = '" +
                               command.joint_names[i] + "'";
@@ -490,14 +494,12 @@ sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& sk
       throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) +
                             "] holds " + std::to_string(a.size()) + " values: must be 3");
     }
-    if (!std::isfinite(a[0]) || !std::isfinite(a[1]) || !std::isfinite(a[2])) {
+    if (!within(a[0]) || !within(a[1]) || !within(a[2])) {
       throw sim::InputError("command SET_POSTURE: joint_angles[" + std::to_string(i) + "] = " +
                             FormatAngles(a) + " degrees for '" + command.joint_names[i] +
-                            "': must be finite");
+                            "': each must be finite, " + range);
     }
-    pose.rotations[index] = Eigen::AngleAxisd(a[0] * degree, Eigen::Vector3d::UnitX()) *
-                            Eigen::AngleAxisd(a[1] * degree, Eigen::Vector3d::UnitY()) *
-                            Eigen::AngleAxisd(a[2] * degree, Eigen::Vector3d::UnitZ());
+    pose.rotations[index] = sim::PostureRotation({a[0], a[1], a[2]});
   }
   return pose;
 }

@@ -1,11 +1,20 @@
 #include "sim_core/avatar/pose.h"
 
+#include <numbers>
+
 namespace costume::sim {
 
 Pose RestPose(const Skeleton& skeleton) {
   Pose pose;
   pose.rotations.assign(skeleton.num_joints(), Eigen::Quaterniond::Identity());
   return pose;
+}
+
+Eigen::Quaterniond PostureRotation(const Eigen::Vector3d& degrees) {
+  const Eigen::Vector3d radians = degrees * (std::numbers::pi / 180.0);
+  return Eigen::AngleAxisd(radians.x(), Eigen::Vector3d::UnitX()) *
+         Eigen::AngleAxisd(radians.y(), Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(radians.z(), Eigen::Vector3d::UnitZ());
 }
 
 void ComputeJointWorld(const Skeleton& skeleton, const Pose& pose,

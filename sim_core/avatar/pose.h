@@ -31,6 +31,15 @@ Pose RestPose(const Skeleton& skeleton);
 void ComputeJointWorld(const Skeleton& skeleton, const Pose& pose,
                        std::vector<Eigen::Isometry3d>& world);
 
+/// Largest magnitude of a posture's angles, each joint angle and the heading [degrees]: a
+/// turn and more is a typing error, which a readable message serves better than a pose.
+inline constexpr double kMaxPostureDegrees = 360.0;
+
+/// The rotation a designer's posture gives a joint: `degrees` about the joint's rest x, y
+/// and z axes, applied in that order (the scene file's [avatar.posture], the server's
+/// SET_POSTURE, the GUI's posture panel).
+Eigen::Quaterniond PostureRotation(const Eigen::Vector3d& degrees);
+
 /// Spherical interpolation between two poses of one skeleton (t in [0, 1]).
 void InterpolatePoses(const Pose& a, const Pose& b, double t, Pose& out);
 

@@ -432,7 +432,7 @@ TEST(ParseSceneText, ReadsTheAvatarAndAPatternGarment) {
   EXPECT_EQ(scene.garments.at(0).pattern.value_or(""), "skirt");
 }
 
-TEST(ParseSceneText, ReadsThePostureInDegreesAndRefusesUnknownJoints) {
+TEST(ParseSceneText, ReadsThePostureInDegreesAndRefusesUnknownJointsAndTurnsBeyondOne) {
   const std::string base = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\n";
   const sim::SceneDescription scene =
       ParseSceneText(base + "[avatar.posture]\nl_shoulder = [0, 0, 90]\n", "test.toml", "");
@@ -443,6 +443,14 @@ TEST(ParseSceneText, ReadsThePostureInDegreesAndRefusesUnknownJoints) {
   EXPECT_LT((q * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-12);
   EXPECT_TRUE(Contains(ErrorOf(base + "[avatar.posture]\nl_shoulde = [0, 0, 1]\n"),
                        "avatar.posture.l_shoulde"));
+  // A turn and more is a typing error, as for the heading.
+  const std::string huge = ErrorOf(base + "[avatar.posture]\nl_elbow = [0, 1e300, 0]\n");
+  EXPECT_TRUE(Contains(huge, "test.toml:6")) << huge;
+  EXPECT_TRUE(Contains(huge, "avatar.posture.l_elbow")) << huge;
+  EXPECT_TRUE(Contains(huge, "-360")) << huge;
+  EXPECT_TRUE(Contains(ErrorOf(base + "[avatar.posture]\nl_elbow = [0, 0, -360.5]\n"), "-360"));
+  EXPECT_NO_THROW(ParseSceneText(base + "[avatar.posture]\nl_elbow = [360, 0, -360]\n",
+                                 "test.toml", ""));
 }
 
 TEST(ParseSceneText, ReadsTheSuperquadricMapMemoryAndRefusesItOutOfRange) {

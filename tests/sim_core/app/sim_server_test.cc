@@ -785,7 +785,7 @@ TEST_F(PostureTest, SetPostureTurnsTheAvatarAndTheClothFollowsWithoutLosingItsSt
   EXPECT_EQ(server_->scene().avatar->motion.posture.rotations[shoulder].coeffs(), arm.coeffs());
 }
 
-TEST_F(PostureTest, UnknownJointsAndNonFiniteAnglesAreRefusedNamingTheField) {
+TEST_F(PostureTest, UnknownJointsAndAnglesBeyondATurnAreRefusedNamingTheField) {
   SendMode(command::MODE_EDITING);
   Step(5);
   const Eigen::Quaterniond before = server_->simulation().avatar()->pose().orientation;
@@ -793,16 +793,19 @@ TEST_F(PostureTest, UnknownJointsAndNonFiniteAnglesAreRefusedNamingTheField) {
   SendCommand(Posture({"l_shoulder", "r_elbow"},
                       {Eigen::Vector3d(0, 0, 10), Eigen::Vector3d(std::nan(""), 0, 0)}, 0.0));
   SendCommand(Posture({}, {}, std::numeric_limits<double>::infinity()));
+  SendCommand(Posture({"l_knee"}, {Eigen::Vector3d(0, 1e300, 0)}, 0.0));
   Step();
   Step();
   ASSERT_FALSE(received_.statuses.empty());
   const std::vector<std::string>& w = received_.statuses.back().warnings;
-  ASSERT_EQ(w.size(), 3u);
+  ASSERT_EQ(w.size(), 4u);
   EXPECT_NE(w[0].find("joint_names[0] = 'l_wing'"), std::string::npos) << w[0];
   EXPECT_NE(w[1].find("joint_angles[1]"), std::string::npos) << w[1];
   EXPECT_NE(w[1].find("r_elbow"), std::string::npos) << w[1];
   EXPECT_NE(w[2].find("heading_degrees = inf"), std::string::npos) << w[2];
-  EXPECT_EQ(server_->ignored().commands_refused, 3);
+  EXPECT_NE(w[3].find("'l_knee': each must be finite, within [-360, 360]"), std::string::npos)
+      << w[3];
+  EXPECT_EQ(server_->ignored().commands_refused, 4);
   Step(35);
   EXPECT_EQ(server_->simulation().avatar()->pose().orientation.coeffs(), before.coeffs());
 }

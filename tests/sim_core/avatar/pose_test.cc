@@ -111,5 +111,20 @@ TEST(InterpolatePoses, HalfwayIsHalfTheAngleAndTheMeanTranslation) {
   EXPECT_TRUE(mid.root_translation.isApprox(Eigen::Vector3d(0, 1, 2), 1e-12));
 }
 
+// Closed forms: a quarter turn about z takes x to y, about x takes y to z; with x then y
+// applied in that order (intrinsic: about x, then about the turned y), y goes to z and z to x.
+// Applied the other way round, y would go to x.
+TEST(PostureRotation, TurnsAboutTheRestAxesInTheOrderXYZ) {
+  const auto near = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return (a - b).norm() < 1e-12;
+  };
+  EXPECT_TRUE(near(PostureRotation({0, 0, 90}) * Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()));
+  EXPECT_TRUE(near(PostureRotation({90, 0, 0}) * Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()));
+  const Eigen::Quaterniond xy = PostureRotation({90, 90, 0});
+  EXPECT_TRUE(near(xy * Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(near(xy * Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()));
+  EXPECT_TRUE(near(PostureRotation({0, 360, 0}) * Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitX()));
+}
+
 }  // namespace
 }  // namespace costume::sim
