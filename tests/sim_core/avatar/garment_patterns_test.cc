@@ -55,10 +55,17 @@ TEST(GarmentPatterns, TubesAreSewnShutAndHangFromTheirTopRow) {
     EXPECT_EQ(static_cast<int>(pattern.attached.size()), around) << name;
     // Open only at the top and the hem: 2 loops of `around` edges.
     EXPECT_EQ(BoundaryEdges(pattern.data), 2 * around) << name;
+    // Each row holds `around` particles: the seams' two columns became one.
+    EXPECT_EQ(pattern.data.masses.size() % around, 0) << name;
     const double top = pattern.data.rest_positions.col(1).maxCoeff();
     for (int p : pattern.attached) EXPECT_DOUBLE_EQ(pattern.data.rest_positions(p, 1), top);
     EXPECT_NO_THROW(ClothModel::Create(pattern.data));
   }
+  // The largest resolution (some 250,000 particles) is sewn shut the same way.
+  const GarmentPattern largest = MakeBuiltInGarment("skirt", measures, Material{}, 1024);
+  EXPECT_EQ(static_cast<int>(largest.attached.size()), 1024);
+  EXPECT_EQ(BoundaryEdges(largest.data), 2 * 1024);
+  EXPECT_EQ(largest.data.masses.size() % 1024, 0);
 }
 
 TEST(GarmentPatterns, MassIsDensityTimesTriangleArea) {
