@@ -44,10 +44,14 @@ const char* DeviceFaultName(DeviceFault fault) {
   return "unknown";
 }
 
-void WorkspaceTransform::Validate(const std::string& what) const {
-  sim::RequirePositive(what + ".scale", scale, "");
+void WorkspaceTransform::Validate(const std::string& what, const std::string& scale_field,
+                                  const std::string& offset_field) const {
+  sim::RequireInRange(scale_field.empty() ? what + ".scale" : scale_field, scale, kMinScale,
+                      kMaxScale, "");
   for (int i = 0; i < 3; ++i) {
-    sim::RequireFinite(what + ".offset[" + std::to_string(i) + "]", offset[i], "m");
+    sim::RequireInRange((offset_field.empty() ? what + ".offset" : offset_field) + "[" +
+                            std::to_string(i) + "]",
+                        offset[i], -sim::kMaxCoordinate, sim::kMaxCoordinate, "m");
   }
   const double orthonormality = (rotation.transpose() * rotation -
                                  Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();

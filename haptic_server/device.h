@@ -158,9 +158,18 @@ struct WorkspaceTransform {
   Eigen::Vector3d ForceToDevice(const Eigen::Vector3d& f_scene) const {
     return rotation.transpose() * f_scene;
   }
-  /// Throws costume::sim::InputError unless scale is finite and > 0, offset is finite and
-  /// rotation is orthonormal with determinant +1 (within 1e-9). `what` names the owner.
-  void Validate(const std::string& what) const;
+  /// Bounds of `scale` [-]: a desktop device's 10–20 cm of travel then spans from a tenth of
+  /// a millimetre to some 200 m of scene. Beyond, a grab leaves the scene's ±10 km
+  /// (sim::kMaxCoordinate) at the large end, and at the small end the cloth's pull, seen as
+  /// a device displacement (DisplacementToDevice), grows a thousandfold per factor of 1000.
+  static constexpr double kMinScale = 1e-3;
+  static constexpr double kMaxScale = 1e3;
+  /// Throws costume::sim::InputError unless scale lies in [kMinScale, kMaxScale], offset
+  /// within ±sim::kMaxCoordinate and rotation is orthonormal with determinant +1 (within
+  /// 1e-9). The fields are named `what` + ".scale" etc., or `scale_field` and
+  /// `offset_field` as given (a program's options: "--scale").
+  void Validate(const std::string& what, const std::string& scale_field = "",
+                const std::string& offset_field = "") const;
 };
 
 /// Replaces non-finite components by zero and scales `force` down to at most `max_force`

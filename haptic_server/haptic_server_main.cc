@@ -149,10 +149,11 @@ void PrintPacing(const HapticLoop& loop, int spin_us) {
 }
 
 int Run(const Arguments& args) {
+  sim::RequireNonNegative("--seconds", args.seconds, "s");
   WorkspaceTransform workspace;
   workspace.scale = args.scale;
   workspace.offset = Eigen::Vector3d(args.offset[0], args.offset[1], args.offset[2]);
-  workspace.Validate("--scale/--offset");
+  workspace.Validate("workspace", "--scale", "--offset");
 
   std::unique_ptr<bus::LcmBus> lcm_bus;
   try {  // before the device is opened: a refused URL leaves no device running
@@ -263,15 +264,22 @@ int main(int argc, char** argv) {
                  "LCM URL (empty: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0)");
   app.add_flag("--lan", args.lan, "allow an LCM URL that leaves this machine (ttl > 0, tcpq)");
   app.add_option("--seconds", args.seconds, "stop after this many seconds (0: until a signal)")
+      ->check(CLI::Range(0.0, 1e9))  // a NaN, which Range lets through, is refused in Run
       ->capture_default_str();
-  app.add_option("--scale", args.scale, "workspace scale: scene metres per device metre")
+  app.add_option("--scale", args.scale,
+                 "workspace scale: scene metres per device metre, " +
+                     sim::FormatValue(haptics::WorkspaceTransform::kMinScale) + " to " +
+                     sim::FormatValue(haptics::WorkspaceTransform::kMaxScale))
       ->capture_default_str();
-  app.add_option("--offset", args.offset, "scene position of the device origin x y z [m]")
+  app.add_option("--offset", args.offset,
+                 "scene position of the device origin x y z [m], each within ±" +
+                     sim::FormatValue(sim::kMaxCoordinate))
       ->expected(3);
   app.add_option("--publish-every", args.publish_every,
                  "publish device_state, feedback, grab every n ticks (4: 250 Hz)")
       ->capture_default_str();
   app.add_option("--priority", args.priority, "SCHED_FIFO priority, 1..99 (<= 0: normal)")
+      ->check(CLI::Range(-99, 99))
       ->capture_default_str();
   app.add_option("--io-priority", args.io_priority,
                  "SCHED_FIFO priority of the LCM I/O thread, below the tick's (<= 0: normal)")

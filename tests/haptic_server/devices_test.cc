@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <string>
 #include <thread>
 
 #include "haptic_server/cybergrasp_bridge.h"
@@ -271,6 +272,23 @@ TEST(WorkspaceTransform, MapsDeviceToSceneAndForcesBack) {
                Eigen::Vector3d(0.02, 0, 0)).norm(), 0.0, 1e-15);
   w.scale = 0.0;
   EXPECT_THROW(w.Validate("test"), sim::InputError);
+  // A scale of 1e300 put the tip 1e298 m away and was accepted; the bounds name the field.
+  for (double scale : {1e-4, 1.001e3, 1e300}) {
+    w.scale = scale;
+    try {
+      w.Validate("test", "--scale", "--offset");
+      ADD_FAILURE() << scale;
+    } catch (const sim::InputError& error) {
+      EXPECT_NE(std::string(error.what()).find("--scale = "), std::string::npos) << error.what();
+      EXPECT_NE(std::string(error.what()).find("0.001"), std::string::npos) << error.what();
+    }
+  }
+  w.scale = WorkspaceTransform::kMaxScale;
+  w.Validate("test");
+  w.offset.z() = -1.0001e4;
+  EXPECT_THROW(w.Validate("test"), sim::InputError);
+  w.offset.z() = -1e4;
+  w.Validate("test");
   w.scale = 1.0;
   w.rotation(0, 0) = 2.0;
   EXPECT_THROW(w.Validate("test"), sim::InputError);
