@@ -143,7 +143,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--out", options.out_dir, "Folder for the frames (a subfolder per scene)")
       ->capture_default_str();
-  app.add_option("--duration", options.duration, "Override the scene's duration [s]")
+  app.add_option("--duration", options.duration,
+                 "Override the scene's duration [s] (0: keep the scene's own)")
       ->check(CLI::Range(0.0, 3600.0));
   app.add_flag("!--no-frames", options.write_frames, "Do not write OBJ frames");
   app.add_flag("--quiet", options.quiet, "Print only the summary");

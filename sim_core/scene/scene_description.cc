@@ -259,6 +259,15 @@ void ValidateScene(const SceneDescription& scene) {
   const Refuser refuser(scene.source);
   refuser.RequireNumber("duration", scene.duration, 0.0, 3600.0, true, false, "s");
   refuser.RequireNumber("frame_rate", scene.frame_rate, 1.0, 1000.0, false, false, "Hz");
+  // Simulation::num_frames rounds: shorter than half a frame, a run simulates nothing and
+  // reports timings of no frame.
+  const double shortest = 0.5 / scene.frame_rate;
+  if (scene.duration < shortest) {
+    refuser.Refuse("duration", FormatValue(scene.duration) + " s",
+                   "less than half a frame at " + FormatValue(scene.frame_rate) +
+                       " Hz, so no frame would be simulated (allowed: at least " +
+                       FormatValue(shortest) + " s)");
+  }
   refuser.RequireWithin("gravity", scene.gravity, kMaxGravity, "m/s²");
   ValidateSolver(scene.solver, refuser);
   ValidateMaterials(scene.materials, refuser);

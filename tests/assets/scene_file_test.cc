@@ -602,6 +602,26 @@ TEST(ValidateScene, BoundsGravityAndTheSpheresAsTheFileParserDoes) {
   EXPECT_TRUE(Contains(message(scene), "each coordinate within ±10000")) << message(scene);
 }
 
+// A duration rounding to no frame ran nothing and printed "median 0.00 ms/frame"; half a
+// frame rounds to one.
+TEST(ValidateScene, RefusesADurationOfNoFrame) {
+  SceneDescription scene = LoadBuiltInScene("hang");
+  scene.source = "built-in";
+  scene.frame_rate = 50.0;
+  scene.duration = 0.0099;
+  try {
+    sim::ValidateScene(scene);
+    FAIL() << "accepted a duration of half a frame";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "built-in: duration = 0.0099 s: less than half a frame at "
+                                       "50 Hz, so no frame would be simulated (allowed: at least "
+                                       "0.01 s)"))
+        << error.what();
+  }
+  scene.duration = 0.01;
+  EXPECT_NO_THROW(sim::ValidateScene(scene));
+}
+
 TEST(ValidateScene, RefusesAGarmentWithoutPanelOrMesh) {
   SceneDescription scene = LoadBuiltInScene("hang");
   scene.garments[0].panel.reset();
