@@ -87,14 +87,24 @@ const char* CollisionName(const costume::sim::SceneDescription& scene) {
   return scene.avatar ? costume::sim::BodyCollisionMethodName(scene.avatar->collision) : "none";
 }
 
+/// Creates the folder the frames go to, or throws InputError naming it, --out and why.
+void MakeFramesFolder(const std::filesystem::path& out) {
+  std::error_code error;
+  std::filesystem::create_directories(out, error);
+  if (error) {
+    throw costume::sim::InputError("--out: cannot create the frames' folder '" + out.string() +
+                                   "': " + error.message() + " (--no-frames writes none)");
+  }
+}
+
 int Run(const Options& options) {
   costume::sim::SceneDescription scene = LoadScene(options);
   if (options.duration > 0) scene.duration = options.duration;
   ApplyCollisionOverrides(options, scene);
+  const std::filesystem::path out = std::filesystem::path(options.out_dir) / scene.name;
+  if (options.write_frames) MakeFramesFolder(out);  // before a build that may take a while
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   auto sim = Simulation::Build(scene);
-  const std::filesystem::path out = std::filesystem::path(options.out_dir) / scene.name;
-  if (options.write_frames) std::filesystem::create_directories(out);
   const int num_frames = sim->num_frames();
   std::printf("%d particles, %d springs, %d frames at %.0f Hz, solver %s, %d substep(s), "
               "avatar collision %s, self-collision %s\n",
