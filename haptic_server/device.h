@@ -125,6 +125,11 @@ class HapticDevice {
   virtual DeviceFault Write(const Eigen::Vector3d& force) = 0;
 };
 
+/// Farthest a device's tip may be from its origin in a trajectory or a log [m]: desktop
+/// devices reach some 0.2 m and gloves an arm's length; at WorkspaceTransform::kMaxScale
+/// this spans the scene's ±10 km (sim::kMaxCoordinate).
+inline constexpr double kMaxDeviceCoordinate = 10.0;
+
 /// Where device and scene meet: p_scene = offset + scale · rotation · p_device.
 /// scale > 0 maps device metres onto scene metres (a Touch has a ~16 cm workspace, a costume
 /// is ~1.5 m tall: a scale of 5–10 is usual). Because positions are scaled and forces are not,

@@ -20,6 +20,7 @@ DeviceLog ParseDeviceLog(std::string_view text, const std::string& source) {
                                 sim::FormatValue(log.samples.back().time) +
                                 " s: times must increase");
         }
+        RequirePositionWithin(source, line, v, 1, kMaxDeviceCoordinate);
         Eigen::Quaterniond q(v[4], v[5], v[6], v[7]);
         if (std::abs(q.norm() - 1.0) > 1e-3) {
           throw sim::InputError(RecordErrorPrefix(source, line, "qw", v[4]) +

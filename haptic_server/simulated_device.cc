@@ -45,6 +45,7 @@ Trajectory ParseTrajectory(std::string_view text, const std::string& source) {
                        sim::FormatValue(trajectory.keyframes.back().time) +
                        " s: times must not decrease");
                  }
+                 RequirePositionWithin(source, line, v, 1, kMaxDeviceCoordinate);
                  if (v[4] != std::floor(v[4]) || v[4] < 0 || v[4] > 3) {
                    throw sim::InputError(RecordErrorPrefix(source, line, "buttons", v[4]) +
                                          "is not allowed: it must be an integer in 0..3 "

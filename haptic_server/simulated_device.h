@@ -14,7 +14,8 @@
 ///
 /// Times are non-decreasing. Between keyframes the target moves linearly; a keyframe that
 /// repeats the previous time makes a step (the later line wins from that time on). Buttons
-/// hold the value of the latest keyframe at or before the time. Positions are device frame.
+/// hold the value of the latest keyframe at or before the time. Positions are device frame,
+/// each within ±kMaxDeviceCoordinate (10 m).
 
 #include <Eigen/Core>
 #include <cstdint>

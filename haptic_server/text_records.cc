@@ -53,6 +53,17 @@ std::string RecordErrorPrefix(const std::string& source, int line, const std::st
          sim::FormatValue(value) + " ";
 }
 
+void RequirePositionWithin(const std::string& source, int line, const std::vector<double>& values,
+                           int first, double limit) {
+  for (int i = 0; i < 3; ++i) {
+    const double value = values[first + i];
+    if (std::abs(value) <= limit) continue;
+    throw sim::InputError(RecordErrorPrefix(source, line, std::string(1, "xyz"[i]), value) +
+                          "m is not allowed: a device's tip lies within ±" +
+                          sim::FormatValue(limit) + " m of its origin");
+  }
+}
+
 void ParseRecords(std::string_view text, const std::string& source,
                   const std::vector<std::string>& fields,
                   const std::function<void(int line, const std::vector<double>& values)>& record) {

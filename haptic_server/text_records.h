@@ -23,6 +23,11 @@ void ParseRecords(std::string_view text, const std::string& source,
 std::string RecordErrorPrefix(const std::string& source, int line, const std::string& field,
                               double value);
 
+/// Throws InputError (RecordErrorPrefix, then "m is not allowed: ...") unless the three
+/// position fields x, y, z, at values[first] onwards, each lie within ±`limit` [m].
+void RequirePositionWithin(const std::string& source, int line, const std::vector<double>& values,
+                           int first, double limit);
+
 /// The whole file at `path`; throws InputError naming the path when it cannot be read.
 std::string ReadTextFile(const std::string& path, const std::string& what);
 

@@ -120,6 +120,9 @@ TEST(DeviceLog, ErrorsNameTheFileTheLineAndTheField) {
   EXPECT_EQ(LogErrorOf("0 0 0 0 1 0 0 0 0 0 0 0\n0 0 0 0 1 0 0 0 0 0 0 0\n"),
             "s.log:2: field 'time' = 0 [s] is not after the previous sample's 0 s: times must "
             "increase");
+  EXPECT_EQ(LogErrorOf("0 10.5 0 0 1 0 0 0 0 0 0 0\n"),
+            "s.log:1: field 'x' = 10.5 m is not allowed: a device's tip lies within ±10 m of its "
+            "origin");
   EXPECT_EQ(LogErrorOf("0 0 0 0 2 0 0 0 0 0 0 0\n"),
             "s.log:1: field 'qw' = 2 starts a quaternion of norm 2: (qw qx qy qz) must be a unit "
             "quaternion within 1e-3");

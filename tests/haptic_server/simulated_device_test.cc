@@ -105,6 +105,10 @@ TEST(Trajectory, ErrorsNameTheFileTheLineAndTheField) {
   EXPECT_EQ(ErrorOf("0 0 0 0 0\n0.5 0 0 0 0\n0.4 0 0 0 0\n"),
             "traj.txt:3: field 'time' = 0.4 [s] is before the previous keyframe's 0.5 s: "
             "times must not decrease");
+  EXPECT_EQ(ErrorOf("0 0 0 0 0\n1 0 0 -1e300 1\n"),
+            "traj.txt:2: field 'z' = -1e+300 m is not allowed: a device's tip lies within ±10 m "
+            "of its origin");
+  EXPECT_EQ(ErrorOf("0 10 -10 0 0\n"), "(no error)");
   EXPECT_EQ(ErrorOf("0 0 0 0 4\n"),
             "traj.txt:1: field 'buttons' = 4 is not allowed: it must be an integer in 0..3 "
             "(bit 0 grab, bit 1 stretch relief)");
