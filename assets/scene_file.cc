@@ -15,8 +15,8 @@
 #include <string_view>
 
 #include "assets/mesh_import.h"
-#include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/pose.h"
+#include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
 

@@ -244,6 +244,18 @@ std::string EntryWhat(const EntryInfo& entry, int version) {
   return what;
 }
 
+/// Throws InputError naming `what` unless `clip` can be retargeted onto `avatar` (the
+/// built-in humanoid, which maps every joint retargeting needs): a clip whose skeleton lacks
+/// them, or whose hips or thigh collapse to a point, can be put on no avatar, and is
+/// refused when imported rather than when a designer first picks it.
+void RequirePlayable(const sim::Clip& clip, const sim::Avatar& avatar, const std::string& what) {
+  try {
+    const sim::Retargeter retargeter(clip.skeleton, avatar.shared_skeleton());
+  } catch (const sim::InputError& error) {
+    throw sim::InputError(what + ": cannot be put on any avatar: " + error.what());
+  }
+}
+
 }  // namespace
 
 std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id) {
@@ -275,22 +287,6 @@ void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
   scene.materials.push_back(material);
   scene.garments.push_back(std::move(garment));
 }
-
-namespace {
-
-/// Throws InputError naming `what` unless `clip` can be retargeted onto `avatar` (the
-/// built-in humanoid, which maps every joint retargeting needs): a clip whose skeleton lacks
-/// them, or whose hips or thigh collapse to a point, can be put on no avatar, and is
-/// refused when imported rather than when a designer first picks it.
-void RequirePlayable(const sim::Clip& clip, const sim::Avatar& avatar, const std::string& what) {
-  try {
-    const sim::Retargeter retargeter(clip.skeleton, avatar.shared_skeleton());
-  } catch (const sim::InputError& error) {
-    throw sim::InputError(what + ": cannot be put on any avatar: " + error.what());
-  }
-}
-
-}  // namespace
 
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
                                 const FabricParameters& fabric, const std::string& what,

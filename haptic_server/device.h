@@ -164,9 +164,9 @@ struct WorkspaceTransform {
     return rotation.transpose() * f_scene;
   }
   /// Bounds of `scale` [-]: a desktop device's 10–20 cm of travel then spans from a tenth of
-  /// a millimetre to some 200 m of scene. Beyond, a grab leaves the scene's ±10 km
-  /// (sim::kMaxCoordinate) at the large end, and at the small end the cloth's pull, seen as
-  /// a device displacement (DisplacementToDevice), grows a thousandfold per factor of 1000.
+  /// a millimetre to some 200 m of scene. Beyond the large end a device's reach leaves the
+  /// scene's ±10 km (sim::kMaxCoordinate); beyond the small end a millimetre of scene asks
+  /// for more than a metre of device travel (PositionToDevice), out of any device's reach.
   static constexpr double kMinScale = 1e-3;
   static constexpr double kMaxScale = 1e3;
   /// Throws costume::sim::InputError unless scale lies in [kMinScale, kMaxScale], offset

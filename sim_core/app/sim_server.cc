@@ -466,7 +466,8 @@ std::string FormatAngles(const std::vector<double>& angles) {
 /// angles (degrees about the joint's rest x, y, z axes, applied in that order, as
 /// assets/scene_file.cc ParsePosture), every other joint at rest, the avatar turned by
 /// heading_degrees about +y and left at `root_translation`. Throws InputError naming the
-/// field for an unknown or unmapped joint name, non-finite angles or heading.
+/// field for an unknown or unmapped joint name, angles or a heading not finite or beyond
+/// ±sim::kMaxPostureDegrees.
 sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& skeleton,
                     const Eigen::Vector3d& root_translation) {
   sim::Pose pose;

@@ -148,8 +148,12 @@ struct Variant {
 std::shared_ptr<const Skeleton> TestHumanoid(const Variant& variant = {}) {
   using J = HAnimJoint;
   std::map<J, Eigen::Vector3d> at = {
-      {J::kHumanoidRoot, {0, 1, 0}}, {J::kSacroiliac, {0, 1, 0}},       {J::kLHip, {variant.hip_half_width, 0.95, 0}},
-      {J::kLKnee, {variant.hip_half_width, 0.95 - variant.thigh, 0}},    {J::kLTalocrural, {0.1, 0.08, 0}}, {J::kVl5, {0, 1.1, 0}},
+      {J::kHumanoidRoot, {0, 1, 0}},
+      {J::kSacroiliac, {0, 1, 0}},
+      {J::kLHip, {variant.hip_half_width, 0.95, 0}},
+      {J::kLKnee, {variant.hip_half_width, 0.95 - variant.thigh, 0}},
+      {J::kLTalocrural, {0.1, 0.08, 0}},
+      {J::kVl5, {0, 1.1, 0}},
       {J::kVc7, {0, 1.45, 0}},       {J::kSkullbase, {0, 1.6, 0}}};
   const double a = 20.0 * kPi / 180.0;
   at[J::kLShoulder] = {0.2, 1.42, 0};

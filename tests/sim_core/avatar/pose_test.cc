@@ -115,15 +115,17 @@ TEST(InterpolatePoses, HalfwayIsHalfTheAngleAndTheMeanTranslation) {
 // applied in that order (intrinsic: about x, then about the turned y), y goes to z and z to x.
 // Applied the other way round, y would go to x.
 TEST(PostureRotation, TurnsAboutTheRestAxesInTheOrderXYZ) {
+  const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY(),
+                        z = Eigen::Vector3d::UnitZ();
   const auto near = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
     return (a - b).norm() < 1e-12;
   };
-  EXPECT_TRUE(near(PostureRotation({0, 0, 90}) * Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY()));
-  EXPECT_TRUE(near(PostureRotation({90, 0, 0}) * Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(near(PostureRotation({0, 0, 90}) * x, y));
+  EXPECT_TRUE(near(PostureRotation({90, 0, 0}) * y, z));
   const Eigen::Quaterniond xy = PostureRotation({90, 90, 0});
-  EXPECT_TRUE(near(xy * Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()));
-  EXPECT_TRUE(near(xy * Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()));
-  EXPECT_TRUE(near(PostureRotation({0, 360, 0}) * Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitX()));
+  EXPECT_TRUE(near(xy * y, z));
+  EXPECT_TRUE(near(xy * z, x));
+  EXPECT_TRUE(near(PostureRotation({0, 360, 0}) * x, x));
 }
 
 }  // namespace
