@@ -41,7 +41,7 @@ struct Arguments {
 
 /// The first of the arguments CLI11 left over that Qt would not take either: anything with two
 /// dashes (a mistyped option of ours) or a bare word not following a one-dash Qt option
-/// (-platform offscreen); "" when there is none. Qt ignores what it does not know, so without
+/// (-platform xcb); "" when there is none. Qt ignores what it does not know, so without
 /// this check a typo would be dropped silently.
 std::string RefusedExtra(const std::vector<std::string>& extras) {
   bool value_allowed = false;
@@ -140,10 +140,19 @@ int main(int argc, char** argv) {
   }
   if (const std::string refused = RefusedExtra(cli.remaining()); !refused.empty()) {
     std::fprintf(stderr, "costume_designer: unknown option or argument '%s' (see --help; Qt's "
-                 "own options take one dash, e.g. -platform offscreen)\n", refused.c_str());
+                 "own options take one dash, e.g. -platform xcb)\n", refused.c_str());
     return 2;
   }
   QApplication app(argc, argv);
+  if (QGuiApplication::platformName() == "offscreen") {
+    // Qt 6.4's offscreen platform crashes flushing a window that holds a QOpenGLWidget (the
+    // 3D view; docs/frontend.md): a segmentation fault is no answer to an option.
+    std::fprintf(stderr, "costume_designer: the Qt platform 'offscreen' cannot show the 3D view "
+                 "(Qt crashes drawing its OpenGL widget there); run it on a display or under "
+                 "xvfb-run, or run `bash scripts/demo.sh --headless` for the simulation without a "
+                 "window\n");
+    return 2;
+  }
   try {
     return Run(app, args);
   } catch (const costume::sim::InputError& error) {
