@@ -10,7 +10,9 @@
 #include <QMenuBar>
 #include <QPixmap>
 #include <QScrollArea>
+#include <QScrollBar>
 #include <QSignalBlocker>
+#include <QSizePolicy>
 #include <QStatusBar>
 #include <QStyle>
 #include <QTabWidget>
@@ -111,6 +113,11 @@ MainWindow::MainWindow(bus::MessageBus& bus, FrontendOptions options,
   auto* scroll = new QScrollArea;
   scroll->setWidget(tabs);
   scroll->setWidgetResizable(true);
+  // As wide as the widest tab needs: narrower, the dock scrolled sideways and clipped the
+  // fields' right edges at 1280 × 800. It still scrolls up and down on a short screen.
+  scroll->setMinimumWidth(tabs->minimumSizeHint().width() +
+                          scroll->verticalScrollBar()->sizeHint().width() +
+                          2 * scroll->frameWidth());
   controls_dock->setWidget(scroll);
   controls_dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
   addDockWidget(Qt::RightDockWidgetArea, controls_dock);
@@ -349,6 +356,10 @@ void MainWindow::BuildStatusBar() {
                            "before them in brackets)");
   warning_label_ = new QLabel;
   warning_label_->setStyleSheet("color: #a05000");
+  // The figures keep their width and the warning takes what is left, clipped (the whole of
+  // it in the tooltip and the Messages panel): a long warning squeezed the haptic figures
+  // to "440 mis" at 1280 pixels wide.
+  warning_label_->setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
   statusBar()->addWidget(sim_label_);
   statusBar()->addWidget(haptic_label_);
   statusBar()->addWidget(device_label_);
@@ -450,7 +461,7 @@ void MainWindow::ConnectSignals() {
   connect(children_, &ChildProcesses::deviceError, this,
           [this](const QString& device, const QString& message) {
             device_label_->setText("device: " + device + " failed");
-            warning_label_->setText(message.section('\n', -1));
+            SetWarning(message.section('\n', -1));
             Log("device " + device + ": " + message);
           });
   connect(children_, &ChildProcesses::output, this,
@@ -512,6 +523,11 @@ bool IsPeriodicFigure(const std::string& warning) {
   return warning.rfind("loop:", 0) == 0 || warning.rfind("safety:", 0) == 0;
 }
 
+void MainWindow::SetWarning(const QString& text) {
+  warning_label_->setText(text);
+  warning_label_->setToolTip(text);
+}
+
 void MainWindow::ShowWarnings(const Status& status, const QString& process) {
   QStringList figures;
   for (const std::string& warning : status.warnings) {
@@ -520,7 +536,7 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
       figures << text;  // the haptic server's once-a-second figures: a tooltip, not a warning
       continue;
     }
-    warning_label_->setText(process + ": " + text);
+    SetWarning(process + ": " + text);
     Log(process + " warning: " + text);
     if (pending_mirror_ && warning.rfind("command LOAD_", 0) == 0) {
       pending_mirror_.reset();  // the server refused the load: its scene stays

@@ -151,6 +151,8 @@ class MainWindow : public QMainWindow {
   /// Shows the server's mode on the switch without sending a command.
   void SyncMode(bool editing);
   void ShowWarnings(const costume_lcm::status& status, const QString& process);
+  /// The status bar's warning, clipped to the room left; whole in its tooltip.
+  void SetWarning(const QString& text);
   void ToggleExport();
 
   FrontendOptions options_;

@@ -321,6 +321,9 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   EXPECT_TRUE(sim.contains("undo 2 redo 0"));
   EXPECT_TRUE(window_->undo_button()->toolTip().startsWith("2 edit(s)"));
   EXPECT_TRUE(window_->warning_label()->text().contains("LOAD_COSTUME refused"));
+  // Clipped to the room the figures leave, the warning stays whole in its tooltip.
+  EXPECT_EQ(window_->warning_label()->toolTip(), window_->warning_label()->text());
+  EXPECT_EQ(window_->warning_label()->sizePolicy().horizontalPolicy(), QSizePolicy::Ignored);
   costume_lcm::feedback f{};
   f.utime = bus::NowUtime();
   f.force[0] = 0.6;
