@@ -1,5 +1,6 @@
 #include "assets/avatar_import.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
@@ -36,6 +37,28 @@ struct Surface {
   std::vector<Influences> influences;
 };
 
+/// Below this ratio of its smallest to its largest singular value a bone's inverse bind
+/// matrix is singular: it folds the skin it holds onto a plane, a line or a point.
+constexpr double kMinBindConditioning = 1e-9;
+
+/// Throws InputError naming the file, the bone and the mesh unless the bone's inverse bind
+/// matrix (aiBone::mOffsetMatrix) can be inverted: a singular one puts every vertex it holds
+/// in one place, and the avatar was stored invisible.
+void RequireInvertibleBind(const std::string& path, const aiMesh& mesh, const aiBone& bone) {
+  const Eigen::Vector3d singular =
+      ToEigen(bone.mOffsetMatrix).topLeftCorner<3, 3>().jacobiSvd().singularValues();
+  if (singular.allFinite() && singular.minCoeff() > kMinBindConditioning * singular.maxCoeff()) {
+    return;
+  }
+  throw InputError(path + ": bone '" + bone.mName.C_Str() + "' of mesh '" + mesh.mName.C_Str() +
+                   "': its inverse bind matrix is singular (singular values " +
+                   sim::FormatValue(singular.maxCoeff()) + " to " +
+                   sim::FormatValue(singular.minCoeff()) +
+                   "; allowed: the smallest above " + sim::FormatValue(kMinBindConditioning) +
+                   " times the largest), so it would put the "
+                   "skin it holds in one place");
+}
+
 Eigen::Vector3d Transform(const Eigen::Matrix4d& m, const aiVector3D& v) {
   return (m * Eigen::Vector4d(v.x, v.y, v.z, 1.0)).head<3>();
 }
@@ -57,6 +80,7 @@ void AddMesh(const std::string& path, const aiMesh& mesh, const aiNode* node,
       throw InputError(path + ": bone '" + bone.mName.C_Str() + "' of mesh '" +
                        mesh.mName.C_Str() + "' has no node");
     }
+    RequireInvertibleBind(path, mesh, bone);
     const Eigen::Matrix4d bind = file_to_world *
                                  GlobalTransform(skeleton.nodes[joint->second]) *
                                  ToEigen(bone.mOffsetMatrix);

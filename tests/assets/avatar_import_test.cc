@@ -213,5 +213,52 @@ TEST(AvatarImport, DamagedFilesThrowNamingTheFile) {
   EXPECT_THROW(LoadAvatar(dir.Write("box.obj", kBoxObj), bad), InputError);
 }
 
+/// A glTF quad skinned to two joints (Hips, Spine; made by a script, not an exporter), with
+/// its two inverse bind matrices given as the base64 text that ends its buffer.
+std::string SkinnedQuad(const std::string& binds) {
+  std::string text =
+    "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0, 2]}], \"nodes"
+    "\": [{\"name\": \"Hips\", \"children\": [1]}, {\"name\": \"Spine\", \"translation\": [0, 1, "
+    "0]}, {\"name\": \"mesh\", \"mesh\": 0, \"skin\": 0}], \"skins\": [{\"joints\": [0, 1], \"inv"
+    "erseBindMatrices\": 4, \"skeleton\": 0}], \"meshes\": [{\"primitives\": [{\"attributes\": {"
+    "\"POSITION\": 0, \"JOINTS_0\": 2, \"WEIGHTS_0\": 3}, \"indices\": 1}]}], \"buffers\": [{\"by"
+    "teLength\": 284, \"uri\": \"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAA"
+    "AAAAAAAAAAAAAgD8AAAAAAACAPwAAgD8AAAAAAAABAAIAAQADAAIAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA"
+    "AAAAAAIA/AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAA@"
+    "BINDS@AAAAAAAAAAAAAAAAAAAAAAAAgD8=\"}], \"bufferViews\": [{\"buffer\": 0, \"byteOffset\": 0,"
+    " \"byteLength\": 48, \"target\": 34962}, {\"buffer\": 0, \"byteOffset\": 48, \"byteLength\":"
+    " 12, \"target\": 34963}, {\"buffer\": 0, \"byteOffset\": 60, \"byteLength\": 32, \"target\":"
+    " 34962}, {\"buffer\": 0, \"byteOffset\": 92, \"byteLength\": 64, \"target\": 34962}, {\"buff"
+    "er\": 0, \"byteOffset\": 156, \"byteLength\": 128}], \"accessors\": [{\"bufferView\": 0, \"c"
+    "omponentType\": 5126, \"count\": 4, \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 1, "
+    "0]}, {\"bufferView\": 1, \"componentType\": 5123, \"count\": 6, \"type\": \"SCALAR\"}, {\"bu"
+    "fferView\": 2, \"componentType\": 5123, \"count\": 4, \"type\": \"VEC4\"}, {\"bufferView\": "
+    "3, \"componentType\": 5126, \"count\": 4, \"type\": \"VEC4\"}, {\"bufferView\": 4, \"compone"
+    "ntType\": 5126, \"count\": 2, \"type\": \"MAT4\"}]}";
+  return text.replace(text.find("@BINDS@"), 7, binds);
+}
+/// Two identity matrices, and two of scale 0 (singular).
+constexpr char kIdentityBinds[] =
+    "CAPwAAAAAAAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAAAAAACAPwAAgD8AAA"
+    "AAAAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAAAAAAIA/";
+constexpr char kZeroBinds[] =
+    "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAACAPwAAAAAAAA"
+    "AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA";
+
+// A singular inverse bind matrix put every vertex of its bone in one place: the avatar was
+// stored, invisible. The same quad with identity matrices loads.
+TEST(AvatarImport, ASingularInverseBindMatrixIsRefusedNamingTheBone) {
+  ScratchDir dir;
+  EXPECT_EQ(LoadAvatar(dir.Write("quad.gltf", SkinnedQuad(kIdentityBinds)))->num_vertices(), 4);
+  try {
+    LoadAvatar(dir.Write("flat.gltf", SkinnedQuad(kZeroBinds)));
+    ADD_FAILURE() << "a singular inverse bind matrix was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("flat.gltf: bone 'Hips'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("inverse bind matrix is singular"), std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace costume::assets
