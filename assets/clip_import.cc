@@ -7,6 +7,8 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <initializer_list>
+#include <string>
 #include <unordered_map>
 
 #include "assets/assimp_skeleton.h"
@@ -133,6 +135,51 @@ class AnimationSampler {
   std::unordered_map<std::string, const aiNodeAnim*> channels_;
 };
 
+/// Throws InputError naming the file, the node, the key list and the key unless every key's
+/// time is finite and not before the one before it, and `problem` finds nothing wrong with
+/// its value (it returns what is wrong, or ""). Sampling would otherwise drop such keys
+/// without a word: a zero or NaN quaternion became the rest rotation, and NaN or decreasing
+/// times left a clip of one frame.
+template <typename Key, typename Problem>
+void ValidateKeys(const std::string& where, const char* list, const Key* keys, unsigned count,
+                  const Problem& problem) {
+  for (unsigned k = 0; k < count; ++k) {
+    const std::string key = where + " " + list + " key " + std::to_string(k);
+    const double time = keys[k].mTime;
+    if (!std::isfinite(time) || (k > 0 && time < keys[k - 1].mTime)) {
+      throw InputError(key + ": time " + sim::FormatValue(time) +
+                       " ticks (allowed: finite, not before the key before it)");
+    }
+    if (const std::string wrong = problem(keys[k].mValue); !wrong.empty()) {
+      throw InputError(key + ": " + wrong);
+    }
+  }
+}
+
+std::string Listed(std::initializer_list<double> values) {
+  std::string text = "(";
+  for (double v : values) text += (text.size() > 1 ? ", " : "") + sim::FormatValue(v);
+  return text + ")";
+}
+
+void ValidateChannel(const std::string& path, const aiNodeAnim& channel) {
+  const std::string where = path + ": node '" + channel.mNodeName.C_Str() + "'";
+  const auto finite = [](const aiVector3D& v) -> std::string {
+    if (std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)) return "";
+    return Listed({v.x, v.y, v.z}) + " (allowed: finite numbers)";
+  };
+  ValidateKeys(where, "position", channel.mPositionKeys, channel.mNumPositionKeys, finite);
+  ValidateKeys(where, "scaling", channel.mScalingKeys, channel.mNumScalingKeys, finite);
+  ValidateKeys(where, "rotation", channel.mRotationKeys, channel.mNumRotationKeys,
+               [](const aiQuaternion& q) -> std::string {
+                 const double norm = std::sqrt(double{q.w} * q.w + double{q.x} * q.x +
+                                               double{q.y} * q.y + double{q.z} * q.z);
+                 if (std::isfinite(norm) && norm > 1e-6) return "";
+                 return "(w, x, y, z) = " + Listed({q.w, q.x, q.y, q.z}) +
+                        " is not a rotation (allowed: a finite quaternion of non-zero length)";
+               });
+}
+
 bool PosesMatch(const sim::Pose& a, const sim::Pose& b) {
   for (std::size_t j = 0; j < a.rotations.size(); ++j) {
     if (a.rotations[j].angularDistance(b.rotations[j]) > kLoopAngle) return false;
@@ -161,6 +208,9 @@ sim::Clip LoadAssimpClip(const std::string& path, const ClipImportOptions& optio
                      ")");
   }
   const aiAnimation& animation = *scene->mAnimations[options.animation];
+  for (unsigned c = 0; c < animation.mNumChannels; ++c) {
+    ValidateChannel(path, *animation.mChannels[c]);
+  }
   UpAxis up = options.up != UpAxis::kAuto ? options.up : DeclaredUp(*scene, path);
   if (up == UpAxis::kAuto) up = UpAxis::kY;
   double scale = options.scale > 0.0 ? options.scale : DeclaredMetresPerUnit(*scene, path);

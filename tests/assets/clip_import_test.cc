@@ -2,8 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "assets/makehuman_import.h"
 #include "assets/skeleton_families.h"
@@ -220,6 +224,83 @@ TEST(ClipImport, CesiumManWalkConvertedToFbxAndColladaMatchesTheGlb) {
   double swing = 0.0;
   for (const auto& frame : expected) swing = std::max(swing, (frame[1] - expected[0][1]).norm());
   EXPECT_GT(swing, 0.1);
+}
+
+std::string Base64(const std::string& bytes) {
+  static const char kDigits[] =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string text;
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    const std::size_t left = std::min<std::size_t>(3, bytes.size() - i);
+    unsigned word = 0;
+    for (std::size_t k = 0; k < 3; ++k) {
+      word = word << 8 | (k < left ? static_cast<unsigned char>(bytes[i + k]) : 0u);
+    }
+    for (std::size_t d = 0; d < 4; ++d) {
+      text += d <= left ? kDigits[(word >> (18 - 6 * d)) & 63] : '=';  // '=' pads the last
+    }
+  }
+  return text;
+}
+
+/// A glTF of two nodes (Hips and its child Spine, 10 cm up) whose one animation turns Spine
+/// through `xyzw` (glTF's order) at `times` [s]; made here, not by an exporter.
+std::string RotationKeysGltf(const std::vector<float>& times,
+                             const std::vector<std::array<float, 4>>& xyzw) {
+  std::string bytes;
+  const auto put = [&](float v) { bytes.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  for (float t : times) put(t);
+  const std::size_t quats_at = bytes.size();
+  for (const auto& q : xyzw) for (float v : q) put(v);
+  const auto n = std::to_string(times.size());
+  return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+  "nodes": [{"name": "Hips", "children": [1]}, {"name": "Spine", "translation": [0, 0.1, 0]}],
+  "buffers": [{"byteLength": )" + std::to_string(bytes.size()) +
+         R"(, "uri": "data:application/octet-stream;base64,)" + Base64(bytes) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": )" +
+         std::to_string(quats_at) + R"(},
+                  {"buffer": 0, "byteOffset": )" + std::to_string(quats_at) +
+         R"(, "byteLength": )" + std::to_string(bytes.size() - quats_at) + R"(}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": )" + n +
+         R"(, "type": "SCALAR", "min": [0], "max": [1]},
+                {"bufferView": 1, "componentType": 5126, "count": )" + n +
+         R"(, "type": "VEC4"}],
+  "animations": [{"samplers": [{"input": 0, "output": 1, "interpolation": "LINEAR"}],
+                  "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}]}]})";
+}
+
+// Keys sampling cannot use were dropped without a word: a zero or NaN quaternion became the
+// rest rotation, NaN or decreasing times left one frame. The same file with good keys loads,
+// turning Spine a quarter about z by its end (the glTF's own keys).
+TEST(ClipImport, GltfKeysThatAreNoRotationOrGoBackInTimeAreRefused) {
+  ScratchDir dir;
+  const float h = std::sqrt(0.5f);
+  const sim::Clip good = LoadClip(
+      dir.Write("good.gltf", RotationKeysGltf({0, 1}, {{0, 0, 0, 1}, {0, 0, h, h}})));
+  // The skeleton holds the nodes the animation moves: Spine alone.
+  ASSERT_EQ(good.skeleton->num_joints(), 1);
+  ASSERT_EQ(good.skeleton->joint(0).name, "Spine");
+  const Eigen::AngleAxisd last(good.frames.back().rotations[0]);
+  EXPECT_NEAR(last.angle() * last.axis().z(), std::acos(-1.0) / 2, 1e-6);
+  struct Case {
+    std::vector<float> times;
+    std::vector<std::array<float, 4>> xyzw;
+    std::string expected;
+  };
+  for (const Case& c : {Case{{0, 1}, {{0, 0, 0, 0}, {0, 0, 0, 1}},
+                             "bad.gltf: node 'Spine' rotation key 0: (w, x, y, z) = (0, 0, 0, 0) "
+                             "is not a rotation"},
+                        Case{{0, 1}, {{0, 0, 0, 1}, {NAN, 0, 0, 1}},
+                             "rotation key 1: (w, x, y, z) = (1, nan, 0, 0)"},
+                        Case{{1, 0}, {{0, 0, 0, 1}, {0, 0, 0, 1}},
+                             "rotation key 1: time 0 ticks (allowed: finite, not before"}}) {
+    try {
+      LoadClip(dir.Write("bad.gltf", RotationKeysGltf(c.times, c.xyzw)));
+      ADD_FAILURE() << "accepted: " << c.expected;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(ClipImport, TruncatedConvertedFilesThrowNamingTheFile) {
