@@ -1,5 +1,6 @@
 #include "catalog/catalog.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <iostream>
@@ -158,9 +159,43 @@ bool IsPostgresUrl(const std::string& url) {
   return url.rfind("postgresql://", 0) == 0 || url.rfind("postgres://", 0) == 0;
 }
 
+/// Longest entry name or version label [bytes]: a name stands under a thumbnail and on one
+/// line of `costume-catalog list`; 200 bytes is some 50–200 characters of UTF-8.
+constexpr std::size_t kMaxNameBytes = 200;
+
+/// `text` as a message can show it: control characters as '?', cut after 40 bytes.
+std::string Shown(const std::string& text) {
+  std::string shown = text.size() > 40 ? text.substr(0, 40) + "…" : text;
+  for (char& c : shown) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte < 0x20 || byte == 0x7f) c = '?';
+  }
+  return shown;
+}
+
+/// Throws InputError unless `text` is at most kMaxNameBytes long, holds no control character
+/// (a line break split `list`'s rows) and, when `required`, is not empty.
+void RequireName(const std::string& where, const std::string& field, const std::string& text,
+                 bool required) {
+  const bool control = std::any_of(text.begin(), text.end(), [](char c) {
+    const auto byte = static_cast<unsigned char>(c);
+    return byte < 0x20 || byte == 0x7f;
+  });
+  if ((required && text.empty()) || text.size() > kMaxNameBytes || control) {
+    throw sim::InputError(where + ": " + field + " '" + Shown(text) + "' (" +
+                          std::to_string(text.size()) + " bytes) is not allowed: " +
+                          (required ? "1" : "0") + " to " + std::to_string(kMaxNameBytes) +
+                          " bytes without control characters such as line breaks");
+  }
+}
+
 void CheckNewEntry(const NewEntry& entry, const std::string& url) {
+  RequireName("catalog '" + url + "'", std::string(KindName(entry.kind)) + " name", entry.name,
+              true);
   const std::string what = std::string(KindName(entry.kind)) + " '" + entry.name + "'";
-  if (entry.name.empty()) throw sim::InputError("catalog '" + url + "': an entry needs a name");
+  if (entry.kind == Kind::kGarment) {
+    RequireName("catalog '" + url + "': " + what, "version label", entry.version_label, false);
+  }
   if (entry.kind == Kind::kAnimation && entry.category != "basic" &&
       entry.category != "choreography") {
     throw sim::InputError("catalog '" + url + "': " + what + ": category = '" + entry.category +
@@ -464,6 +499,8 @@ int Catalog::SaveGarmentVersion(std::int64_t garment_id, const AssetData& data,
                           ": a version needs a format and data (got format '" + data.format +
                           "', " + std::to_string(data.bytes.size()) + " bytes)");
   }
+  RequireName("catalog '" + url_ + "': garment " + std::to_string(garment_id), "version label",
+              label, false);
   return InTransaction(*db_, true, [&] {
     const std::int64_t now = NowUtime();
     // Taking the next number and inserting it happen in one transaction under the write

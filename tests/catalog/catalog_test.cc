@@ -184,6 +184,46 @@ TEST_P(CatalogTest, AddRefusesDuplicatesBadCategoriesAndGarmentsWithoutFabric) {
   EXPECT_FALSE(catalog->Find(Kind::kGarment, "tunic"));
 }
 
+// A name with a line break split `list`'s rows, and a pasted paragraph stood under a
+// thumbnail: names and version labels are one short line.
+TEST_P(CatalogTest, NamesAndLabelsAreOneShortLine) {
+  auto catalog = Open();
+  const auto refusal = [&](const NewEntry& entry) {
+    try {
+      catalog->Add(entry);
+    } catch (const sim::InputError& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  NewEntry clip;
+  clip.kind = Kind::kAnimation;
+  clip.category = "basic";
+  clip.data = {"bvh", {1, 2, 3}};
+  clip.name = "two\nlines";
+  EXPECT_NE(refusal(clip).find("animation name 'two?lines' (9 bytes) is not allowed: 1 to 200 "
+                               "bytes without control characters"),
+            std::string::npos)
+      << refusal(clip);
+  clip.name = std::string(201, 'x');
+  EXPECT_NE(refusal(clip).find("(201 bytes) is not allowed"), std::string::npos);
+  clip.name = std::string(200, 'x');
+  EXPECT_EQ(refusal(clip), "");
+  NewEntry garment;
+  garment.kind = Kind::kGarment;
+  garment.name = "tunic";
+  garment.fabric = FindFabricPreset("wool").fabric;
+  garment.data = {"builtin", {'s', 'k', 'i', 'r', 't'}};
+  garment.version_label = "first\tcut";
+  EXPECT_NE(refusal(garment).find("version label 'first?cut'"), std::string::npos);
+  const std::int64_t skirt = Skirt(*catalog);
+  EXPECT_THROW(catalog->SaveGarmentVersion(skirt, {"edited-garment", PatternBlob(2, 64)},
+                                           "a\rb", {}),
+               sim::InputError);
+  EXPECT_EQ(catalog->Get(skirt).latest_version, 1);
+  EXPECT_EQ(catalog->SaveGarmentVersion(skirt, {"edited-garment", PatternBlob(2, 64)}, "", {}), 2);
+}
+
 TEST_P(CatalogTest, VersionsNeverOverwriteAndEveryVersionLoads) {
   auto catalog = Open();
   const std::int64_t skirt = Skirt(*catalog);
