@@ -54,25 +54,46 @@ void PrintList(Catalog& catalog, const std::vector<Kind>& kinds) {
   }
 }
 
-void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::string& out) {
+/// Writes `bytes` to `path`, or throws InputError naming it: when it exists and `force` is
+/// off (an export replaced a user's file without a word), or when it cannot be written.
+void WriteOut(const std::filesystem::path& path, const std::vector<std::uint8_t>& bytes,
+              bool force) {
+  if (!force && std::filesystem::exists(path)) {
+    throw costume::sim::InputError(path.string() + ": already exists (--force replaces it)");
+  }
+  std::ofstream file(path, std::ios::binary);
+  file.write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
+  file.close();
+  if (!file) throw costume::sim::InputError(path.string() + ": cannot write");
+}
+
+void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::string& out,
+            bool force) {
   const costume::catalog::AssetData data = catalog.Data(entry.id, version);
   namespace fs = std::filesystem;
-  auto write = [](const fs::path& path, const std::vector<std::uint8_t>& bytes) {
-    std::ofstream file(path, std::ios::binary);
-    file.write(reinterpret_cast<const char*>(bytes.data()),
-               static_cast<std::streamsize>(bytes.size()));
-    if (!file) throw costume::sim::InputError(path.string() + ": cannot write");
-  };
   if (costume::catalog::IsBundle(data.bytes)) {  // several files: into the folder `out`
-    fs::create_directories(out);
-    for (const auto& file : costume::catalog::UnpackBundle(data.bytes, entry.name)) {
-      write(fs::path(out) / file.name, file.bytes);
+    const auto files = costume::catalog::UnpackBundle(data.bytes, entry.name);
+    std::error_code error;
+    fs::create_directories(out, error);
+    if (error) {
+      throw costume::sim::InputError(out + ": cannot create the folder: " + error.message());
+    }
+    // Every file is checked before any is written: a refusal leaves the folder as it was.
+    for (const auto& file : files) {
+      if (!force && fs::exists(fs::path(out) / file.name)) {
+        throw costume::sim::InputError((fs::path(out) / file.name).string() +
+                                       ": already exists (--force replaces it)");
+      }
+    }
+    for (const auto& file : files) {
+      WriteOut(fs::path(out) / file.name, file.bytes, true);
       std::printf("wrote %s (%zu bytes)\n", (fs::path(out) / file.name).string().c_str(),
                   file.bytes.size());
     }
     return;
   }
-  write(out, data.bytes);
+  WriteOut(out, data.bytes, force);
   std::printf("wrote %s: %s '%s' version %d, format %s, %zu bytes\n", out.c_str(),
               KindName(entry.kind), entry.name.c_str(), version ? version : entry.latest_version,
               data.format.c_str(), data.bytes.size());
@@ -150,6 +171,8 @@ int main(int argc, char** argv) {
   exporter->add_option("id", export_id, "entry id (or a garment's name)")->required();
   exporter->add_option("--version", export_version, "garment version (default: latest)");
   exporter->add_option("--out", out, "output file (a folder for multi-file entries)")->required();
+  bool export_force = false;
+  exporter->add_flag("--force", export_force, "replace files that already exist");
   bool export_thumbnail = false;
   exporter->add_flag("--thumbnail", export_thumbnail,
                      "write the entry's thumbnail (PNG) instead of its data");
@@ -185,12 +208,10 @@ int main(int argc, char** argv) {
       if (export_thumbnail) {
         const auto png = catalog->Thumbnail(entry.id);
         if (png.empty()) throw costume::sim::InputError("'" + entry.name + "' has no thumbnail");
-        std::ofstream(out, std::ios::binary)
-            .write(reinterpret_cast<const char*>(png.data()),
-                   static_cast<std::streamsize>(png.size()));
+        WriteOut(out, png, export_force);
         std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
       } else {
-        Export(*catalog, entry, export_version, out);
+        Export(*catalog, entry, export_version, out, export_force);
       }
     }
   } catch (const costume::sim::InputError& error) {

@@ -422,8 +422,18 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_TRUE(Contains(output, "initial")) << output;
   const std::string exported = (dir_ / "exported.toml").string();
   ASSERT_EQ(RunProgram(url + " export sheet --out " + exported, output), 0) << output;
-  std::ifstream in(exported);
-  EXPECT_TRUE(Contains(std::string(std::istreambuf_iterator<char>(in), {}), "[garment.panel]"));
+  const auto text_of = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_TRUE(Contains(text_of(exported), "[garment.panel]"));
+  // An export does not replace a file without --force (it used to, without a word).
+  std::ofstream(exported) << "the user's own";
+  EXPECT_EQ(RunProgram(url + " export sheet --out " + exported, output), 1);
+  EXPECT_TRUE(Contains(output, exported + ": already exists (--force replaces it)")) << output;
+  EXPECT_EQ(text_of(exported), "the user's own");
+  ASSERT_EQ(RunProgram(url + " export sheet --force --out " + exported, output), 0) << output;
+  EXPECT_TRUE(Contains(text_of(exported), "[garment.panel]"));
 
   const std::string bad = Write("bad.bvh", "HIERARCHY\nROOT");
   EXPECT_EQ(
