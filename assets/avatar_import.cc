@@ -55,8 +55,7 @@ void RequireInvertibleBind(const std::string& path, const aiMesh& mesh, const ai
                    sim::FormatValue(singular.maxCoeff()) + " to " +
                    sim::FormatValue(singular.minCoeff()) +
                    "; allowed: the smallest above " + sim::FormatValue(kMinBindConditioning) +
-                   " times the largest), so it would put the "
-                   "skin it holds in one place");
+                   " times the largest), so it would put the skin it holds in one place");
 }
 
 Eigen::Vector3d Transform(const Eigen::Matrix4d& m, const aiVector3D& v) {
