@@ -7,7 +7,6 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <initializer_list>
 #include <string>
 #include <unordered_map>
 
@@ -156,17 +155,11 @@ void ValidateKeys(const std::string& where, const char* list, const Key* keys, u
   }
 }
 
-std::string Listed(std::initializer_list<double> values) {
-  std::string text = "(";
-  for (double v : values) text += (text.size() > 1 ? ", " : "") + sim::FormatValue(v);
-  return text + ")";
-}
-
 void ValidateChannel(const std::string& path, const aiNodeAnim& channel) {
   const std::string where = path + ": node '" + channel.mNodeName.C_Str() + "'";
   const auto finite = [](const aiVector3D& v) -> std::string {
     if (std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z)) return "";
-    return Listed({v.x, v.y, v.z}) + " (allowed: finite numbers)";
+    return sim::FormatValues({v.x, v.y, v.z}) + " (allowed: finite numbers)";
   };
   ValidateKeys(where, "position", channel.mPositionKeys, channel.mNumPositionKeys, finite);
   ValidateKeys(where, "scaling", channel.mScalingKeys, channel.mNumScalingKeys, finite);
@@ -175,7 +168,7 @@ void ValidateChannel(const std::string& path, const aiNodeAnim& channel) {
                  const double norm = std::sqrt(double{q.w} * q.w + double{q.x} * q.x +
                                                double{q.y} * q.y + double{q.z} * q.z);
                  if (std::isfinite(norm) && norm > 1e-6) return "";
-                 return "(w, x, y, z) = " + Listed({q.w, q.x, q.y, q.z}) +
+                 return "(w, x, y, z) = " + sim::FormatValues({q.w, q.x, q.y, q.z}) +
                         " is not a rotation (allowed: a finite quaternion of non-zero length)";
                });
 }

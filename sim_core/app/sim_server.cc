@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <ctime>
 #include <optional>
 #include <sstream>
@@ -457,9 +456,7 @@ void SimServer::SaveVersion(const costume_lcm::command& command) {
 namespace {
 
 std::string FormatAngles(const std::vector<double>& angles) {
-  char text[96];
-  std::snprintf(text, sizeof text, "(%g, %g, %g)", angles[0], angles[1], angles[2]);
-  return text;
+  return sim::FormatValues({angles[0], angles[1], angles[2]});
 }
 
 /// The posture a SET_POSTURE command names for `skeleton`: the named joints rotated by their

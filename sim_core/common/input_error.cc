@@ -15,6 +15,18 @@ std::string FormatValue(double value) {
   return std::string(buffer, result.ptr);
 }
 
+std::string FormatValues(std::initializer_list<double> values, const char* open,
+                         const char* close) {
+  std::string text = open;
+  bool first = true;
+  for (double value : values) {
+    if (!first) text += ", ";
+    text += FormatValue(value);
+    first = false;
+  }
+  return text + close;
+}
+
 namespace {
 std::string WithUnit(const std::string& text, const std::string& unit) {
   return unit.empty() ? text : text + " " + unit;

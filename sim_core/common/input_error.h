@@ -3,6 +3,7 @@
 /// The one error type thrown while loading, building and validating user input.
 /// Hot paths (the solver step) never throw: they report trouble through StepReport flags.
 
+#include <initializer_list>
 #include <stdexcept>
 #include <string>
 
@@ -19,6 +20,11 @@ class InputError : public std::runtime_error {
 /// Formats a double the way error messages quote values: shortest round-trip form, and
 /// "nan"/"inf" spelled out.
 std::string FormatValue(double value);
+
+/// Several values as messages quote a vector or a tuple: each by FormatValue, between
+/// `open` and `close` and separated by ", " ("(1, nan, 0)").
+std::string FormatValues(std::initializer_list<double> values, const char* open = "(",
+                         const char* close = ")");
 
 /// Throws InputError unless `value` is finite and value > 0.
 /// `field` names the offending field, e.g. "material.density".

@@ -29,10 +29,7 @@ std::string DescribeRange(double lo, double hi, bool lo_open, bool hi_open) {
 }
 
 std::string FormatVector(const Eigen::Vector3d& value) {
-  // Appended piecewise: `"[" + std::string` trips GCC 12's false -Wrestrict (bug 105329).
-  std::string text = "[";
-  text += FormatValue(value.x()) + ", " + FormatValue(value.y()) + ", " + FormatValue(value.z());
-  return text + "]";
+  return FormatValues({value.x(), value.y(), value.z()}, "[", "]");
 }
 
 std::string Quote(const std::string& text) { return "\"" + text + "\""; }
