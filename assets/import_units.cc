@@ -43,7 +43,10 @@ void ValidateScaleOption(const std::string& path, double scale) {
 void RequireReadableFile(const std::string& path, const std::string& what) {
   std::error_code error;
   if (!std::filesystem::is_regular_file(path, error)) {
-    throw sim::InputError(path + ": cannot read the " + what + ": no such file");
+    // A folder or a device given where a file belongs is a different mistake from a typo.
+    const bool exists = std::filesystem::exists(path, error);
+    throw sim::InputError(path + ": cannot read the " + what + ": " +
+                          (exists ? "not a regular file" : "no such file"));
   }
   std::ifstream stream(path, std::ios::binary);
   if (!stream) throw sim::InputError(path + ": cannot read the " + what + ": cannot be opened");

@@ -32,7 +32,8 @@ double GuessMetresPerUnit(double height_in_file_units);
 /// or finite and > 0 [m per file unit].
 void ValidateScaleOption(const std::string& path, double scale);
 
-/// Throws sim::InputError naming `path` unless the file exists and can be opened.
+/// Throws sim::InputError naming `path`, `what` ("mesh file") and the reason unless `path` is
+/// a regular file that can be opened.
 void RequireReadableFile(const std::string& path, const std::string& what);
 
 /// The whole file as a string; throws sim::InputError naming `path` if it cannot be read.

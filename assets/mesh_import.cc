@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "assets/import_units.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::assets {
@@ -39,15 +40,6 @@ void ValidateOptions(const std::string& path, const MeshImportOptions& options) 
   }
 }
 
-/// Refuses missing and unreadable files before assimp, whose messages for them are vague.
-void RequireReadableFile(const std::string& path) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) {
-    throw InputError(path + ": cannot read the mesh file: no such file");
-  }
-  std::ifstream stream(path, std::ios::binary);
-  if (!stream) throw InputError(path + ": cannot read the mesh file: it cannot be opened");
-}
 
 const aiScene* ReadScene(Assimp::Importer& importer, const std::string& path) {
   importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, kDroppedComponents);
@@ -188,7 +180,8 @@ void CollectNodes(const aiScene& scene, MeshCollector& collector) {
 
 sim::SurfaceMesh ImportSurfaceMesh(const std::string& path, const MeshImportOptions& options) {
   ValidateOptions(path, options);
-  RequireReadableFile(path);
+  // Before assimp, whose messages for missing and unreadable files are vague.
+  RequireReadableFile(path, "mesh file");
   Assimp::Importer importer;
   const aiScene* scene = ReadScene(importer, path);
   ValidateMeshes(path, *scene);

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "assets/import_units.h"
 #include "assets/mesh_import.h"
 #include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/procedural_clips.h"
@@ -735,20 +736,6 @@ toml::table ParseToml(const std::string& text, const Source& source) {
   }
 }
 
-std::string ReadTextFile(const std::string& path) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) {
-    throw InputError(
-        path + ": cannot read the scene file: " +
-        (std::filesystem::exists(path, error) ? "not a regular file" : "no such file"));
-  }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the scene file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
 std::vector<std::string> QuotedBuiltInNames() {
   std::vector<std::string> names;
   for (const BuiltInScene& scene : kBuiltInScenes) names.push_back(Quote(scene.name));
@@ -758,7 +745,7 @@ std::vector<std::string> QuotedBuiltInNames() {
 }  // namespace
 
 sim::SceneDescription LoadSceneFile(const std::string& path) {
-  const std::string text = ReadTextFile(path);
+  const std::string text = ReadWholeFile(path, "scene file");
   return ParseSceneText(text, path, std::filesystem::path(path).parent_path().string());
 }
 

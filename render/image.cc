@@ -2,7 +2,9 @@
 
 #include <png.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 
@@ -52,9 +54,12 @@ std::vector<std::uint8_t> EncodePng(const Image& image) {
 void WritePng(const std::string& path, const Image& image) {
   const std::vector<std::uint8_t> bytes = EncodePng(image);
   std::ofstream file(path, std::ios::binary);
+  // The system's reason (no such folder, a folder, no permission) tells the user what to fix.
+  if (!file) throw sim::InputError(path + ": cannot write the PNG file: " + std::strerror(errno));
   file.write(reinterpret_cast<const char*>(bytes.data()),
              static_cast<std::streamsize>(bytes.size()));
-  if (!file) throw sim::InputError(path + ": cannot write the PNG file");
+  file.close();
+  if (!file) throw sim::InputError(path + ": cannot write the PNG file: " + std::strerror(errno));
 }
 
 Image DecodePng(const std::vector<std::uint8_t>& bytes) {

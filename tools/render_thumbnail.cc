@@ -27,12 +27,29 @@ namespace {
 
 using namespace costume;
 
-std::shared_ptr<const sim::Avatar> AvatarNamed(const std::string& name) {
-  return name == "builtin" ? sim::MakeHumanoid() : assets::LoadAvatar(name);
+/// Throws sim::InputError unless `name` is one of `built_ins` or an existing path: a name that
+/// is neither is most likely a misspelt built-in, which "no such file" alone does not say.
+void RequireBuiltInOrFile(const std::string& option, const std::string& name,
+                          const std::vector<std::string>& built_ins) {
+  std::error_code error;
+  if (std::find(built_ins.begin(), built_ins.end(), name) != built_ins.end() ||
+      std::filesystem::exists(name, error)) {
+    return;
+  }
+  std::string names;
+  for (const std::string& built_in : built_ins) names += (names.empty() ? "" : ", ") + built_in;
+  throw sim::InputError(option + " '" + name + "': neither a built-in (" + names +
+                        ") nor an existing file");
 }
 
 bool IsBuiltIn(const std::vector<std::string>& names, const std::string& name) {
   return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+std::shared_ptr<const sim::Avatar> AvatarNamed(const std::string& option,
+                                               const std::string& name) {
+  RequireBuiltInOrFile(option, name, {"builtin"});
+  return name == "builtin" ? sim::MakeHumanoid() : assets::LoadAvatar(name);
 }
 
 }  // namespace
@@ -51,7 +68,7 @@ int main(int argc, char** argv) {
   clip_option->excludes(garment_option);
   app.add_option("--on", on, "the avatar a --clip is shown on: builtin or an avatar file");
   app.add_option("--size", size, "width = height [px]")->check(CLI::Range(16, 4096));
-  app.add_option("--out", out, "PNG file to write");
+  app.add_option("--out", out, "PNG file to write")->capture_default_str();
   app.add_option("--runs", runs, "render this many times, report the median time")
       ->check(CLI::Range(1, 100));
   CLI11_PARSE(app, argc, argv);
@@ -64,11 +81,12 @@ int main(int argc, char** argv) {
     std::string kind;
     if (!avatar.empty()) {
       kind = "avatar";
-      auto model = AvatarNamed(avatar);
+      auto model = AvatarNamed("--avatar", avatar);
       render_once = [model, size] { return render::RenderAvatarThumbnail(*model, size); };
     } else if (!clip.empty()) {
       kind = "clip";
-      auto model = AvatarNamed(on);
+      auto model = AvatarNamed("--on", on);
+      RequireBuiltInOrFile("--clip", clip, sim::BuiltInClipNames());
       auto motion = std::make_shared<sim::Clip>(
           IsBuiltIn(sim::BuiltInClipNames(), clip)
               ? sim::MakeBuiltInClip(clip, sim::MakeHumanoidSkeleton())
@@ -78,6 +96,7 @@ int main(int argc, char** argv) {
       };
     } else {
       kind = "garment";
+      RequireBuiltInOrFile("--garment", garment, sim::BuiltInGarmentNames());
       const sim::SceneDescription scene = IsBuiltIn(sim::BuiltInGarmentNames(), garment)
                                               ? render::BuiltInGarmentScene(garment)
                                               : assets::LoadSceneFile(garment);

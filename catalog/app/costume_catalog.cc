@@ -4,7 +4,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -62,10 +64,14 @@ void WriteOut(const std::filesystem::path& path, const std::vector<std::uint8_t>
     throw costume::sim::InputError(path.string() + ": already exists (--force replaces it)");
   }
   std::ofstream file(path, std::ios::binary);
+  const auto refuse = [&] {
+    throw costume::sim::InputError(path.string() + ": cannot write: " + std::strerror(errno));
+  };
+  if (!file) refuse();
   file.write(reinterpret_cast<const char*>(bytes.data()),
              static_cast<std::streamsize>(bytes.size()));
   file.close();
-  if (!file) throw costume::sim::InputError(path.string() + ": cannot write");
+  if (!file) refuse();
 }
 
 void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::string& out,

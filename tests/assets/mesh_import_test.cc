@@ -181,6 +181,9 @@ TEST(ImportSurfaceMesh, RefusesScaleThatIsNotPositiveAndFinite) {
 TEST(ImportSurfaceMesh, RefusesMissingFile) {
   const std::string path = "no/such/folder/missing.obj";
   ExpectRefused([&] { ImportSurfaceMesh(path, {}); }, {path, "no such file"});
+  const std::string folder = fs::temp_directory_path().string();  // told apart from a typo
+  ExpectRefused([&] { ImportSurfaceMesh(folder, {}); },
+                {folder, "cannot read the mesh file: not a regular file"});
 }
 
 TEST(ImportSurfaceMesh, RefusesEmptyFile) {

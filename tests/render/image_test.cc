@@ -80,7 +80,23 @@ TEST(Png, RefusesMalformedImages) {
   image.height = 2;
   image.rgba.resize(15);
   EXPECT_THROW(EncodePng(image), sim::InputError);
-  EXPECT_THROW(WritePng("/nonexistent-folder/x.png", RandomImage(2, 2, 1)), sim::InputError);
+}
+
+/// The refusal names the file and the system's reason, which says what to fix.
+void ExpectWriteRefused(const std::string& path, const std::string& reason) {
+  try {
+    WritePng(path, RandomImage(2, 2, 1));
+    ADD_FAILURE() << path << " was written";
+  } catch (const sim::InputError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find(path + ": cannot write the PNG file"), std::string::npos) << message;
+    EXPECT_NE(message.find(reason), std::string::npos) << message;
+  }
+}
+
+TEST(Png, WritePngRefusesAMissingFolderAndAFolder) {
+  ExpectWriteRefused("/nonexistent-folder/x.png", "No such file or directory");
+  ExpectWriteRefused(std::filesystem::temp_directory_path().string(), "Is a directory");
 }
 
 }  // namespace
