@@ -74,9 +74,23 @@ void WriteOut(const std::filesystem::path& path, const std::vector<std::uint8_t>
   if (!file) refuse();
 }
 
+/// How a scene file names the built-in whose stored bytes are `name` (docs/scene_format.md).
+std::string SceneFileReference(Kind kind, const std::vector<std::uint8_t>& name) {
+  if (kind == Kind::kAvatar) return "model = \"builtin\"";
+  return std::string(kind == Kind::kGarment ? "pattern" : "clip") + " = \"" +
+         std::string(name.begin(), name.end()) + "\"";
+}
+
 void Export(Catalog& catalog, const EntryInfo& entry, int version, const std::string& out,
             bool force) {
   const costume::catalog::AssetData data = catalog.Data(entry.id, version);
+  if (data.format == "builtin") {  // its bytes are only its name: a file of them would mislead
+    throw costume::sim::InputError("'" + entry.name + "' (id " + std::to_string(entry.id) +
+                                   ") is built into the programs and has no stored file to "
+                                   "export; scene files name it (" +
+                                   SceneFileReference(entry.kind, data.bytes) +
+                                   "), and --thumbnail writes its picture");
+  }
   namespace fs = std::filesystem;
   if (costume::catalog::IsBundle(data.bytes)) {  // several files: into the folder `out`
     const auto files = costume::catalog::UnpackBundle(data.bytes, entry.name);

@@ -434,6 +434,13 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_EQ(text_of(exported), "the user's own");
   ASSERT_EQ(RunProgram(url + " export sheet --force --out " + exported, output), 0) << output;
   EXPECT_TRUE(Contains(text_of(exported), "[garment.panel]"));
+  // A built-in's stored bytes are its name, not a file anyone could open.
+  const std::string builtin = (dir_ / "skirt.toml").string();
+  EXPECT_EQ(RunProgram(url + " export skirt --out " + builtin, output), 1);
+  EXPECT_TRUE(Contains(output, "'skirt' (id ")) << output;
+  EXPECT_TRUE(Contains(output, "is built into the programs")) << output;
+  EXPECT_TRUE(Contains(output, "pattern = \"skirt\"")) << output;
+  EXPECT_FALSE(std::filesystem::exists(builtin));
 
   const std::string bad = Write("bad.bvh", "HIERARCHY\nROOT");
   EXPECT_EQ(
