@@ -564,23 +564,28 @@ void Catalog::SetThumbnail(std::int64_t id, const std::vector<std::uint8_t>& png
   });
 }
 
-int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size) {
+int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size, std::ostream& log) {
   int made = 0;
   for (Kind kind : {Kind::kAvatar, Kind::kAnimation, Kind::kGarment}) {
     for (const EntryInfo& entry : List(kind)) {
       if (!Thumbnail(entry.id).empty()) continue;
+      log << KindName(kind) << " '" << entry.name << "' (id " << entry.id << "): thumbnail... "
+          << std::flush;  // draping a garment takes seconds: say what is being made
       try {
         ThumbnailRequest request =
             CheckAssetData(kind, entry.name, Data(entry.id),
                            entry.fabric.value_or(FabricParameters{}), entry.name);
         request.size = size;
         const std::vector<std::uint8_t> png = maker(request);
-        if (png.empty()) continue;
+        if (png.empty()) {
+          log << "none made\n";
+          continue;
+        }
         SetThumbnail(entry.id, png);
         ++made;
+        log << "ok\n";
       } catch (const sim::InputError& error) {
-        std::cerr << "warning: no thumbnail for " << KindName(kind) << " '" << entry.name
-                  << "': " << error.what() << "\n";
+        log << "not made: " << error.what() << "\n";
       }
     }
   }

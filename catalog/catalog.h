@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
@@ -202,10 +203,13 @@ class Catalog {
   void SetFabric(std::int64_t garment_id, const FabricParameters& fabric);
   /// Replaces the thumbnail of entry `id` (garments: of its latest version).
   void SetThumbnail(std::int64_t id, const std::vector<std::uint8_t>& png);
-  /// Makes the thumbnails that are missing with `maker` (used when the database was seeded
-  /// without a renderer); returns how many were made. Entries whose data cannot be loaded or
-  /// rendered are skipped.
-  int FillMissingThumbnails(const ThumbnailMaker& maker, int size = 128);
+  /// Makes the thumbnails that are missing with `maker` (the database was seeded without a
+  /// renderer, or a garment version was saved by the simulation server, which renders none);
+  /// returns how many were made. Writes a line per entry to `log` ("garment 'skirt' (id 8):
+  /// thumbnail... ok", or the reason when its data cannot be loaded or rendered, which skips
+  /// it).
+  int FillMissingThumbnails(const ThumbnailMaker& maker, int size = 128,
+                            std::ostream& log = std::cerr);
   /// Checks the database: SQLite's integrity_check and foreign_key_check, and for every
   /// entry that its versions are exactly 1..latest_version, non-garments have one version,
   /// garments have a fabric. Returns the problems found (empty: consistent).

@@ -14,11 +14,15 @@ ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
     : QObject(parent), options_(std::move(options)) {
   // A child gets SIGTERM when the GUI dies, however it dies (even SIGKILL): no server is left
   // running without the window that owns it.
-  for (QProcess* process : {&sim_, &haptic_}) {
+  for (QProcess* process : {&sim_, &haptic_, &thumbnails_}) {
     process->setChildProcessModifier([] { prctl(PR_SET_PDEATHSIG, SIGTERM); });
   }
   Forward(sim_, "sim_server");
   Forward(haptic_, "haptic_server");
+  Forward(thumbnails_, "catalogue");
+  connect(&thumbnails_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
+    emit thumbnailsMade(status == QProcess::CrashExit ? -1 : code);
+  });
   connect(&sim_, &QProcess::finished, this, [this](int code) { emit simServerExited(code); });
   connect(&haptic_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
     const QString device = device_;
@@ -59,6 +63,10 @@ QString ChildProcesses::SimServerPath() const {
 
 QString ChildProcesses::HapticServerPath() const {
   return QDir(options_.bin_dir).filePath("haptic_server/costume_haptic_server");
+}
+
+QString ChildProcesses::CatalogProgramPath() const {
+  return QDir(options_.bin_dir).filePath("catalog/costume-catalog");
 }
 
 QStringList ChildProcesses::SimServerArguments() const {
@@ -117,6 +125,20 @@ bool ChildProcesses::ConnectDevice(const QString& device, QString* error) {
   return true;
 }
 
+bool ChildProcesses::MakeMissingThumbnails(const QString& catalog_url, QString* error) {
+  if (thumbnails_.state() != QProcess::NotRunning) return true;
+  if (!QFileInfo(CatalogProgramPath()).isExecutable()) {
+    if (error) *error = "no catalogue program at " + CatalogProgramPath() + " (build it first)";
+    return false;
+  }
+  thumbnails_.start(CatalogProgramPath(), {"--url", catalog_url, "thumbnails"});
+  if (!thumbnails_.waitForStarted(5000)) {
+    if (error) *error = "cannot start " + CatalogProgramPath() + ": " + thumbnails_.errorString();
+    return false;
+  }
+  return true;
+}
+
 void ChildProcesses::Stop(QProcess& process) {
   if (process.state() == QProcess::NotRunning) return;
   process.terminate();  // SIGTERM: both servers stop cleanly (the grab fades out first)
@@ -134,6 +156,7 @@ void ChildProcesses::DisconnectDevice() {
 void ChildProcesses::StopAll() {
   DisconnectDevice();
   Stop(sim_);
+  Stop(thumbnails_);
 }
 
 }  // namespace costume::frontend

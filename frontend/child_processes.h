@@ -4,7 +4,9 @@
 /// QProcesses and stopped (SIGTERM, then SIGKILL after 3 s) when the window closes. The
 /// device menu connects a device by starting `costume_haptic_server --device <x>` and
 /// disconnects it by stopping that process; a device whose SDK this build lacks makes the
-/// server exit at once with its error, which is reported (deviceError).
+/// server exit at once with its error, which is reported (deviceError). Thumbnails the
+/// catalogue lacks are rendered by `costume-catalog thumbnails` in a third child, so that
+/// draping garments for their pictures never stalls the window.
 
 #include <QObject>
 #include <QProcess>
@@ -15,7 +17,8 @@ namespace costume::frontend {
 
 /// Where the programs are and what they are told.
 struct ServerOptions {
-  QString bin_dir;           ///< build directory holding sim_core/app/ and haptic_server/
+  QString bin_dir;           ///< build directory holding sim_core/app/, haptic_server/ and
+                             ///< catalog/
   QString lcm_url;           ///< passed as --lcm-url
   QString builtin = "garment";  ///< --builtin for the simulation server (when scene_file is empty)
   QString scene_file;        ///< --scene for the simulation server
@@ -39,6 +42,7 @@ class ChildProcesses : public QObject {
   /// The programs' paths.
   QString SimServerPath() const;
   QString HapticServerPath() const;
+  QString CatalogProgramPath() const;
   /// The simulation server's arguments.
   QStringList SimServerArguments() const;
   /// The haptic server's arguments for `device` ("simulated", "mouse", "openhaptics",
@@ -51,6 +55,9 @@ class ChildProcesses : public QObject {
   bool ConnectDevice(const QString& device, QString* error = nullptr);
   /// Stops the haptic server.
   void DisconnectDevice();
+  /// Starts `costume-catalog --url <catalog_url> thumbnails` unless it is already running;
+  /// thumbnailsMade follows when it ends. False with the reason in `*error`.
+  bool MakeMissingThumbnails(const QString& catalog_url, QString* error = nullptr);
   /// Stops both (SIGTERM, waits up to 3 s each, then SIGKILL).
   void StopAll();
 
@@ -69,6 +76,8 @@ class ChildProcesses : public QObject {
   /// The haptic server started / stopped.
   void deviceChanged(const QString& device, bool connected);
   void simServerExited(int exit_code);
+  /// The thumbnails child ended (0: every thumbnail it could make is stored).
+  void thumbnailsMade(int exit_code);
 
  private:
   void Forward(QProcess& process, const QString& name);
@@ -77,6 +86,7 @@ class ChildProcesses : public QObject {
   ServerOptions options_;
   QProcess sim_;
   QProcess haptic_;
+  QProcess thumbnails_;
   QString device_;
   QString haptic_output_;
   bool stopping_haptic_ = false;

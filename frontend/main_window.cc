@@ -8,6 +8,7 @@
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QMenuBar>
+#include <QPainter>
 #include <QPixmap>
 #include <QScrollArea>
 #include <QScrollBar>
@@ -37,6 +38,16 @@ QString PlaybackName(std::int8_t playback) {
     case Status::PLAYBACK_PAUSED: return "paused";
     default: return "stopped";
   }
+}
+
+/// Stands for a thumbnail the catalogue lacks (one is being rendered, or cannot be).
+QPixmap NoThumbnail() {
+  QPixmap pixmap(96, 96);
+  pixmap.fill(QColor(200, 200, 210));
+  QPainter painter(&pixmap);
+  painter.setPen(QColor(90, 90, 100));
+  painter.drawText(pixmap.rect(), Qt::AlignCenter | Qt::TextWordWrap, "no picture\nyet");
+  return pixmap;
 }
 
 QListWidget* MakeThumbnailList() {
@@ -157,6 +168,23 @@ void MainWindow::StartChildren() {
     if (QAction* action = device_action(options_.device)) action->setChecked(true);
     if (!children_->ConnectDevice(options_.device, &error)) Log("error: " + error);
   }
+  MakeMissingThumbnails();  // a catalogue made with --no-thumbnails, or saved versions
+}
+
+void MainWindow::RefreshCatalogue() {
+  FillLists();
+  MakeMissingThumbnails();
+}
+
+void MainWindow::MakeMissingThumbnails() {
+  const std::string url = catalog_->DatabaseUrl();
+  if (url.empty() || !lists_lack_thumbnails_) return;
+  QString error;
+  if (children_->MakeMissingThumbnails(QString::fromStdString(url), &error)) {
+    Log("catalogue: rendering the missing thumbnails");
+  } else {
+    Log("catalogue: no thumbnails made: " + error);
+  }
 }
 
 QWidget* MainWindow::BuildLists() {
@@ -175,7 +203,11 @@ QWidget* MainWindow::BuildLists() {
 }
 
 void MainWindow::FillLists() {
+  lists_lack_thumbnails_ = false;
   for (int k = 0; k < 3; ++k) {
+    // Filled again after a save or a refresh: the designer's pick stays picked.
+    const QListWidgetItem* picked = lists_[k]->currentItem();
+    const QString picked_name = picked ? picked->data(kNameRole).toString() : QString();
     lists_[k]->clear();
     std::vector<CatalogItem> items;
     try {
@@ -190,14 +222,17 @@ void MainWindow::FillLists() {
                                static_cast<uint>(item.thumbnail_png.size()), "PNG");
       }
       if (thumbnail.isNull()) {
-        thumbnail = QPixmap(96, 96);
-        thumbnail.fill(QColor(200, 200, 210));
+        lists_lack_thumbnails_ = true;
+        thumbnail = NoThumbnail();
       }
       auto* entry = new QListWidgetItem(QIcon(thumbnail), QString::fromStdString(item.name));
       entry->setData(kIdRole, QVariant::fromValue<qlonglong>(item.id));
       entry->setData(kNameRole, QString::fromStdString(item.name));
       if (!item.category.empty()) entry->setToolTip(QString::fromStdString(item.category));
       lists_[k]->addItem(entry);
+      if (!picked_name.isEmpty() && entry->data(kNameRole).toString() == picked_name) {
+        lists_[k]->setCurrentItem(entry);
+      }
     }
   }
 }
@@ -299,6 +334,11 @@ void MainWindow::BuildMenus() {
   export_ = file->addAction("Export animation (PNG frames)");
   export_->setCheckable(true);
   QAction* shot = file->addAction("Save screenshot");
+  QAction* refresh = file->addAction("Refresh catalogue");
+  refresh->setShortcut(QKeySequence::Refresh);
+  refresh->setToolTip("List the catalogue's entries again (another program may have imported "
+                      "some) and render the thumbnails they lack");
+  connect(refresh, &QAction::triggered, this, [this] { RefreshCatalogue(); });
   file->addSeparator();
   QAction* quit = file->addAction("Quit");
   connect(export_, &QAction::triggered, this, [this] { ToggleExport(); });
@@ -469,6 +509,11 @@ void MainWindow::ConnectSignals() {
   connect(children_, &ChildProcesses::simServerExited, this,
           [this](int code) { Log(QString("simulation server exited with code %1").arg(code)); });
   connect(exporter_, &FrameExporter::videoDone, this, &MainWindow::Log);
+  connect(children_, &ChildProcesses::thumbnailsMade, this, [this](int code) {
+    FillLists();  // not MakeMissingThumbnails: one that cannot be made would loop
+    Log(code == 0 ? QString("catalogue: thumbnails made")
+                  : QString("catalogue: making thumbnails failed (code %1)").arg(code));
+  });
 }
 
 void MainWindow::ToggleExport() {
@@ -538,6 +583,9 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
     }
     SetWarning(process + ": " + text);
     Log(process + " warning: " + text);
+    if (warning.rfind("command SAVE_VERSION: saved ", 0) == 0) {
+      RefreshCatalogue();  // the new version is listed, and its picture made
+    }
     if (pending_mirror_ && warning.rfind("command LOAD_", 0) == 0) {
       pending_mirror_.reset();  // the server refused the load: its scene stays
       Log("the view keeps its scene");

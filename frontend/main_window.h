@@ -109,6 +109,8 @@ class MainWindow : public QMainWindow {
   QLabel* warning_label() const { return warning_label_; }
   QLabel* force_label() const { return force_label_; }
   QPlainTextEdit* message_log() const { return log_; }
+  /// Some listed entry shows the "no picture yet" stand-in.
+  bool lists_lack_thumbnails() const { return lists_lack_thumbnails_; }
   /// The last whole frame received, if any.
   const std::optional<ClothFrame>& last_frame() const { return last_frame_; }
   /// Where "eliminate stretch energy" acts [m]: the last mouse grab point, else the device
@@ -133,7 +135,13 @@ class MainWindow : public QMainWindow {
   QWidget* BuildEditing();
   void BuildMenus();
   void BuildStatusBar();
+  /// Lists the catalogue's entries again; notes whether some lack a thumbnail.
   void FillLists();
+  /// Lists again and has the missing thumbnails rendered (after a saved version, on F5).
+  void RefreshCatalogue();
+  /// Starts the child that renders the thumbnails the lists lack (a database only); the
+  /// lists are filled again when it ends.
+  void MakeMissingThumbnails();
   void LoadSelected(EntryKind kind);
   /// Builds the mirror of the scene a LOAD_* asks for (scene_mirror.h); it replaces the view's
   /// mirror when the server's frames show the new scene (AdoptPendingMirror) and is dropped
@@ -167,6 +175,7 @@ class MainWindow : public QMainWindow {
   std::optional<Eigen::Vector3d> last_grab_;
   std::optional<Eigen::Vector3d> last_cursor_;
   bool warned_mismatch_ = false;
+  bool lists_lack_thumbnails_ = false;
   /// Since the designer last switched modes.
   QElapsedTimer mode_sent_;
 

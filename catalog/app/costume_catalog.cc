@@ -197,7 +197,20 @@ int main(int argc, char** argv) {
   exporter->add_flag("--thumbnail", export_thumbnail,
                      "write the entry's thumbnail (PNG) instead of its data");
 
+  int thumbnail_size = 128;
+  auto* thumbnails = app.add_subcommand(
+      "thumbnails",
+      "render the thumbnails that are missing: of a catalogue made with --no-thumbnails, or of "
+      "garment versions the simulation server saved (it renders none)");
+  thumbnails->add_option("--size", thumbnail_size, "width = height [px]")
+      ->check(CLI::Range(16, 1024))
+      ->capture_default_str();
+
   CLI11_PARSE(app, argc, argv);
+  if (*thumbnails && no_thumbnails) {
+    std::cerr << "error: --no-thumbnails contradicts the thumbnails subcommand\n";
+    return 2;
+  }
 
   try {
     costume::catalog::OpenOptions options;
@@ -223,11 +236,17 @@ int main(int argc, char** argv) {
         std::printf("  %3d  %s  %s\n", v.version, FormatTime(v.created_utime).c_str(),
                     v.label.c_str());
       }
+    } else if (*thumbnails) {
+      const int made = catalog->FillMissingThumbnails(costume::catalog::RenderedThumbnails(),
+                                                      thumbnail_size, std::cout);
+      std::printf("made %d thumbnail(s)\n", made);
     } else if (*exporter) {
       const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
       if (export_thumbnail) {
         const auto png = catalog->Thumbnail(entry.id);
-        if (png.empty()) throw costume::sim::InputError("'" + entry.name + "' has no thumbnail");
+        if (png.empty()) throw costume::sim::InputError("'" + entry.name +
+                                                      "' has no thumbnail (the thumbnails "
+                                                      "subcommand makes missing ones)");
         WriteOut(out, png, export_force);
         std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
       } else {

@@ -63,7 +63,8 @@ class DatabaseSceneCatalog final : public SceneCatalog {
     const assets::EditedGarment edited = assets::EditedGarmentFromSimulation(simulation, garment);
     const catalog::AssetData data{"edited-garment", assets::WriteEditedGarment(edited)};
     // No thumbnail here: rendering one would stall the 60 Hz loop (draping a garment takes
-    // seconds); `costume-catalog thumbnails` (FillMissingThumbnails) makes it later.
+    // seconds); `costume-catalog thumbnails` (FillMissingThumbnails) makes it later, run by
+    // the GUI when it sees this save.
     const int version = catalog_->SaveGarmentVersion(entry->id, data, label, {});
     return {Describe(*entry), version};
   }

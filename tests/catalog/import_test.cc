@@ -434,6 +434,15 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_EQ(text_of(exported), "the user's own");
   ASSERT_EQ(RunProgram(url + " export sheet --force --out " + exported, output), 0) << output;
   EXPECT_TRUE(Contains(text_of(exported), "[garment.panel]"));
+  // Made with --no-thumbnails, the catalogue gets its pictures later: one per entry (the ten
+  // built-ins and the sheet), then none are missing.
+  const std::string bare_url = "--url sqlite:" + (dir_ / "program.sqlite").string();
+  ASSERT_EQ(RunProgram(bare_url + " thumbnails --size 32", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "garment 'sheet' (id ")) << output;
+  EXPECT_TRUE(Contains(output, "made 11 thumbnail(s)")) << output;
+  ASSERT_EQ(RunProgram(bare_url + " thumbnails", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "made 0 thumbnail(s)")) << output;
+  EXPECT_EQ(RunProgram(url + " thumbnails", output), 2);  // --no-thumbnails contradicts it
   // A built-in's stored bytes are its name, not a file anyone could open.
   const std::string builtin = (dir_ / "skirt.toml").string();
   EXPECT_EQ(RunProgram(url + " export skirt --out " + builtin, output), 1);

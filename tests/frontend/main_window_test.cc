@@ -5,9 +5,14 @@
 #include "frontend/main_window.h"
 
 #include <QTest>
+#include <filesystem>
+#include <unistd.h>
 #include <gtest/gtest.h>
 
 #include "bus/channels.h"
+#ifdef COSTUME_HAVE_CATALOG
+#include "catalog/catalog.h"
+#endif
 #include "bus/lcm_bus.h"
 #include "bus/typed_bus.h"
 #include "render/camera.h"
@@ -553,3 +558,70 @@ TEST(MainWindowLoads, ALoadedSceneKeepsTheSettingsSentBeforeIt) {
 
 }  // namespace
 }  // namespace costume::frontend
+
+#ifdef COSTUME_HAVE_CATALOG
+namespace costume::frontend {
+namespace {
+
+/// How many times `text` holds `part`.
+int Count(const QString& text, const QString& part) { return text.count(part); }
+
+// A catalogue without thumbnails (made with --no-thumbnails; a version the simulation server
+// saved) gets them from a child `costume-catalog thumbnails`, and the lists show them without
+// losing the designer's pick.
+TEST(MainWindowCatalogue, MissingThumbnailsAreRenderedByAChildAndListed) {
+  costume::testing::TestApp();
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("main_window_thumbnails_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string url = "sqlite:" + (dir / "c.sqlite").string();
+  auto db = catalog::Catalog::Open(url);  // seeded without a renderer: no thumbnails
+  const std::int64_t skirt = db->Find(catalog::Kind::kGarment, "skirt")->id;
+  ASSERT_TRUE(db->Thumbnail(skirt).empty());
+
+  bus::LcmBus bus("memq://");
+  FrontendOptions options;
+  options.builtin = "hang";
+  options.servers.bin_dir = COSTUME_BUILD_DIR;
+  std::string warning;
+  MainWindow window(bus, options, OpenCatalogSource(url, &warning));
+  ASSERT_TRUE(warning.empty()) << warning;
+  if (!QFileInfo(window.children().CatalogProgramPath()).isExecutable()) {
+    GTEST_SKIP() << "costume-catalog not built";
+  }
+  EXPECT_TRUE(window.lists_lack_thumbnails());
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  costumes->setCurrentItem(costumes->findItems("skirt", Qt::MatchExactly).at(0));
+
+  window.StartChildren();
+  QTRY_VERIFY_WITH_TIMEOUT(window.message_log()->toPlainText().contains("thumbnails made"),
+                           60000);
+  EXPECT_FALSE(window.lists_lack_thumbnails()) << window.message_log()->toPlainText().toStdString();
+  EXPECT_FALSE(db->Thumbnail(skirt).empty());
+  ASSERT_NE(costumes->currentItem(), nullptr);
+  EXPECT_EQ(costumes->currentItem()->text(), "skirt");
+
+  // The server saves a version (it renders no thumbnail) and says so: the lists are filled
+  // again and the new version's picture is made.
+  db->SaveGarmentVersion(skirt, db->Data(skirt), "edited", {});
+  EXPECT_TRUE(db->Thumbnail(skirt).empty());
+  costume_lcm::status saved{};
+  saved.utime = bus::NowUtime();
+  saved.num_warnings = 1;
+  saved.warnings = {"command SAVE_VERSION: saved garment 'skirt' version 2 'edited'"};
+  ASSERT_TRUE(bus::Publish(bus, bus::kSimStatusChannel, saved));
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+  QTRY_COMPARE_WITH_TIMEOUT(Count(window.message_log()->toPlainText(), "thumbnails made"), 2,
+                            60000);
+  EXPECT_FALSE(window.lists_lack_thumbnails());
+  EXPECT_FALSE(db->Thumbnail(skirt).empty());
+  EXPECT_EQ(costumes->currentItem()->text(), "skirt");
+  db.reset();
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace costume::frontend
+#endif
