@@ -82,7 +82,7 @@ void CheckUdpmOptions(const std::string& url, const LcmUrl& parsed, Reach reach)
       if (number > 0 && reach == Reach::kThisHost) {
         throw InputError(UrlError(
             url, "ttl = " + value + ": allowed range [0, 0] unless the network is allowed "
-                 "explicitly (Reach::kNetwork): with ttl > 0 LCM traffic leaves this machine"));
+                 "explicitly (--allow-network): with ttl > 0 LCM traffic leaves this machine"));
       }
     } else if (key == "recv_buf_size") {
       if (!ParseInt(value, number) || number <= 0) {
@@ -113,7 +113,7 @@ LcmUrl CheckLcmUrl(const std::string& url, Reach reach) {
   if (parsed.provider == "tcpq" && reach == Reach::kThisHost && !IsLocalHost(parsed.network)) {
     throw InputError(UrlError(url, "tcpq host \"" + parsed.network +
                                        "\": allowed localhost or 127.x unless the network is "
-                                       "allowed explicitly (Reach::kNetwork)"));
+                                       "allowed explicitly (--allow-network)"));
   }
   return parsed;
 }

@@ -77,6 +77,7 @@ QStringList ChildProcesses::SimServerArguments() const {
     args << "--scene" << options_.scene_file;
   }
   if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
+  if (options_.allow_network) args << "--allow-network";  // else they refuse the GUI's URL
   if (options_.editing) args << "--editing";
   if (!options_.catalog_url.isEmpty()) args << "--catalog" << options_.catalog_url;
   return args;
@@ -86,6 +87,7 @@ QStringList ChildProcesses::HapticServerArguments(const QString& device) const {
   QStringList args{"--device", device, "--radius", QString::number(options_.radius)};
   if (device == "simulated") args << "--trajectory" << options_.trajectory;
   if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
+  if (options_.allow_network) args << "--allow-network";
   return args;
 }
 

@@ -20,6 +20,7 @@ struct ServerOptions {
   QString bin_dir;           ///< build directory holding sim_core/app/, haptic_server/ and
                              ///< catalog/
   QString lcm_url;           ///< passed as --lcm-url
+  bool allow_network = false;  ///< passed as --allow-network (the GUI's own flag)
   QString builtin = "garment";  ///< --builtin for the simulation server (when scene_file is empty)
   QString scene_file;        ///< --scene for the simulation server
   QString trajectory;        ///< --trajectory for the simulated device

@@ -65,6 +65,7 @@ int Run(QApplication& app, const Arguments& args) {
                                                             : QString::fromStdString(args.device);
   options.servers.bin_dir = QString::fromStdString(args.bin_dir);
   options.servers.lcm_url = QString::fromStdString(bus.url());
+  options.servers.allow_network = args.allow_network;
   options.servers.builtin = QString::fromStdString(args.builtin);
   options.servers.scene_file = QString::fromStdString(args.scene);
   options.servers.trajectory = QString::fromStdString(args.trajectory);

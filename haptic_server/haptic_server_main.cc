@@ -53,7 +53,7 @@ struct Arguments {
   double radius = 0.05;
   double coupling = 200.0;
   std::string lcm_url;
-  bool lan = false;
+  bool allow_network = false;
   double seconds = 0.0;
   double scale = 1.0;
   std::vector<double> offset{0.0, 0.0, 0.0};
@@ -155,13 +155,9 @@ int Run(const Arguments& args) {
   workspace.offset = Eigen::Vector3d(args.offset[0], args.offset[1], args.offset[2]);
   workspace.Validate("workspace", "--scale", "--offset");
 
-  std::unique_ptr<bus::LcmBus> lcm_bus;
-  try {  // before the device is opened: a refused URL leaves no device running
-    lcm_bus = std::make_unique<bus::LcmBus>(
-        args.lcm_url, args.lan ? bus::Reach::kNetwork : bus::Reach::kThisHost);
-  } catch (const sim::InputError& error) {
-    throw sim::InputError(std::string(error.what()) + " (--lan allows it)");
-  }
+  // Before the device is opened: a refused URL leaves no device running.
+  auto lcm_bus = std::make_unique<bus::LcmBus>(
+      args.lcm_url, args.allow_network ? bus::Reach::kNetwork : bus::Reach::kThisHost);
   bus::LcmBus& lcm = *lcm_bus;
   std::unique_ptr<HapticDevice> inner = MakeDevice(args);
   ReleasableDevice device(*inner);
@@ -262,7 +258,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--lcm-url", args.lcm_url,
                  "LCM URL (empty: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0)");
-  app.add_flag("--lan", args.lan, "allow an LCM URL that leaves this machine (ttl > 0, tcpq)");
+  // The same flag as the simulation server's and the GUI's; --lan is its older name.
+  app.add_flag("--allow-network,--lan", args.allow_network,
+               "Accept an LCM URL whose traffic leaves this machine (udpm ttl >= 1, tcpq to "
+               "another host)");
   app.add_option("--seconds", args.seconds, "stop after this many seconds (0: until a signal)")
       ->check(CLI::Range(0.0, 1e9))  // a NaN, which Range lets through, is refused in Run
       ->capture_default_str();

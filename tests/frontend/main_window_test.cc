@@ -417,6 +417,20 @@ TEST_F(MainWindowTest, MousePressOnTheClothGrabsAndReleaseLetsGo) {
   EXPECT_DOUBLE_EQ(release.position[1], drag.position[1]);
 }
 
+// A GUI allowed onto the network passes that on: else both servers refuse its URL.
+TEST(ChildProcessesArguments, TheNetworkPermissionReachesBothServers) {
+  ServerOptions options;
+  options.lcm_url = "udpm://239.255.76.67:7667?ttl=1";
+  ChildProcesses local(options);
+  EXPECT_FALSE(local.SimServerArguments().contains("--allow-network"));
+  EXPECT_FALSE(local.HapticServerArguments("mouse").contains("--allow-network"));
+  options.allow_network = true;
+  ChildProcesses network(options);
+  EXPECT_TRUE(network.SimServerArguments().contains("--allow-network"));
+  EXPECT_TRUE(network.HapticServerArguments("mouse").contains("--allow-network"));
+  EXPECT_TRUE(network.HapticServerArguments("simulated").contains("--allow-network"));
+}
+
 TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
   ChildProcesses& children = window_->children();
   children.options().bin_dir = COSTUME_BUILD_DIR;

@@ -211,7 +211,7 @@ ProcessRun RunProcesses(const std::string& scene, const std::string& trajectory,
       {root + "/haptic_server/costume_haptic_server", "--device", "simulated", "--trajectory",
        (dir / "pull.traj").string(), "--offset", offset[0], offset[1], offset[2], "--radius",
        radius, "--seconds", std::to_string(length.device_seconds), "--priority", "0"},
-      UrlArgs("--lan"))));
+      UrlArgs("--allow-network"))));
   bool haptic_done = false;
   while (std::chrono::steady_clock::now() < give_up) {
     listener.HandleSubscriptions(50);
