@@ -575,14 +575,21 @@ void MainWindow::SetWarning(const QString& text) {
 
 void MainWindow::ShowWarnings(const Status& status, const QString& process) {
   QStringList figures;
+  QStringList& previous = previous_warnings_[process];
+  QStringList current;
   for (const std::string& warning : status.warnings) {
     const QString text = QString::fromStdString(warning);
     if (IsPeriodicFigure(warning)) {
       figures << text;  // the haptic server's once-a-second figures: a tooltip, not a warning
       continue;
     }
-    SetWarning(process + ": " + text);
-    Log(process + " warning: " + text);
+    current << text;
+    // A standing warning (a refused real-time priority) rides on every status, for windows
+    // that start later: shown once, it would otherwise bury the log and the status bar.
+    if (!previous.contains(text)) {
+      SetWarning(process + ": " + text);
+      Log(process + " warning: " + text);
+    }
     if (warning.rfind("command SAVE_VERSION: saved ", 0) == 0) {
       RefreshCatalogue();  // the new version is listed, and its picture made
     }
@@ -591,6 +598,7 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
       Log("the view keeps its scene");
     }
   }
+  previous = current;
   if (!figures.isEmpty()) {
     (process == "haptic" ? haptic_label_ : sim_label_)->setToolTip(figures.join("\n"));
   }

@@ -10,6 +10,7 @@
 #include <QActionGroup>
 #include <QDoubleSpinBox>
 #include <QElapsedTimer>
+#include <QHash>
 #include <QLabel>
 #include <QLineEdit>
 #include <QListWidget>
@@ -176,6 +177,8 @@ class MainWindow : public QMainWindow {
   std::optional<Eigen::Vector3d> last_cursor_;
   bool warned_mismatch_ = false;
   bool lists_lack_thumbnails_ = false;
+  /// Each server's warnings in its last status ("sim", "haptic").
+  QHash<QString, QStringList> previous_warnings_;
   /// Since the designer last switched modes.
   QElapsedTimer mode_sent_;
 

@@ -417,6 +417,31 @@ TEST_F(MainWindowTest, MousePressOnTheClothGrabsAndReleaseLetsGo) {
   EXPECT_DOUBLE_EQ(release.position[1], drag.position[1]);
 }
 
+// The simulation server repeats a standing warning in every status; the window shows it once,
+// so a later warning stays on the status bar and the log is not buried.
+TEST_F(MainWindowTest, AStandingWarningIsShownOnce) {
+  const std::string standing = "grab acknowledger: SCHED_FIFO priority 70 refused";
+  const auto publish = [&](std::vector<std::string> warnings) {
+    costume_lcm::status s{};
+    s.utime = bus::NowUtime();
+    s.num_warnings = static_cast<std::int16_t>(warnings.size());
+    s.warnings = std::move(warnings);
+    ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
+    Sent();
+  };
+  publish({standing});
+  publish({standing, "command UNDO: nothing to undo"});
+  publish({standing});
+  publish({standing});
+  const QString log = window_->message_log()->toPlainText();
+  EXPECT_EQ(log.count(QString::fromStdString(standing)), 1) << log.toStdString();
+  EXPECT_EQ(log.count("nothing to undo"), 1);
+  EXPECT_TRUE(window_->warning_label()->text().contains("nothing to undo"))
+      << window_->warning_label()->text().toStdString();
+  publish({standing, "command UNDO: nothing to undo"});  // said again later: shown again
+  EXPECT_EQ(window_->message_log()->toPlainText().count("nothing to undo"), 2);
+}
+
 // A GUI allowed onto the network passes that on: else both servers refuse its URL.
 TEST(ChildProcessesArguments, TheNetworkPermissionReachesBothServers) {
   ServerOptions options;
