@@ -75,7 +75,7 @@ int Run(QApplication& app, const Arguments& args) {
   std::string warning;
   auto catalog = frontend::OpenCatalogSource(args.catalog, &warning);
   frontend::MainWindow window(bus, options, std::move(catalog));
-  if (!warning.empty()) window.Log(QString::fromStdString(warning));
+  if (!warning.empty()) window.Warn(QString::fromStdString(warning));
   window.resize(1280, 860);
   window.show();
   window.StartBusThread();

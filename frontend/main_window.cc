@@ -40,13 +40,14 @@ QString PlaybackName(std::int8_t playback) {
   }
 }
 
-/// Stands for a thumbnail the catalogue lacks (one is being rendered, or cannot be).
-QPixmap NoThumbnail() {
+/// Stands for a thumbnail the catalogue lacks: "no picture yet" while one is being rendered,
+/// "no picture" for the built-in assets without a database.
+QPixmap NoThumbnail(const QString& text) {
   QPixmap pixmap(96, 96);
   pixmap.fill(QColor(200, 200, 210));
   QPainter painter(&pixmap);
   painter.setPen(QColor(90, 90, 100));
-  painter.drawText(pixmap.rect(), Qt::AlignCenter | Qt::TextWordWrap, "no picture\nyet");
+  painter.drawText(pixmap.rect(), Qt::AlignCenter | Qt::TextWordWrap, text);
   return pixmap;
 }
 
@@ -163,10 +164,10 @@ void MainWindow::StartBusThread() {
 
 void MainWindow::StartChildren() {
   QString error;
-  if (options_.start_sim_server && !children_->StartSimServer(&error)) Log("error: " + error);
+  if (options_.start_sim_server && !children_->StartSimServer(&error)) Warn("error: " + error);
   if (!options_.device.isEmpty()) {
     if (QAction* action = device_action(options_.device)) action->setChecked(true);
-    if (!children_->ConnectDevice(options_.device, &error)) Log("error: " + error);
+    if (!children_->ConnectDevice(options_.device, &error)) Warn("error: " + error);
   }
   MakeMissingThumbnails();  // a catalogue made with --no-thumbnails, or saved versions
 }
@@ -183,7 +184,7 @@ void MainWindow::MakeMissingThumbnails() {
   if (children_->MakeMissingThumbnails(QString::fromStdString(url), &error)) {
     Log("catalogue: rendering the missing thumbnails");
   } else {
-    Log("catalogue: no thumbnails made: " + error);
+    Warn("catalogue: no thumbnails made: " + error);
   }
 }
 
@@ -223,7 +224,8 @@ void MainWindow::FillLists() {
       }
       if (thumbnail.isNull()) {
         lists_lack_thumbnails_ = true;
-        thumbnail = NoThumbnail();
+        const bool coming = !catalog_->DatabaseUrl().empty();  // MakeMissingThumbnails
+        thumbnail = NoThumbnail(coming ? "no picture\nyet" : "no picture");
       }
       auto* entry = new QListWidgetItem(QIcon(thumbnail), QString::fromStdString(item.name));
       entry->setData(kIdRole, QVariant::fromValue<qlonglong>(item.id));
@@ -490,7 +492,7 @@ void MainWindow::ConnectSignals() {
   connect(connect_device_, &QAction::triggered, this, [this] {
     QString error;
     const QString device = devices_->checkedAction()->data().toString();
-    if (!children_->ConnectDevice(device, &error)) Log("error: " + error);
+    if (!children_->ConnectDevice(device, &error)) Warn("error: " + error);
   });
   connect(disconnect_device_, &QAction::triggered, this, [this] { children_->DisconnectDevice(); });
   connect(children_, &ChildProcesses::deviceChanged, this,
@@ -526,7 +528,7 @@ void MainWindow::ToggleExport() {
                              .arg(QDateTime::currentDateTime().toString("yyyyMMdd_hhmmss"));
   QString error;
   if (!exporter_->Start(folder, &error)) {
-    Log("error: " + error);
+    Warn("error: " + error);
     export_->setChecked(false);
     return;
   }
@@ -649,6 +651,11 @@ void MainWindow::OnFeedback(const costume_lcm::feedback& message) {
 }
 
 void MainWindow::Log(const QString& line) { log_->appendPlainText(line); }
+
+void MainWindow::Warn(const QString& line) {
+  SetWarning(line);
+  Log(line);
+}
 
 void MainWindow::closeEvent(QCloseEvent* event) {
   if (exporter_->recording()) Log(exporter_->Finish());

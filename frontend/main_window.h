@@ -127,6 +127,8 @@ class MainWindow : public QMainWindow {
   void OnFeedback(const costume_lcm::feedback& message);
   /// Appends a line to the message log (warnings, process output).
   void Log(const QString& line);
+  /// Logs the line and shows it on the status bar: what the designer must act on.
+  void Warn(const QString& line);
 
  protected:
   void closeEvent(QCloseEvent* event) override;
