@@ -384,22 +384,55 @@ void RunAvatar(const std::string& name, const std::vector<std::string>& methods,
 
 }  // namespace
 
+/// Throws sim::InputError naming the garments there are when --makehuman-garment names none
+/// of them (and the MakeHuman body is there to wear it).
+void RequireMakeHumanGarment(const Options& options) {
+  const std::filesystem::path clothes =
+      std::filesystem::path(options.data_dir) / "makehuman" / "clothes";
+  if (!options.makehuman || options.makehuman_garment == "none" ||
+      !std::filesystem::is_directory(clothes) ||
+      std::filesystem::exists(clothes / options.makehuman_garment /
+                              (options.makehuman_garment + ".mhclo"))) {
+    return;
+  }
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(clothes)) {
+    if (entry.is_directory()) names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  names.push_back("none");
+  std::string allowed;
+  for (const std::string& name : names) allowed += (allowed.empty() ? "" : ", ") + name;
+  throw sim::InputError("--makehuman-garment '" + options.makehuman_garment + "': no " +
+                        (clothes / options.makehuman_garment /
+                         (options.makehuman_garment + ".mhclo")).string() +
+                        "; allowed: " + allowed);
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"collision_bench: the garment scene per collision method (docs/BENCHMARKS.md)"};
   Options options;
   app.add_option("--walk", options.walk_seconds, "Seconds of the clip measured after fitting")
-      ->check(CLI::Range(0.1, 60.0));
+      ->check(CLI::Range(0.1, 60.0))
+      ->capture_default_str();
   app.add_option("--clip", options.clip,
                  "Built-in clip the avatar plays (retargeted onto MakeHuman)")
-      ->check(CLI::IsMember(sim::BuiltInClipNames()));
+      ->check(CLI::IsMember(sim::BuiltInClipNames()))
+      ->capture_default_str();
   app.add_option("--resolution", options.resolution, "Garment particles around its circumference")
-      ->check(CLI::Range(8, 1024));
+      ->check(CLI::Range(8, 1024))
+      ->capture_default_str();
   app.add_option("--garment", options.garment, "Built-in garment")
-      ->check(CLI::IsMember({"skirt", "dress", "cape"}));
-  app.add_option("--solver", options.solver, "Cloth solver")->check(CLI::IsMember({"pcg", "multigrid"}));
-  app.add_option("--data", options.data_dir, "Folder of the shared assets (MakeHuman)");
+      ->check(CLI::IsMember({"skirt", "dress", "cape"}))
+      ->capture_default_str();
+  app.add_option("--solver", options.solver, "Cloth solver")
+      ->check(CLI::IsMember({"pcg", "multigrid"}))
+      ->capture_default_str();
+  app.add_option("--data", options.data_dir, "Folder of the shared assets (MakeHuman)")
+      ->capture_default_str();
   app.add_option("--makehuman-garment", options.makehuman_garment,
-                 "MakeHuman garment folder under makehuman/clothes");
+                 "MakeHuman garment folder under makehuman/clothes ('none': only the skirt on MakeHuman)")
+      ->capture_default_str();
   app.add_option("--methods", options.methods,
                  "Collision methods to run, in order (the speed ratio needs both)")
       ->check(CLI::IsMember({"superquadric", "mesh"}))
@@ -422,6 +455,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
+    RequireMakeHumanGarment(options);  // a typo found now, not after minutes of runs
     auto humanoid = sim::MakeHumanoid();
     auto clip = std::make_shared<const sim::Clip>(
         sim::MakeBuiltInClip(options.clip, humanoid->shared_skeleton()));
@@ -436,12 +470,15 @@ int main(int argc, char** argv) {
       RunAvatar("makehuman", options.methods, [&](sim::BodyCollisionMethod method) {
         return GarmentScene(body, clip, method, options);
       });
-      const std::filesystem::path mhclo = mh / "clothes" / options.makehuman_garment /
-                                          (options.makehuman_garment + ".mhclo");
-      const assets::ObjMesh base_obj = assets::ReadObj((mh / "body" / "base.obj").string());
-      RunAvatar("makehuman + " + options.makehuman_garment, options.methods, [&](sim::BodyCollisionMethod method) {
-        return MakeHumanGarmentScene(body, clip, method, base_obj, mhclo, options);
-      });
+      if (options.makehuman_garment != "none") {
+        const std::filesystem::path mhclo = mh / "clothes" / options.makehuman_garment /
+                                            (options.makehuman_garment + ".mhclo");
+        const assets::ObjMesh base_obj = assets::ReadObj((mh / "body" / "base.obj").string());
+        RunAvatar("makehuman + " + options.makehuman_garment, options.methods,
+                  [&](sim::BodyCollisionMethod method) {
+                    return MakeHumanGarmentScene(body, clip, method, base_obj, mhclo, options);
+                  });
+      }
     } else if (options.makehuman) {
       std::cerr << "MakeHuman body not found under " << mh << "; skipped\n";
     }
