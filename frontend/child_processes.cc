@@ -23,7 +23,11 @@ ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
   connect(&thumbnails_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
     emit thumbnailsMade(status == QProcess::CrashExit ? -1 : code);
   });
-  connect(&sim_, &QProcess::finished, this, [this](int code) { emit simServerExited(code); });
+  connect(&sim_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
+    if (stopping_sim_) return;  // the window closing: nothing to report
+    emit simServerExited(status == QProcess::CrashExit ? QString("crashed")
+                                                       : QString("exit code %1").arg(code));
+  });
   connect(&haptic_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
     const QString device = device_;
     emit deviceChanged(device, false);
@@ -97,6 +101,7 @@ bool ChildProcesses::StartSimServer(QString* error) {
     if (error) *error = "no simulation server at " + SimServerPath() + " (build it first)";
     return false;
   }
+  stopping_sim_ = false;
   sim_.start(SimServerPath(), SimServerArguments());
   if (!sim_.waitForStarted(5000)) {
     if (error) *error = "cannot start " + SimServerPath() + ": " + sim_.errorString();
@@ -157,6 +162,7 @@ void ChildProcesses::DisconnectDevice() {
 
 void ChildProcesses::StopAll() {
   DisconnectDevice();
+  stopping_sim_ = true;
   Stop(sim_);
   Stop(thumbnails_);
 }

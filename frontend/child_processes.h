@@ -76,7 +76,9 @@ class ChildProcesses : public QObject {
   void deviceError(const QString& device, const QString& message);
   /// The haptic server started / stopped.
   void deviceChanged(const QString& device, bool connected);
-  void simServerExited(int exit_code);
+  /// The simulation server ended on its own (not through StopAll): `how` is "exit code 1" or
+  /// "crashed".
+  void simServerExited(const QString& how);
   /// The thumbnails child ended (0: every thumbnail it could make is stored).
   void thumbnailsMade(int exit_code);
 
@@ -91,6 +93,7 @@ class ChildProcesses : public QObject {
   QString device_;
   QString haptic_output_;
   bool stopping_haptic_ = false;
+  bool stopping_sim_ = false;
 };
 
 }  // namespace costume::frontend

@@ -172,6 +172,28 @@ void MainWindow::StartChildren() {
   MakeMissingThumbnails();  // a catalogue made with --no-thumbnails, or saved versions
 }
 
+void MainWindow::RestartSimServer() {
+  if (children_->sim_running()) {
+    Log("the simulation server is running");
+    return;
+  }
+  QString error;
+  if (!children_->StartSimServer(&error)) {
+    Warn("error: " + error);
+    return;
+  }
+  // A fresh server runs the start scene from frame 0: the view follows it when its frames
+  // come, as after a load.
+  try {
+    pending_mirror_ =
+        std::make_unique<SceneMirror>(LoadScene(options_.builtin, options_.scene_file));
+  } catch (const sim::InputError& refusal) {
+    Log(QString("the view keeps its scene: ") + refusal.what());
+  }
+  SetWarning("");
+  Log("simulation server started");
+}
+
 void MainWindow::RefreshCatalogue() {
   FillLists();
   MakeMissingThumbnails();
@@ -366,6 +388,11 @@ void MainWindow::BuildMenus() {
   sim->addAction(play_);
   sim->addAction(pause_);
   sim->addAction(stop_);
+  sim->addSeparator();
+  start_server_ = sim->addAction("Start server");
+  start_server_->setToolTip("Start the simulation server again after it stopped (with the "
+                            "scene the window was started with)");
+  connect(start_server_, &QAction::triggered, this, [this] { RestartSimServer(); });
 
   QMenu* device = menuBar()->addMenu("&Device");
   devices_ = new QActionGroup(this);
@@ -508,8 +535,11 @@ void MainWindow::ConnectSignals() {
           });
   connect(children_, &ChildProcesses::output, this,
           [this](const QString& process, const QString& line) { Log(process + ": " + line); });
-  connect(children_, &ChildProcesses::simServerExited, this,
-          [this](int code) { Log(QString("simulation server exited with code %1").arg(code)); });
+  connect(children_, &ChildProcesses::simServerExited, this, [this](const QString& how) {
+    sim_label_->setText("sim: not running");
+    Warn("the simulation server stopped (" + how + "; its last lines are above): Simulation > "
+         "Start server runs it again");
+  });
   connect(exporter_, &FrameExporter::videoDone, this, &MainWindow::Log);
   connect(children_, &ChildProcesses::thumbnailsMade, this, [this](int code) {
     FillLists();  // not MakeMissingThumbnails: one that cannot be made would loop

@@ -103,6 +103,7 @@ class MainWindow : public QMainWindow {
   QPushButton* save_button() const { return save_; }
   QAction* device_action(const QString& device) const;
   QAction* connect_action() const { return connect_device_; }
+  QAction* start_server_action() const { return start_server_; }
   QAction* disconnect_action() const { return disconnect_device_; }
   QLabel* sim_label() const { return sim_label_; }
   QLabel* haptic_label() const { return haptic_label_; }
@@ -140,6 +141,8 @@ class MainWindow : public QMainWindow {
   void BuildStatusBar();
   /// Lists the catalogue's entries again; notes whether some lack a thumbnail.
   void FillLists();
+  /// Starts the simulation server after it stopped; the view follows its start scene.
+  void RestartSimServer();
   /// Lists again and has the missing thumbnails rendered (after a saved version, on F5).
   void RefreshCatalogue();
   /// Starts the child that renders the thumbnails the lists lack (a database only); the
@@ -197,6 +200,7 @@ class MainWindow : public QMainWindow {
   QAction* pause_ = nullptr;
   QAction* stop_ = nullptr;
   QAction* export_ = nullptr;
+  QAction* start_server_ = nullptr;
   QRadioButton* animation_mode_ = nullptr;
   QRadioButton* editing_mode_ = nullptr;
   QDoubleSpinBox* radius_ = nullptr;

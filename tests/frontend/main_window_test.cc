@@ -5,16 +5,18 @@
 #include "frontend/main_window.h"
 
 #include <QTest>
-#include <filesystem>
-#include <unistd.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 
 #include "bus/channels.h"
+#include "bus/lcm_bus.h"
+#include "bus/typed_bus.h"
 #ifdef COSTUME_HAVE_CATALOG
 #include "catalog/catalog.h"
 #endif
-#include "bus/lcm_bus.h"
-#include "bus/typed_bus.h"
 #include "render/camera.h"
 #include "tests/support/qt_app.h"
 
@@ -440,6 +442,39 @@ TEST_F(MainWindowTest, AStandingWarningIsShownOnce) {
       << window_->warning_label()->text().toStdString();
   publish({standing, "command UNDO: nothing to undo"});  // said again later: shown again
   EXPECT_EQ(window_->message_log()->toPlainText().count("nothing to undo"), 2);
+}
+
+// A simulation server that stops on its own is reported on the status bar, and Simulation >
+// Start server runs it again; the view then follows the start scene. A stand-in program
+// plays the server: it exits with code 3, then stays up.
+TEST_F(MainWindowTest, AStoppedServerIsReportedAndStartsAgain) {
+  const std::filesystem::path bin = std::filesystem::temp_directory_path() /
+                                    ("main_window_server_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(bin / "sim_core/app");
+  const std::filesystem::path program = bin / "sim_core/app/costume_sim_server";
+  const auto write_program = [&](const std::string& body) {
+    std::ofstream(program) << "#!/bin/sh\n" << body << "\n";
+    std::filesystem::permissions(program, std::filesystem::perms::owner_all);
+  };
+  ChildProcesses& children = window_->children();
+  children.options().bin_dir = QString::fromStdString(bin.string());
+  write_program("echo 'cannot allocate the cloth'; exit 3");
+  window_->start_server_action()->trigger();
+  QTRY_VERIFY_WITH_TIMEOUT(window_->warning_label()->text().contains("exit code 3"), 10000);
+  EXPECT_TRUE(window_->warning_label()->text().contains("Start server"));
+  EXPECT_EQ(window_->sim_label()->text(), "sim: not running");
+  EXPECT_TRUE(window_->message_log()->toPlainText().contains("cannot allocate the cloth"));
+
+  write_program("exec sleep 30");
+  window_->start_server_action()->trigger();
+  EXPECT_TRUE(children.sim_running());
+  EXPECT_NE(window_->pending_mirror(), nullptr);  // the view follows the fresh server
+  EXPECT_TRUE(window_->warning_label()->text().isEmpty());
+  children.StopAll();  // stopping it on purpose is not reported
+  QTest::qWait(100);
+  EXPECT_TRUE(window_->warning_label()->text().isEmpty())
+      << window_->warning_label()->text().toStdString();
+  std::filesystem::remove_all(bin);
 }
 
 // A GUI allowed onto the network passes that on: else both servers refuse its URL.
