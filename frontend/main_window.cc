@@ -30,6 +30,9 @@ using Status = costume_lcm::status;
 
 const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 constexpr int kIdRole = Qt::UserRole;
+/// A server whose status has not come for this long is shown as silent: each sends one a
+/// second (a frame slower than that delays it).
+constexpr qint64 kSilentAfterMs = 3000;
 constexpr int kNameRole = Qt::UserRole + 1;
 
 QString PlaybackName(std::int8_t playback) {
@@ -443,6 +446,9 @@ void MainWindow::ConnectSignals() {
     for (const std::string& line : sender_->ResendDue()) Log(QString::fromStdString(line));
   });
   resend->start(static_cast<int>(bus::ResendPolicy{}.period_us / 1000));
+  auto* silence = new QTimer(this);
+  connect(silence, &QTimer::timeout, this, &MainWindow::ShowSilence);
+  silence->start(1000);
   connect(link_.get(), &BusLink::clothChunk, this, &MainWindow::OnClothChunk);
   connect(link_.get(), &BusLink::simStatus, this, &MainWindow::OnSimStatus);
   connect(link_.get(), &BusLink::hapticStatus, this, &MainWindow::OnHapticStatus);
@@ -525,7 +531,11 @@ void MainWindow::ConnectSignals() {
   connect(children_, &ChildProcesses::deviceChanged, this,
           [this](const QString& device, bool connected) {
             device_label_->setText("device: " + device + (connected ? " connected" : " disconnected"));
-            if (!connected) view_->HideCursor();
+            if (!connected) {
+              view_->HideCursor();
+              haptic_status_age_.invalidate();
+              haptic_label_->setText("haptic: not running");
+            }
           });
   connect(children_, &ChildProcesses::deviceError, this,
           [this](const QString& device, const QString& message) {
@@ -536,6 +546,7 @@ void MainWindow::ConnectSignals() {
   connect(children_, &ChildProcesses::output, this,
           [this](const QString& process, const QString& line) { Log(process + ": " + line); });
   connect(children_, &ChildProcesses::simServerExited, this, [this](const QString& how) {
+    sim_status_age_.invalidate();  // not silent: gone
     sim_label_->setText("sim: not running");
     Warn("the simulation server stopped (" + how + "; its last lines are above): Simulation > "
          "Start server runs it again");
@@ -636,7 +647,19 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
   }
 }
 
+void MainWindow::ShowSilence() {
+  const auto mark = [](QLabel* label, const QElapsedTimer& since, const QString& name) {
+    if (!since.isValid() || since.elapsed() < kSilentAfterMs) return;
+    label->setText(QString("%1: no status for %2 s (busy or hung)")
+                       .arg(name)
+                       .arg(since.elapsed() / 1000));
+  };
+  mark(sim_label_, sim_status_age_, "sim");
+  mark(haptic_label_, haptic_status_age_, "haptic");
+}
+
 void MainWindow::OnSimStatus(const Status& status) {
+  sim_status_age_.start();
   sim_label_->setText(FormatSimStatus(status));
   ShowWarnings(status, "sim");
   SyncMode(status.mode == Status::MODE_EDITING);
@@ -656,6 +679,7 @@ void MainWindow::SyncMode(bool editing) {
 }
 
 void MainWindow::OnHapticStatus(const Status& status) {
+  haptic_status_age_.start();
   haptic_label_->setText(FormatHapticStatus(status));
   ShowWarnings(status, "haptic");
 }

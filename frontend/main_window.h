@@ -165,6 +165,9 @@ class MainWindow : public QMainWindow {
   /// Shows the server's mode on the switch without sending a command.
   void SyncMode(bool editing);
   void ShowWarnings(const costume_lcm::status& status, const QString& process);
+  /// Says so on a server's label when its status stopped coming (hung, or a frame slower
+  /// than the status period), instead of showing figures that are no longer true.
+  void ShowSilence();
   /// The status bar's warning, clipped to the room left; whole in its tooltip.
   void SetWarning(const QString& text);
   void ToggleExport();
@@ -186,6 +189,9 @@ class MainWindow : public QMainWindow {
   QHash<QString, QStringList> previous_warnings_;
   /// Since the designer last switched modes.
   QElapsedTimer mode_sent_;
+  /// Since each server's last status; invalid while it is not running.
+  QElapsedTimer sim_status_age_;
+  QElapsedTimer haptic_status_age_;
 
   ViewWidget* view_ = nullptr;
   ChildProcesses* children_ = nullptr;

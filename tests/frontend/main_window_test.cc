@@ -477,6 +477,24 @@ TEST_F(MainWindowTest, AStoppedServerIsReportedAndStartsAgain) {
   std::filesystem::remove_all(bin);
 }
 
+// Figures that stopped coming are not shown as current: a status, then none for 3 s.
+TEST_F(MainWindowTest, ASilentServerIsShownAsSilent) {
+  costume_lcm::status s{};
+  s.utime = bus::NowUtime();
+  s.measured_rate = 59.9;
+  ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
+  Sent();
+  EXPECT_TRUE(window_->sim_label()->text().contains("59.9 Hz"));
+  QTest::qWait(1500);
+  EXPECT_TRUE(window_->sim_label()->text().contains("59.9 Hz"));  // within a status period
+  QTRY_VERIFY_WITH_TIMEOUT(window_->sim_label()->text().contains("no status for 3 s"), 4000);
+  EXPECT_TRUE(window_->haptic_label()->text().contains("no status yet"));  // never heard
+  s.utime = bus::NowUtime();
+  ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
+  Sent();
+  EXPECT_TRUE(window_->sim_label()->text().contains("59.9 Hz"));
+}
+
 // A GUI allowed onto the network passes that on: else both servers refuse its URL.
 TEST(ChildProcessesArguments, TheNetworkPermissionReachesBothServers) {
   ServerOptions options;
