@@ -10,6 +10,10 @@ namespace costume::frontend {
 
 QStringList DeviceNames() { return {"simulated", "mouse", "openhaptics", "cybergrasp"}; }
 
+bool IsPhysicalDevice(const QString& device) {
+  return device == "openhaptics" || device == "cybergrasp";
+}
+
 ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
     : QObject(parent), options_(std::move(options)) {
   // A child gets SIGTERM when the GUI dies, however it dies (even SIGKILL): no server is left
@@ -90,6 +94,14 @@ QStringList ChildProcesses::SimServerArguments() const {
 QStringList ChildProcesses::HapticServerArguments(const QString& device) const {
   QStringList args{"--device", device, "--radius", QString::number(options_.radius)};
   if (device == "simulated") args << "--trajectory" << options_.trajectory;
+  if (IsPhysicalDevice(device)) {
+    args << "--scale" << QString::number(options_.workspace_scale);
+    if (options_.workspace_centre) {
+      const Eigen::Vector3d& c = *options_.workspace_centre;
+      args << "--offset" << QString::number(c.x()) << QString::number(c.y())
+           << QString::number(c.z());
+    }
+  }
   if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
   if (options_.allow_network) args << "--allow-network";
   return args;

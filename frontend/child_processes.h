@@ -12,6 +12,9 @@
 #include <QProcess>
 #include <QString>
 #include <QStringList>
+#include <optional>
+
+#include <Eigen/Core>
 
 namespace costume::frontend {
 
@@ -27,11 +30,20 @@ struct ServerOptions {
   QString catalog_url;       ///< --catalog for the simulation server ("" = its default, the
                              ///< same catalog::DefaultCatalogUrl() the GUI's lists use)
   double radius = 0.05;      ///< --radius of the haptic grab [m]
+  /// The workspace of a physical device (OpenHaptics, CyberGrasp), whose tip reports in its
+  /// own frame around its own origin: --scale (scene metres per device metre) and --offset,
+  /// the scene point its origin stands for (the cloth's centre, else it would reach only the
+  /// floor between the avatar's feet). The mouse and the simulated device report scene
+  /// positions and get neither.
+  double workspace_scale = 1.0;
+  std::optional<Eigen::Vector3d> workspace_centre;
   bool editing = false;      ///< start the simulation server in mode B
 };
 
 /// The device menu's devices, as `--device` names them.
 QStringList DeviceNames();
+/// Whether `device` reports in a frame of its own (a workspace scale and centre apply).
+bool IsPhysicalDevice(const QString& device);
 
 class ChildProcesses : public QObject {
   Q_OBJECT

@@ -170,7 +170,7 @@ void MainWindow::StartChildren() {
   if (options_.start_sim_server && !children_->StartSimServer(&error)) Warn("error: " + error);
   if (!options_.device.isEmpty()) {
     if (QAction* action = device_action(options_.device)) action->setChecked(true);
-    if (!children_->ConnectDevice(options_.device, &error)) Warn("error: " + error);
+    ConnectDevice(options_.device);
   }
   MakeMissingThumbnails();  // a catalogue made with --no-thumbnails, or saved versions
 }
@@ -335,9 +335,20 @@ QWidget* MainWindow::BuildEditing() {
   radius_->setSuffix(" m");
   radius_->setValue(options_.servers.radius);
   radius_->setKeyboardTracking(false);
-  radius_->setToolTip("Selection sphere radius [0.005 … 0.5 m]; a connected device takes it "
-                      "at its next connect");
+  radius_->setToolTip("Selection sphere radius [0.005 … 0.5 m]; a running haptic server "
+                      "takes it from its next grab");
   form->addRow("Selection radius", radius_);
+  device_scale_ = new QDoubleSpinBox;
+  device_scale_->setRange(0.1, 20.0);
+  device_scale_->setDecimals(1);
+  device_scale_->setSingleStep(0.5);
+  device_scale_->setValue(options_.servers.workspace_scale);
+  device_scale_->setToolTip(
+      "OpenHaptics and CyberGrasp: scene metres per device metre [0.1 … 20]. The device's "
+      "workspace is centred on the cloth when it connects and covers this many times its own "
+      "size (a Touch's ±8 cm reach ±24 cm at 3). Forces are not scaled, so a cloth stiffness "
+      "is felt this many times stiffer (the force safety limits it). Taken at the next Connect.");
+  form->addRow("Device scale", device_scale_);
   stretch_ = new QPushButton("Eliminate stretch energy");
   form->addRow(stretch_);
   undo_ = new QPushButton("Undo edit");
@@ -522,11 +533,8 @@ void MainWindow::ConnectSignals() {
     if (!editing_mode_->isChecked()) Log("grabs act in editing mode (mode B) only");
   });
   connect(view_, &ViewWidget::grabEnded, this, [this](const Eigen::Vector3d& p) { last_grab_ = p; });
-  connect(connect_device_, &QAction::triggered, this, [this] {
-    QString error;
-    const QString device = devices_->checkedAction()->data().toString();
-    if (!children_->ConnectDevice(device, &error)) Warn("error: " + error);
-  });
+  connect(connect_device_, &QAction::triggered, this,
+          [this] { ConnectDevice(devices_->checkedAction()->data().toString()); });
   connect(disconnect_device_, &QAction::triggered, this, [this] { children_->DisconnectDevice(); });
   connect(children_, &ChildProcesses::deviceChanged, this,
           [this](const QString& device, bool connected) {
@@ -577,9 +585,30 @@ void MainWindow::ToggleExport() {
   Log("exporting frames to " + folder + " (choose the menu item again to stop)");
 }
 
+void MainWindow::ConnectDevice(const QString& device) {
+  ServerOptions& servers = children_->options();
+  servers.workspace_scale = device_scale_->value();
+  servers.workspace_centre = ClothCentroid();
+  if (IsPhysicalDevice(device)) {
+    const Eigen::Vector3d& c = *servers.workspace_centre;
+    Log(QString("%1: workspace centred on the cloth at (%2, %3, %4) m, scale %5")
+            .arg(device)
+            .arg(c.x(), 0, 'f', 3)
+            .arg(c.y(), 0, 'f', 3)
+            .arg(c.z(), 0, 'f', 3)
+            .arg(servers.workspace_scale));
+  }
+  QString error;
+  if (!children_->ConnectDevice(device, &error)) Warn("error: " + error);
+}
+
 Eigen::Vector3d MainWindow::StretchCentre() const {
   if (last_grab_) return *last_grab_;
   if (last_cursor_) return *last_cursor_;
+  return ClothCentroid();
+}
+
+Eigen::Vector3d MainWindow::ClothCentroid() const {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   const auto& cloth = view_->cloth_positions();
   for (const Eigen::Vector3f& p : cloth) sum += p.cast<double>();

@@ -118,6 +118,11 @@ class MainWindow : public QMainWindow {
   /// Where "eliminate stretch energy" acts [m]: the last mouse grab point, else the device
   /// cursor, else the cloth's centroid.
   Eigen::Vector3d StretchCentre() const;
+  /// The mean of the cloth's particles as the view last showed them (origin without cloth).
+  Eigen::Vector3d ClothCentroid() const;
+  /// Starts the haptic server for `device`, a physical one with its workspace centred on the
+  /// cloth at the scale field's value; errors go to the status bar.
+  void ConnectDevice(const QString& device);
 
  public slots:
   void OnClothChunk(const costume_lcm::cloth_frame& chunk);
@@ -210,6 +215,7 @@ class MainWindow : public QMainWindow {
   QRadioButton* animation_mode_ = nullptr;
   QRadioButton* editing_mode_ = nullptr;
   QDoubleSpinBox* radius_ = nullptr;
+  QDoubleSpinBox* device_scale_ = nullptr;
   QPushButton* stretch_ = nullptr;
   QPushButton* undo_ = nullptr;
   QPushButton* redo_ = nullptr;

@@ -509,6 +509,30 @@ TEST(ChildProcessesArguments, TheNetworkPermissionReachesBothServers) {
   EXPECT_TRUE(network.HapticServerArguments("simulated").contains("--allow-network"));
 }
 
+// A physical device's tip reports around its own origin: its workspace is scaled and moved
+// onto the cloth; the mouse and the simulated device report scene positions already.
+TEST(ChildProcessesArguments, PhysicalDevicesGetTheirWorkspace) {
+  ServerOptions options;
+  options.workspace_scale = 3;
+  options.workspace_centre = Eigen::Vector3d(0.25, 1.5, -0.125);
+  ChildProcesses children(options);
+  const QStringList touch = children.HapticServerArguments("openhaptics");
+  const qsizetype scale = touch.indexOf("--scale");
+  ASSERT_GE(scale, 0);
+  EXPECT_EQ(touch.at(scale + 1).toDouble(), 3.0);
+  const qsizetype offset = touch.indexOf("--offset");
+  ASSERT_GE(offset, 0);
+  ASSERT_LT(offset + 3, touch.size());
+  EXPECT_EQ(touch.at(offset + 1).toDouble(), 0.25);
+  EXPECT_EQ(touch.at(offset + 2).toDouble(), 1.5);
+  EXPECT_EQ(touch.at(offset + 3).toDouble(), -0.125);
+  EXPECT_TRUE(children.HapticServerArguments("cybergrasp").contains("--offset"));
+  for (const QString device : {"mouse", "simulated"}) {
+    EXPECT_FALSE(children.HapticServerArguments(device).contains("--offset"));
+    EXPECT_FALSE(children.HapticServerArguments(device).contains("--scale"));
+  }
+}
+
 TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
   ChildProcesses& children = window_->children();
   children.options().bin_dir = COSTUME_BUILD_DIR;
@@ -520,6 +544,15 @@ TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
   children.options().lcm_url = "memq://";
   window_->device_action("openhaptics")->setChecked(true);
   window_->connect_action()->trigger();
+  // Its workspace was centred on the cloth: the mean of the particles the view shows.
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  const auto& cloth = window_->view().cloth_positions();
+  ASSERT_FALSE(cloth.empty());
+  for (const Eigen::Vector3f& p : cloth) centroid += p.cast<double>();
+  centroid /= static_cast<double>(cloth.size());
+  ASSERT_TRUE(children.options().workspace_centre);
+  EXPECT_LT((*children.options().workspace_centre - centroid).norm(), 1e-9);
+  EXPECT_TRUE(window_->message_log()->toPlainText().contains("workspace centred on the cloth"));
   QTRY_VERIFY_WITH_TIMEOUT(!children.device_running(), 10000);
   QTRY_VERIFY_WITH_TIMEOUT(window_->device_label()->text().contains("failed"), 5000);
   EXPECT_TRUE(window_->message_log()->toPlainText().contains("openhaptics", Qt::CaseInsensitive))
