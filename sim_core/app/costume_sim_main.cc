@@ -88,6 +88,18 @@ const char* CollisionName(const costume::sim::SceneDescription& scene) {
 }
 
 /// Creates the folder the frames go to, or throws InputError naming it, --out and why.
+/// The scene's name as one folder name: a name is free text ("../../x", "a/b") and must not
+/// put the frames outside --out, so separators and control characters become '_', as does a
+/// name that is empty, "." or "..".
+std::string FramesFolderName(const std::string& name) {
+  std::string folder = name;
+  for (char& c : folder) {
+    if (c == '/' || c == '\\' || static_cast<unsigned char>(c) < 0x20) c = '_';
+  }
+  if (folder.empty() || folder == "." || folder == "..") folder = "_" + folder;
+  return folder;
+}
+
 void MakeFramesFolder(const std::filesystem::path& out) {
   std::error_code error;
   std::filesystem::create_directories(out, error);
@@ -101,7 +113,8 @@ int Run(const Options& options) {
   costume::sim::SceneDescription scene = LoadScene(options);
   if (options.duration > 0) scene.duration = options.duration;
   ApplyCollisionOverrides(options, scene);
-  const std::filesystem::path out = std::filesystem::path(options.out_dir) / scene.name;
+  const std::filesystem::path out =
+      std::filesystem::path(options.out_dir) / FramesFolderName(scene.name);
   if (options.write_frames) MakeFramesFolder(out);  // before a build that may take a while
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   auto sim = Simulation::Build(scene);
