@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <QApplication>
+#include <QScreen>
 #include <QTimer>
 #include <atomic>
 #include <csignal>
@@ -76,8 +77,18 @@ int Run(QApplication& app, const Arguments& args) {
   auto catalog = frontend::OpenCatalogSource(args.catalog, &warning);
   frontend::MainWindow window(bus, options, std::move(catalog));
   if (!warning.empty()) window.Warn(QString::fromStdString(warning));
-  window.resize(1280, 860);
-  window.show();
+  // 1280 × 860 where it fits; on a smaller screen (a 1366 × 768 laptop) the screen's free
+  // area, maximised: a fixed size put the status bar and the lists below its edge.
+  const QSize wanted(1280, 860);
+  const QScreen* screen = QGuiApplication::primaryScreen();
+  const QSize room = screen ? screen->availableSize() : wanted;
+  if (room.width() >= wanted.width() && room.height() >= wanted.height()) {
+    window.resize(wanted);
+    window.show();
+  } else {
+    window.resize(room);
+    window.showMaximized();
+  }
   window.StartBusThread();
   window.StartChildren();
   // SIGINT/SIGTERM close the window like the user would, so the servers stop cleanly.
