@@ -85,7 +85,7 @@ class DatabaseCatalog final : public CatalogSource {
     return items;
   }
   std::string Describe() const override { return db_->url(); }
-  std::string DatabaseUrl() const override { return db_->url(); }
+  bool IsDatabase() const override { return true; }
 
   void ApplyToScene(EntryKind kind, const CatalogItem& item, sim::SceneDescription& scene) override {
     switch (kind) {

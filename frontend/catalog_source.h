@@ -37,8 +37,9 @@ class CatalogSource {
   virtual std::vector<CatalogItem> List(EntryKind kind) = 0;
   /// Where the entries come from, for the window title and the status bar.
   virtual std::string Describe() const = 0;
-  /// The database's URL for `costume-catalog --url`; empty for the built-in assets.
-  virtual std::string DatabaseUrl() const { return {}; }
+  /// Whether the entries come from a catalogue database (which `costume-catalog` can add
+  /// thumbnails to), not the built-in assets.
+  virtual bool IsDatabase() const { return false; }
   /// Changes `scene` as loading `item` does, for the view's mirror: kAvatar replaces the
   /// avatar (clip, posture and garments stay; pattern garments are refitted), kCostume
   /// replaces every garment with the item's (and adds its fabric), kAnimation replaces the

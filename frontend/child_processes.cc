@@ -87,7 +87,6 @@ QStringList ChildProcesses::SimServerArguments() const {
   if (!options_.lcm_url.isEmpty()) args << "--lcm-url" << options_.lcm_url;
   if (options_.allow_network) args << "--allow-network";  // else they refuse the GUI's URL
   if (options_.editing) args << "--editing";
-  if (!options_.catalog_url.isEmpty()) args << "--catalog" << options_.catalog_url;
   return args;
 }
 
@@ -114,6 +113,7 @@ bool ChildProcesses::StartSimServer(QString* error) {
     return false;
   }
   stopping_sim_ = false;
+  sim_.setProcessEnvironment(ChildEnvironment());
   sim_.start(SimServerPath(), SimServerArguments());
   if (!sim_.waitForStarted(5000)) {
     if (error) *error = "cannot start " + SimServerPath() + ": " + sim_.errorString();
@@ -144,13 +144,20 @@ bool ChildProcesses::ConnectDevice(const QString& device, QString* error) {
   return true;
 }
 
-bool ChildProcesses::MakeMissingThumbnails(const QString& catalog_url, QString* error) {
+QProcessEnvironment ChildProcesses::ChildEnvironment() const {
+  QProcessEnvironment environment = QProcessEnvironment::systemEnvironment();
+  if (!options_.catalog_url.isEmpty()) environment.insert("COSTUME_CATALOG", options_.catalog_url);
+  return environment;
+}
+
+bool ChildProcesses::MakeMissingThumbnails(QString* error) {
   if (thumbnails_.state() != QProcess::NotRunning) return true;
   if (!QFileInfo(CatalogProgramPath()).isExecutable()) {
     if (error) *error = "no catalogue program at " + CatalogProgramPath() + " (build it first)";
     return false;
   }
-  thumbnails_.start(CatalogProgramPath(), {"--url", catalog_url, "thumbnails"});
+  thumbnails_.setProcessEnvironment(ChildEnvironment());
+  thumbnails_.start(CatalogProgramPath(), {"thumbnails"});
   if (!thumbnails_.waitForStarted(5000)) {
     if (error) *error = "cannot start " + CatalogProgramPath() + ": " + thumbnails_.errorString();
     return false;

@@ -27,7 +27,7 @@ struct ServerOptions {
   QString builtin = "garment";  ///< --builtin for the simulation server (when scene_file is empty)
   QString scene_file;        ///< --scene for the simulation server
   QString trajectory;        ///< --trajectory for the simulated device
-  QString catalog_url;       ///< --catalog for the simulation server ("" = its default, the
+  QString catalog_url;       ///< $COSTUME_CATALOG for the children ("" = their default, the
                              ///< same catalog::DefaultCatalogUrl() the GUI's lists use)
   double radius = 0.05;      ///< --radius of the haptic grab [m]
   /// The workspace of a physical device (OpenHaptics, CyberGrasp), whose tip reports in its
@@ -68,9 +68,13 @@ class ChildProcesses : public QObject {
   bool ConnectDevice(const QString& device, QString* error = nullptr);
   /// Stops the haptic server.
   void DisconnectDevice();
-  /// Starts `costume-catalog --url <catalog_url> thumbnails` unless it is already running;
+  /// Starts `costume-catalog thumbnails` on the catalogue unless it is already running;
   /// thumbnailsMade follows when it ends. False with the reason in `*error`.
-  bool MakeMissingThumbnails(const QString& catalog_url, QString* error = nullptr);
+  bool MakeMissingThumbnails(QString* error = nullptr);
+  /// The children's environment: the GUI's, with COSTUME_CATALOG set to `catalog_url` when
+  /// one was given. The URL goes there, not on a command line, because a PostgreSQL URL may
+  /// hold a password that `ps` would show every user of the machine.
+  QProcessEnvironment ChildEnvironment() const;
   /// Stops both (SIGTERM, waits up to 3 s each, then SIGKILL).
   void StopAll();
 

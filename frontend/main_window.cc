@@ -203,10 +203,9 @@ void MainWindow::RefreshCatalogue() {
 }
 
 void MainWindow::MakeMissingThumbnails() {
-  const std::string url = catalog_->DatabaseUrl();
-  if (url.empty() || !lists_lack_thumbnails_) return;
+  if (!catalog_->IsDatabase() || !lists_lack_thumbnails_) return;
   QString error;
-  if (children_->MakeMissingThumbnails(QString::fromStdString(url), &error)) {
+  if (children_->MakeMissingThumbnails(&error)) {
     Log("catalogue: rendering the missing thumbnails");
   } else {
     Warn("catalogue: no thumbnails made: " + error);
@@ -249,7 +248,7 @@ void MainWindow::FillLists() {
       }
       if (thumbnail.isNull()) {
         lists_lack_thumbnails_ = true;
-        const bool coming = !catalog_->DatabaseUrl().empty();  // MakeMissingThumbnails
+        const bool coming = catalog_->IsDatabase();  // MakeMissingThumbnails
         thumbnail = NoThumbnail(coming ? "no picture\nyet" : "no picture");
       }
       auto* entry = new QListWidgetItem(QIcon(thumbnail), QString::fromStdString(item.name));

@@ -509,6 +509,19 @@ TEST(ChildProcessesArguments, TheNetworkPermissionReachesBothServers) {
   EXPECT_TRUE(network.HapticServerArguments("simulated").contains("--allow-network"));
 }
 
+// The catalogue URL reaches the children in their environment, never on a command line that
+// `ps` shows (it may hold a PostgreSQL password).
+TEST(ChildProcessesArguments, TheCatalogueUrlGoesInTheEnvironment) {
+  ServerOptions options;
+  options.catalog_url = "postgresql://designer:secret@db.example/costumes";
+  ChildProcesses children(options);
+  EXPECT_EQ(children.ChildEnvironment().value("COSTUME_CATALOG"), options.catalog_url);
+  for (const QStringList& args :
+       {children.SimServerArguments(), children.HapticServerArguments("mouse")}) {
+    EXPECT_FALSE(args.join(' ').contains("secret")) << args.join(' ').toStdString();
+  }
+}
+
 // A physical device's tip reports around its own origin: its workspace is scaled and moved
 // onto the cloth; the mouse and the simulated device report scene positions already.
 TEST(ChildProcessesArguments, PhysicalDevicesGetTheirWorkspace) {
@@ -709,6 +722,7 @@ TEST(MainWindowCatalogue, MissingThumbnailsAreRenderedByAChildAndListed) {
   FrontendOptions options;
   options.builtin = "hang";
   options.servers.bin_dir = COSTUME_BUILD_DIR;
+  options.servers.catalog_url = QString::fromStdString(url);  // as costume_designer --catalog
   std::string warning;
   MainWindow window(bus, options, OpenCatalogSource(url, &warning));
   ASSERT_TRUE(warning.empty()) << warning;
