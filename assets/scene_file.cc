@@ -14,7 +14,10 @@
 #include <sstream>
 #include <string_view>
 
+#include "assets/avatar_import.h"
+#include "assets/clip_import.h"
 #include "assets/import_units.h"
+#include "assets/makehuman_import.h"
 #include "assets/mesh_import.h"
 #include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/procedural_clips.h"
@@ -150,6 +153,7 @@ constexpr Range kPostureRange{-sim::kMaxPostureDegrees, sim::kMaxPostureDegrees,
 struct Source {
   std::string name;
   std::string base_dir;
+  AvatarFiles avatar_files = AvatarFiles::kAllowed;
 };
 
 std::string At(const Source& source, toml::source_position position) {
@@ -622,18 +626,95 @@ sim::SphereObstacleSpec ParseSphere(const TableView& table) {
 }
 
 /// The built-in clip `name`, or none for "none".
-std::shared_ptr<const sim::Clip> BuiltInClip(const Field& field,
-                                             std::shared_ptr<const sim::Skeleton> skeleton) {
-  std::vector<std::string_view> choices = {"none"};
-  for (const std::string& name : sim::BuiltInClipNames()) choices.push_back(name);
-  const auto* text = field.node->as_string();
-  if (!text || std::find(choices.begin(), choices.end(), text->get()) == choices.end()) {
-    std::vector<std::string> quoted;
-    for (std::string_view choice : choices) quoted.push_back(Quote(choice));
-    field.Refuse("must be one of " + Join(quoted));
+/// The file a `model` or `clip` field names, relative to the scene file's folder. Refused
+/// when the scene may not name files (AvatarFiles::kRefused) or there is no such file: the
+/// message lists `built_ins` first, since a misspelt built-in is the likelier mistake, then
+/// `file_kind` ("an avatar file (.glb ...)").
+std::string AvatarFilePath(const Field& field, const std::string& value,
+                           const std::vector<std::string>& built_ins,
+                           const std::string& file_kind) {
+  std::vector<std::string> quoted;
+  for (const std::string& name : built_ins) quoted.push_back(Quote(name));
+  if (field.source->avatar_files == AvatarFiles::kRefused) {
+    field.Refuse("must be one of " + Join(quoted) +
+                 " here: a garment file names no avatar or clip file (the catalogue holds "
+                 "those as entries of their own)");
   }
-  if (text->get() == "none") return nullptr;
-  return std::make_shared<const sim::Clip>(sim::MakeBuiltInClip(text->get(), std::move(skeleton)));
+  const std::string path = ResolvePath(field.source->base_dir, value);
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) {
+    field.Refuse("must be one of " + Join(quoted) + ", or " + file_kind + "; no file " +
+                 Quote(path));
+  }
+  return path;
+}
+
+/// Runs an importer on a file the field names; its refusal (which names the file) is
+/// placed at the field.
+template <typename Load>
+auto ImportAt(const Field& field, const std::string& path, Load&& load) {
+  try {
+    return load();
+  } catch (const InputError& error) {
+    const std::string problem = error.what();
+    field.Refuse(problem.find(path) != std::string::npos ? problem : path + ": " + problem);
+  }
+}
+
+/// `clip`: "none", a built-in clip (made on `skeleton`), or a clip file (BVH, glTF/GLB, FBX,
+/// Collada, DeepMimic), retargeted onto the avatar when played.
+std::shared_ptr<const sim::Clip> ParseClip(const Field& field,
+                                           std::shared_ptr<const sim::Skeleton> skeleton) {
+  std::vector<std::string> choices = {"none"};
+  for (const std::string& name : sim::BuiltInClipNames()) choices.push_back(name);
+  const std::string value = ReadName(field);
+  if (value == "none") return nullptr;
+  if (std::find(choices.begin(), choices.end(), value) != choices.end()) {
+    return std::make_shared<const sim::Clip>(sim::MakeBuiltInClip(value, std::move(skeleton)));
+  }
+  const std::string path = AvatarFilePath(
+      field, value, choices, "a clip file (.bvh .glb .gltf .fbx .dae, DeepMimic .txt)");
+  return std::make_shared<const sim::Clip>(ImportAt(field, path, [&] { return LoadClip(path); }));
+}
+
+/// Refuses, at the `clip` field, a clip that cannot be put on the avatar (too few H-Anim
+/// joints mapped on either skeleton): the build would refuse it later, without a line.
+void RequirePlayable(const Field& clip, const sim::AvatarSpec& avatar) {
+  if (!avatar.clip) return;
+  try {
+    const sim::Retargeter retargeter(avatar.clip->skeleton, avatar.avatar->shared_skeleton());
+  } catch (const InputError& error) {
+    clip.Refuse(std::string("cannot be put on the avatar: ") + error.what());
+  }
+}
+
+/// `model`: "builtin", an avatar file (glTF/GLB, FBX, Collada, OBJ), or MakeHuman's base
+/// mesh when `skeleton` (.mhskel) and `weights` (.mhw) are given too.
+std::shared_ptr<const sim::Avatar> ParseModel(const TableView& table) {
+  const std::optional<Field> model = table.Find("model");
+  const std::optional<Field> skeleton = table.Find("skeleton");
+  const std::optional<Field> weights = table.Find("weights");
+  const std::string value = model ? ReadName(*model) : "builtin";
+  if (value == "builtin") {
+    if (skeleton || weights) {
+      (skeleton ? *skeleton : *weights)
+          .Refuse("only with a MakeHuman model file (model = \"base.obj\")");
+    }
+    return sim::MakeHumanoid();
+  }
+  const std::string path =
+      AvatarFilePath(*model, value, {"builtin"}, "an avatar file (.glb .gltf .fbx .dae .obj)");
+  if (!skeleton && !weights) {
+    return ImportAt(*model, path, [&] { return LoadAvatar(path); });
+  }
+  if (!skeleton || !weights) {
+    (skeleton ? *skeleton : *weights).Refuse("a MakeHuman model needs both skeleton and weights");
+  }
+  const std::string skeleton_path = ResolvePath(table.source().base_dir, ReadName(*skeleton));
+  const std::string weights_path = ResolvePath(table.source().base_dir, ReadName(*weights));
+  return ImportAt(*model, path, [&] {
+    return LoadMakeHumanAvatar(path, skeleton_path, weights_path);
+  });
 }
 
 /// [avatar.posture]: joint rotations in degrees, [x, y, z] about the joint's rest axes
@@ -654,17 +735,23 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
   }
 }
 
-/// [avatar]: the built-in humanoid, the clip it plays, how cloth collides with it.
+/// [avatar]: the avatar (built-in or a file), the clip it plays, how cloth collides with it.
 sim::AvatarSpec ParseAvatar(const TableView& table) {
-  table.RefuseUnknownKeys({"model", "clip", "collision", "superquadric_map_mb", "thickness",
-                           "friction", "max_skin_travel", "max_steps_per_frame", "fit_time",
-                           "blend_time", "position", "heading", "posture"});
+  table.RefuseUnknownKeys({"model", "skeleton", "weights", "clip", "collision",
+                           "superquadric_map_mb", "thickness", "friction", "max_skin_travel",
+                           "max_steps_per_frame", "fit_time", "blend_time", "position",
+                           "heading", "posture"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
-  if (const std::optional<Field> model = table.Find("model")) ReadChoice(*model, {"builtin"});
-  avatar.avatar = sim::MakeHumanoid();
+  avatar.avatar = ParseModel(table);
   if (const std::optional<Field> clip = table.Find("clip")) {
-    avatar.clip = BuiltInClip(*clip, avatar.avatar->shared_skeleton());
+    // Built-in clips are written for the built-in humanoid's skeleton (the avatar's own when
+    // it is that humanoid) and retargeted onto any other avatar when played, as file clips.
+    const std::optional<Field> model = table.Find("model");
+    const bool built_in = !model || ReadName(*model) == "builtin";
+    avatar.clip = ParseClip(*clip, built_in ? avatar.avatar->shared_skeleton()
+                                            : sim::MakeHumanoidSkeleton());
+    RequirePlayable(*clip, avatar);
   }
   if (const std::optional<Field> collision = table.Find("collision")) {
     avatar.collision = ReadChoice(*collision, {"superquadric", "mesh"}) == "mesh"
@@ -744,14 +831,15 @@ std::vector<std::string> QuotedBuiltInNames() {
 
 }  // namespace
 
-sim::SceneDescription LoadSceneFile(const std::string& path) {
+sim::SceneDescription LoadSceneFile(const std::string& path, AvatarFiles avatar_files) {
   const std::string text = ReadWholeFile(path, "scene file");
-  return ParseSceneText(text, path, std::filesystem::path(path).parent_path().string());
+  return ParseSceneText(text, path, std::filesystem::path(path).parent_path().string(),
+                        avatar_files);
 }
 
 sim::SceneDescription ParseSceneText(const std::string& text, const std::string& source_name,
-                                     const std::string& base_dir) {
-  const Source source{source_name, base_dir};
+                                     const std::string& base_dir, AvatarFiles avatar_files) {
+  const Source source{source_name, base_dir, avatar_files};
   const toml::table root = ParseToml(text, source);
   sim::SceneDescription scene = ParseScene(TableView(root, "", "the top level", {1, 1}, source));
   // Everything ValidateScene checks was checked above with a line number; this keeps the

@@ -15,23 +15,30 @@
 
 namespace costume::assets {
 
-/// Reads and parses the scene file at `path` (see ParseSceneText). Mesh files named in it
-/// are relative to the scene file's folder. Throws sim::InputError when the file cannot be
-/// read or is refused.
-sim::SceneDescription LoadSceneFile(const std::string& path);
+/// Whether `[avatar]` may name avatar and clip files. The catalogue's garment files may not:
+/// a garment entry holds its own files only (its mesh), avatars and animations are entries
+/// of their own, and a path stored in the database would be read wherever it is loaded.
+enum class AvatarFiles { kAllowed, kRefused };
+
+/// Reads and parses the scene file at `path` (see ParseSceneText). Mesh, avatar and clip
+/// files named in it are relative to the scene file's folder. Throws sim::InputError when
+/// the file cannot be read or is refused.
+sim::SceneDescription LoadSceneFile(const std::string& path,
+                                    AvatarFiles avatar_files = AvatarFiles::kAllowed);
 
 /// Parses scene text in the format of docs/scene_format.md and checks it.
 /// `source_name` is quoted at the start of error messages and stored as the scene's
-/// `source`; `base_dir` is the folder relative mesh paths start from (the scene file's
-/// folder; "" means the working directory). Mesh garments are read here
-/// (ImportSurfaceMesh), so the result is complete. The returned scene passes
+/// `source`; `base_dir` is the folder relative file paths start from (the scene file's
+/// folder; "" means the working directory). Mesh garments, and the avatar and clip files
+/// `[avatar]` names, are read here, so the result is complete. The returned scene passes
 /// sim::ValidateScene. Throws sim::InputError, with file:line:column, for: TOML syntax
 /// errors; unknown keys (listing the allowed ones); values of the wrong type or shape;
 /// nan, inf and out-of-range numbers; missing required keys or tables; duplicate material or
 /// garment names; a garment naming an unknown material (listing the known ones); a garment
 /// with both or neither of panel and mesh; a mesh file that cannot be imported.
 sim::SceneDescription ParseSceneText(const std::string& text, const std::string& source_name,
-                                     const std::string& base_dir);
+                                     const std::string& base_dir,
+                                     AvatarFiles avatar_files = AvatarFiles::kAllowed);
 
 /// Names of the built-in scenes: "demo" (the default run), "hang" and "drape" (the
 /// benchmark scenes of docs/BENCHMARKS.md at N = 33).

@@ -205,7 +205,8 @@ sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
     } else {
       path = dir.Write("garment.toml", data.bytes, what);
     }
-    const sim::SceneDescription scene = dir.Guard([&] { return assets::LoadSceneFile(path); });
+    const sim::SceneDescription scene =
+        dir.Guard([&] { return assets::LoadSceneFile(path, assets::AvatarFiles::kRefused); });
     if (scene.garments.size() != 1) {
       throw sim::InputError(what + ": a garment file holds exactly one [[garment]] table, found " +
                             std::to_string(scene.garments.size()));

@@ -95,7 +95,8 @@ AssetData GarmentTomlData(const fs::path& root, const fs::path& path, const std:
 /// The fabric a garment file defines: its garment's material when the file defines it, else
 /// a built-in material of that name.
 FabricParameters FabricOfGarmentFile(const fs::path& path) {
-  const sim::SceneDescription scene = assets::LoadSceneFile(path.string());
+  const sim::SceneDescription scene =
+      assets::LoadSceneFile(path.string(), assets::AvatarFiles::kRefused);
   const sim::GarmentSpec& garment = scene.garments.at(0);
   for (const sim::Material& m : scene.materials) {
     if (m.name == garment.material) return FabricFromMaterial(m);

@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 
+#include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
+#include "tests/support/shared_data.h"
 
 namespace costume::assets {
 namespace {
@@ -560,6 +563,132 @@ TEST(LoadSceneFile, ReadsFitOutsideBodyAndRefusesItWithoutAvatar) {
     EXPECT_NE(message.find("avatar"), std::string::npos) << message;
   }
   std::filesystem::remove_all(dir);
+}
+
+// ---- avatar and clip files ----------------------------------------------------------------
+
+/// A BVH clip on an H-Anim-named skeleton (root, hips, knees, shoulders, elbows: the joints
+/// retargeting needs), `frames` frames at 1/30 s, the root rising 1 cm a frame.
+std::string HAnimBvh(int frames) {
+  std::ostringstream bvh;
+  bvh << "HIERARCHY\nROOT humanoid_root\n{\n OFFSET 0 90 0\n"
+         " CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation\n";
+  const auto limb = [&](const std::string& upper, const std::string& lower, double x, double y,
+                        double length) {
+    bvh << " JOINT " << upper << "\n {\n  OFFSET " << x << " " << y << " 0\n"
+        << "  CHANNELS 3 Zrotation Xrotation Yrotation\n  JOINT " << lower << "\n  {\n"
+        << "   OFFSET 0 " << -length << " 0\n   CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        << "   End Site\n   {\n    OFFSET 0 " << -length << " 0\n   }\n  }\n }\n";
+  };
+  limb("l_hip", "l_knee", 10, 0, 45);
+  limb("r_hip", "r_knee", -10, 0, 45);
+  limb("l_shoulder", "l_elbow", 18, 50, 28);
+  limb("r_shoulder", "r_elbow", -18, 50, 28);
+  bvh << "}\nMOTION\nFrames: " << frames << "\nFrame Time: 0.0333333\n";
+  for (int f = 0; f < frames; ++f) {
+    bvh << "0 " << 90 + f << " 0 0 0 0";
+    for (int i = 0; i < 8 * 3; ++i) bvh << " 0";
+    bvh << "\n";
+  }
+  return bvh.str();
+}
+
+// [avatar] names a clip file relative to the scene file; it is read, and checked to be
+// playable on the avatar where the scene names it.
+TEST(LoadSceneFile, ReadsAClipFileRelativeToTheSceneFile) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_clip_test";
+  std::filesystem::create_directories(dir / "clips");
+  std::ofstream(dir / "clips" / "rise.bvh") << HAnimBvh(12);
+  const std::string garment = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
+  std::ofstream(dir / "scene.toml") << "[avatar]\nclip = \"clips/rise.bvh\"\n" << garment;
+  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
+  ASSERT_TRUE(scene.avatar && scene.avatar->clip);
+  EXPECT_EQ(scene.avatar->clip->frames.size(), 12u);  // the file's "Frames: 12"
+  EXPECT_NEAR(scene.avatar->clip->frame_time, 1.0 / 30.0, 1e-6);
+
+  // A clip whose skeleton maps too few H-Anim joints is refused at its line.
+  std::ofstream(dir / "clips" / "alone.bvh")
+      << "HIERARCHY\nROOT alone\n{\n OFFSET 0 0 0\n CHANNELS 3 Xposition Yposition Zposition\n"
+         " End Site\n {\n  OFFSET 0 10 0\n }\n}\nMOTION\nFrames: 2\nFrame Time: 0.1\n"
+         "0 0 0\n0 1 0\n";
+  std::ofstream(dir / "alone.toml") << garment << "[avatar]\nclip = \"clips/alone.bvh\"\n";
+  try {
+    LoadSceneFile((dir / "alone.toml").string());
+    ADD_FAILURE() << "a clip no avatar can play was accepted";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "alone.toml:5:1: avatar.clip = \"clips/alone.bvh\": "
+                                       "cannot be put on the avatar"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(ParseSceneText, RefusesMissingAvatarAndClipFilesListingTheBuiltIns) {
+  const std::string garment = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
+  const std::string model = ErrorOf(garment + "[avatar]\nmodel = \"body.glb\"\n", "people");
+  EXPECT_TRUE(Contains(model, "avatar.model = \"body.glb\": must be one of \"builtin\", or an "
+                              "avatar file (.glb .gltf .fbx .dae .obj); no file \"people/body.glb\""));
+  const std::string clip = ErrorOf(garment + "[avatar]\nclip = \"wlak\"\n");
+  EXPECT_TRUE(Contains(clip, "avatar.clip = \"wlak\": must be one of \"none\", \"stand\", "
+                             "\"walk\""));
+  EXPECT_TRUE(Contains(clip, "or a clip file (.bvh"));
+  // MakeHuman's skeleton and weights come together, and only with a model file.
+  EXPECT_TRUE(Contains(ErrorOf(garment + "[avatar]\nweights = \"w.mhw\"\n"),
+                       "avatar.weights = \"w.mhw\": only with a MakeHuman model file"));
+}
+
+// The catalogue's garment files name no avatar or clip file: a stored path would be read
+// wherever the garment is loaded.
+TEST(ParseSceneText, RefusesAvatarFilesWhereTheCallerForbidsThem) {
+  const std::string text = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n"
+                           "[avatar]\nclip = \"/etc/passwd\"\n";
+  try {
+    ParseSceneText(text, "test.toml", "", AvatarFiles::kRefused);
+    ADD_FAILURE() << "a clip file was accepted in a garment file";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "test.toml:5:1: avatar.clip = \"/etc/passwd\": must be "
+                                       "one of"));
+    EXPECT_TRUE(Contains(error.what(), "a garment file names no avatar or clip file"));
+  }
+  // The built-ins stay allowed there.
+  const std::string built_in = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n"
+                               "[avatar]\nmodel = \"builtin\"\nclip = \"walk\"\n";
+  EXPECT_NO_THROW(ParseSceneText(built_in, "test.toml", "", AvatarFiles::kRefused));
+}
+
+// The MakeHuman triple from ../shared/data: the avatar the importer reads, its body's
+// vertex count that of base.obj's "body" group (counted here from the file's faces).
+TEST(LoadSceneFile, ReadsTheMakeHumanTripleWithABuiltInClip) {
+  const std::filesystem::path body =
+      std::filesystem::absolute(test::kSharedData / "makehuman" / "body");
+  if (!std::filesystem::exists(body / "base.obj")) GTEST_SKIP() << "no " << body;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_makehuman_test";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "scene.toml")
+      << "[avatar]\nmodel = \"" << (body / "base.obj").string() << "\"\nskeleton = \""
+      << (body / "default.mhskel").string() << "\"\nweights = \""
+      << (body / "default_weights.mhw").string() << "\"\nclip = \"walk\"\n"
+      << "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
+  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
+  std::filesystem::remove_all(dir);
+  ASSERT_TRUE(scene.avatar && scene.avatar->clip);
+  // base.obj's "body" group: the distinct vertices its faces use.
+  std::ifstream obj(body / "base.obj");
+  std::string line, group;
+  std::set<long> used;
+  while (std::getline(obj, line)) {
+    if (line.rfind("g ", 0) == 0) group = line.substr(2);
+    if (line.rfind("f ", 0) != 0 || group != "body") continue;
+    std::istringstream corners(line.substr(2));
+    std::string corner;
+    while (corners >> corner) used.insert(std::stol(corner.substr(0, corner.find('/'))));
+  }
+  ASSERT_FALSE(used.empty());
+  EXPECT_EQ(static_cast<std::size_t>(scene.avatar->avatar->rest_vertices().rows()), used.size());
+  // Built-in clips are written for the built-in humanoid and retargeted onto this body.
+  EXPECT_NE(scene.avatar->clip->skeleton.get(), scene.avatar->avatar->shared_skeleton().get());
+  EXPECT_EQ(scene.avatar->clip->skeleton->num_joints(), sim::MakeHumanoidSkeleton()->num_joints());
 }
 
 // ---- the file-independent checks --------------------------------------------------------

@@ -451,6 +451,17 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_TRUE(Contains(output, "pattern = \"skirt\"")) << output;
   EXPECT_FALSE(std::filesystem::exists(builtin));
 
+  // A garment file names no avatar or clip file: a path stored with the garment would be
+  // read wherever it is loaded, outside the import folder.
+  Write("walk.bvh", "HIERARCHY\nROOT");
+  const std::string with_clip = Write(
+      "with_clip.toml",
+      "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\nclip = \"walk.bvh\"\n");
+  EXPECT_EQ(RunProgram(url + " import --kind garment --root " + root_.string() + " " + with_clip,
+                       output),
+            1);
+  EXPECT_TRUE(Contains(output, "a garment file names no avatar or clip file")) << output;
+
   const std::string bad = Write("bad.bvh", "HIERARCHY\nROOT");
   EXPECT_EQ(
       RunProgram(url + " import --kind animation --root " + root_.string() + " " + bad, output), 1);
