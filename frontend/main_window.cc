@@ -30,10 +30,10 @@ using Status = costume_lcm::status;
 
 const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 constexpr int kIdRole = Qt::UserRole;
+constexpr int kNameRole = Qt::UserRole + 1;
 /// A server whose status has not come for this long is shown as silent: each sends one a
 /// second (a frame slower than that delays it).
 constexpr qint64 kSilentAfterMs = 3000;
-constexpr int kNameRole = Qt::UserRole + 1;
 
 QString PlaybackName(std::int8_t playback) {
   switch (playback) {
@@ -198,6 +198,7 @@ void MainWindow::RestartSimServer() {
 }
 
 void MainWindow::RefreshCatalogue() {
+  thumbnails_tried_ = false;
   FillLists();
   MakeMissingThumbnails();
 }
@@ -248,7 +249,8 @@ void MainWindow::FillLists() {
       }
       if (thumbnail.isNull()) {
         lists_lack_thumbnails_ = true;
-        const bool coming = catalog_->IsDatabase();  // MakeMissingThumbnails
+        // MakeMissingThumbnails renders it, unless its last run could not.
+        const bool coming = catalog_->IsDatabase() && !thumbnails_tried_;
         thumbnail = NoThumbnail(coming ? "no picture\nyet" : "no picture");
       }
       auto* entry = new QListWidgetItem(QIcon(thumbnail), QString::fromStdString(item.name));
@@ -560,6 +562,7 @@ void MainWindow::ConnectSignals() {
   });
   connect(exporter_, &FrameExporter::videoDone, this, &MainWindow::Log);
   connect(children_, &ChildProcesses::thumbnailsMade, this, [this](int code) {
+    thumbnails_tried_ = true;
     FillLists();  // not MakeMissingThumbnails: one that cannot be made would loop
     Log(code == 0 ? QString("catalogue: thumbnails made")
                   : QString("catalogue: making thumbnails failed (code %1)").arg(code));

@@ -190,6 +190,8 @@ class MainWindow : public QMainWindow {
   std::optional<Eigen::Vector3d> last_cursor_;
   bool warned_mismatch_ = false;
   bool lists_lack_thumbnails_ = false;
+  /// The thumbnails child ended since the last refresh: what is still missing will not come.
+  bool thumbnails_tried_ = false;
   /// Each server's warnings in its last status ("sim", "haptic").
   QHash<QString, QStringList> previous_warnings_;
   /// Since the designer last switched modes.
