@@ -625,7 +625,6 @@ sim::SphereObstacleSpec ParseSphere(const TableView& table) {
   return sphere;
 }
 
-/// The built-in clip `name`, or none for "none".
 /// The file a `model` or `clip` field names, relative to the scene file's folder. Refused
 /// when the scene may not name files (AvatarFiles::kRefused) or there is no such file: the
 /// message lists `built_ins` first, since a misspelt built-in is the likelier mistake, then

@@ -244,9 +244,10 @@ int main(int argc, char** argv) {
       const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
       if (export_thumbnail) {
         const auto png = catalog->Thumbnail(entry.id);
-        if (png.empty()) throw costume::sim::InputError("'" + entry.name +
-                                                      "' has no thumbnail (the thumbnails "
-                                                      "subcommand makes missing ones)");
+        if (png.empty()) {
+          throw costume::sim::InputError("'" + entry.name + "' has no thumbnail (the "
+                                         "thumbnails subcommand makes missing ones)");
+        }
         WriteOut(out, png, export_force);
         std::printf("wrote %s (%zu bytes PNG)\n", out.c_str(), png.size());
       } else {
