@@ -3,6 +3,7 @@
 #include <toml++/toml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -22,6 +23,7 @@
 #include "sim_core/avatar/pose.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
+#include "sim_core/scene/garment_fit.h"
 #include "sim_core/common/input_error.h"
 
 // How the parser works: every table is read through a TableView, which refuses unknown keys
@@ -539,28 +541,83 @@ std::string ResolvePath(const std::string& base_dir, const std::string& file) {
   return path.lexically_normal().string();
 }
 
-sim::SurfaceMesh ParseMesh(const TableView& table) {
-  table.RefuseUnknownKeys({"file", "scale", "offset", "weld_below", "fit_outside_body"});
-  const Field file = table.Require("file");
-  MeshImportOptions options;
-  options.scale = NumberOr(table, "scale", options.scale, kPositive, "m per file unit");
-  options.offset = Vector3Or(table, "offset", options.offset, "m", kCoordinateRange);
-  const double weld = NumberOr(table, "weld_below", 0.0, {0.0, 0.1, false, false}, "m");
-  const std::string path = ResolvePath(table.source().base_dir, ReadName(file));
+/// Runs an importer on a file the field names; its refusal (which names the file) is
+/// placed at the field.
+template <typename Load>
+auto ImportAt(const Field& field, const std::string& path, Load&& load) {
   try {
-    return sim::WeldShortEdges(ImportSurfaceMesh(path, options), weld);
+    return load();
   } catch (const InputError& error) {
-    // The importer's message names the mesh file (else add it); this adds where the scene
-    // asked for it.
     const std::string problem = error.what();
-    file.Refuse(problem.find(path) != std::string::npos ? problem : path + ": " + problem);
+    field.Refuse(problem.find(path) != std::string::npos ? problem : path + ": " + problem);
   }
 }
 
-sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::string>& materials) {
-  table.RefuseUnknownKeys(
-      {"name", "material", "pin_points", "pin_tolerance", "attach_to", "panel", "mesh", "pattern",
-       "resolution"});
+bool IsMakeHumanGarment(const std::string& path) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension == ".mhclo";
+}
+
+/// [garment.mesh]: a mesh file through assimp, or a MakeHuman garment (.mhclo) fitted to the
+/// MakeHuman body `makehuman_body` (its base.obj; empty when the avatar is not MakeHuman's).
+sim::SurfaceMesh ParseMesh(const TableView& table, const std::string& makehuman_body) {
+  table.RefuseUnknownKeys({"file", "scale", "offset", "weld_below", "fit_outside_body"});
+  const Field file = table.Require("file");
+  const std::string path = ResolvePath(table.source().base_dir, ReadName(file));
+  const bool makehuman = IsMakeHumanGarment(path);
+  MeshImportOptions options;
+  options.scale = NumberOr(table, "scale", makehuman ? 0.1 : options.scale, kPositive,
+                           "m per file unit");
+  options.offset = Vector3Or(table, "offset", options.offset, "m", kCoordinateRange);
+  const double weld = NumberOr(table, "weld_below", 0.0, {0.0, 0.1, false, false}, "m");
+  if (makehuman && makehuman_body.empty()) {
+    file.Refuse("a MakeHuman garment is fitted to MakeHuman's body: [avatar] needs model = "
+                "its base.obj, with skeleton and weights");
+  }
+  return ImportAt(file, path, [&] {
+    if (!makehuman) return sim::WeldShortEdges(ImportSurfaceMesh(path, options), weld);
+    // MakeHuman's own fit: each vertex from three body vertices plus an offset (the .mhclo).
+    sim::SurfaceMesh fitted = LoadMakeHumanGarment(path, ReadObj(makehuman_body), options.scale);
+    fitted.vertices.rowwise() += options.offset.transpose();
+    return sim::WeldShortEdges(fitted, weld);
+  });
+}
+
+/// What a garment can be fitted and held to: the scene's avatar, and MakeHuman's base.obj
+/// when that avatar is MakeHuman's (for .mhclo garments).
+struct GarmentContext {
+  std::vector<std::string> materials;
+  const sim::AvatarSpec* avatar = nullptr;
+  std::string makehuman_body;
+};
+
+/// `pin_waistband = band`: the mesh's open boundary loops within `band` of the avatar's
+/// waist (its vl5 joint at rest, where it stands) are pinned, held by the pelvis unless
+/// attach_to says otherwise: how trousers and skirts modelled on the body stay up.
+void ParseWaistband(const Field& field, const GarmentContext& context, sim::GarmentSpec& garment) {
+  const double band = ReadNumber(field, {0.0, 0.5, true, false}, "m");
+  if (!garment.mesh || !context.avatar) {
+    field.Refuse("needs [garment.mesh] and an [avatar] whose waist it is held at", "m");
+  }
+  const sim::Skeleton& skeleton = context.avatar->avatar->skeleton();
+  const int vl5 = skeleton.Find(sim::HAnimJoint::kVl5);
+  if (vl5 < 0) field.Refuse("the avatar has no joint mapped onto vl5 (the waist)", "m");
+  const double waist = skeleton.rest_world()[vl5].translation().y() +
+                       context.avatar->motion.posture.root_translation.y();
+  garment.pin_points = sim::WaistbandPoints(*garment.mesh, waist, band);
+  if (garment.pin_points.empty()) {
+    field.Refuse("no open edge of the mesh lies within " + FormatValue(band) +
+                 " m of the waist at y = " + FormatValue(waist) + " m", "m");
+  }
+  if (!garment.attach_to) garment.attach_to = sim::HAnimJoint::kSacroiliac;
+}
+
+sim::GarmentSpec ParseGarment(const TableView& table, const GarmentContext& context) {
+  const std::vector<std::string>& materials = context.materials;
+  table.RefuseUnknownKeys({"name", "material", "pin_points", "pin_waistband", "pin_tolerance",
+                           "attach_to", "panel", "mesh", "pattern", "resolution"});
   sim::GarmentSpec garment;
   garment.source_line = table.line();
   garment.name = ReadName(table.Require("name"));
@@ -591,8 +648,14 @@ sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::str
   }
   if (panel) garment.panel = ParsePanel(*panel);
   if (mesh) {
-    garment.mesh = ParseMesh(*mesh);
+    garment.mesh = ParseMesh(*mesh, context.makehuman_body);
     garment.fit_outside_body = BoolOr(*mesh, "fit_outside_body", false);
+  }
+  if (const std::optional<Field> waistband = table.Find("pin_waistband")) {
+    if (table.Find("pin_points")) {
+      waistband->Refuse("give pin_points or pin_waistband, not both", "m");
+    }
+    ParseWaistband(*waistband, context, garment);
   }
   if (pattern) {
     garment.pattern = ReadChoice(*pattern, {"skirt", "cape", "dress"});
@@ -602,11 +665,11 @@ sim::GarmentSpec ParseGarment(const TableView& table, const std::vector<std::str
 }
 
 std::vector<sim::GarmentSpec> ParseGarments(const TableView& root,
-                                            const std::vector<std::string>& materials) {
+                                            const GarmentContext& context) {
   std::vector<sim::GarmentSpec> garments;
   std::map<std::string, toml::source_position> seen;
   for (const TableView& table : FindTableArray(root, "garment", "[[garment]]")) {
-    garments.push_back(ParseGarment(table, materials));
+    garments.push_back(ParseGarment(table, context));
     RefuseDuplicateName(seen, table.Require("name"), garments.back().name, "garment");
   }
   if (garments.empty()) root.Refuse("garment: missing; a scene needs at least one [[garment]]");
@@ -648,18 +711,6 @@ std::string AvatarFilePath(const Field& field, const std::string& value,
   return path;
 }
 
-/// Runs an importer on a file the field names; its refusal (which names the file) is
-/// placed at the field.
-template <typename Load>
-auto ImportAt(const Field& field, const std::string& path, Load&& load) {
-  try {
-    return load();
-  } catch (const InputError& error) {
-    const std::string problem = error.what();
-    field.Refuse(problem.find(path) != std::string::npos ? problem : path + ": " + problem);
-  }
-}
-
 /// `clip`: "none", a built-in clip (made on `skeleton`), or a clip file (BVH, glTF/GLB, FBX,
 /// Collada, DeepMimic), retargeted onto the avatar when played.
 std::shared_ptr<const sim::Clip> ParseClip(const Field& field,
@@ -688,8 +739,10 @@ void RequirePlayable(const Field& clip, const sim::AvatarSpec& avatar) {
 }
 
 /// `model`: "builtin", an avatar file (glTF/GLB, FBX, Collada, OBJ), or MakeHuman's base
-/// mesh when `skeleton` (.mhskel) and `weights` (.mhw) are given too.
-std::shared_ptr<const sim::Avatar> ParseModel(const TableView& table) {
+/// mesh when `skeleton` (.mhskel) and `weights` (.mhw) are given too (its path then goes to
+/// `makehuman_body`, which MakeHuman's garments are fitted to).
+std::shared_ptr<const sim::Avatar> ParseModel(const TableView& table,
+                                              std::string& makehuman_body) {
   const std::optional<Field> model = table.Find("model");
   const std::optional<Field> skeleton = table.Find("skeleton");
   const std::optional<Field> weights = table.Find("weights");
@@ -711,6 +764,7 @@ std::shared_ptr<const sim::Avatar> ParseModel(const TableView& table) {
   }
   const std::string skeleton_path = ResolvePath(table.source().base_dir, ReadName(*skeleton));
   const std::string weights_path = ResolvePath(table.source().base_dir, ReadName(*weights));
+  makehuman_body = path;
   return ImportAt(*model, path, [&] {
     return LoadMakeHumanAvatar(path, skeleton_path, weights_path);
   });
@@ -735,14 +789,14 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
 }
 
 /// [avatar]: the avatar (built-in or a file), the clip it plays, how cloth collides with it.
-sim::AvatarSpec ParseAvatar(const TableView& table) {
+sim::AvatarSpec ParseAvatar(const TableView& table, std::string& makehuman_body) {
   table.RefuseUnknownKeys({"model", "skeleton", "weights", "clip", "collision",
                            "superquadric_map_mb", "thickness", "friction", "max_skin_travel",
                            "max_steps_per_frame", "fit_time", "blend_time", "position",
                            "heading", "posture"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
-  avatar.avatar = ParseModel(table);
+  avatar.avatar = ParseModel(table, makehuman_body);
   if (const std::optional<Field> clip = table.Find("clip")) {
     // Built-in clips are written for the built-in humanoid's skeleton (the avatar's own when
     // it is that humanoid) and retargeted onto any other avatar when played, as file clips.
@@ -801,11 +855,14 @@ sim::SceneDescription ParseScene(const TableView& root) {
   if (const std::optional<TableView> effects = FindTable(root, "effects", "[effects]")) {
     scene.effects = ParseEffects(*effects);
   }
+  std::string makehuman_body;  // base.obj when the avatar is MakeHuman's (.mhclo garments)
   if (const std::optional<TableView> avatar = FindTable(root, "avatar", "[avatar]")) {
-    scene.avatar = ParseAvatar(*avatar);
+    scene.avatar = ParseAvatar(*avatar, makehuman_body);
   }
   scene.materials = ParseMaterials(root);
-  scene.garments = ParseGarments(root, KnownMaterialNames(scene.materials));
+  GarmentContext garments{KnownMaterialNames(scene.materials),
+                          scene.avatar ? &*scene.avatar : nullptr, makehuman_body};
+  scene.garments = ParseGarments(root, garments);
   for (const TableView& table : FindTableArray(root, "sphere", "[[sphere]]")) {
     scene.spheres.push_back(ParseSphere(table));
   }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -689,6 +690,105 @@ TEST(LoadSceneFile, ReadsTheMakeHumanTripleWithABuiltInClip) {
   // Built-in clips are written for the built-in humanoid and retargeted onto this body.
   EXPECT_NE(scene.avatar->clip->skeleton.get(), scene.avatar->avatar->shared_skeleton().get());
   EXPECT_EQ(scene.avatar->clip->skeleton->num_joints(), sim::MakeHumanoidSkeleton()->num_joints());
+}
+
+// pin_waistband pins the mesh's open edge at the avatar's waist (and holds it by the pelvis):
+// an open tube written here, its top ring at the built-in humanoid's vl5, its bottom 40 cm
+// lower; exactly the top ring's 16 vertices are pinned.
+TEST(LoadSceneFile, PinsTheWaistbandOfAMeshAtTheAvatarsWaist) {
+  const sim::Skeleton& skeleton = *sim::MakeHumanoidSkeleton();
+  const double waist =
+      skeleton.rest_world()[skeleton.Find(sim::HAnimJoint::kVl5)].translation().y();
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_waistband_test";
+  std::filesystem::create_directories(dir);
+  constexpr int kAround = 16;
+  std::ofstream obj(dir / "tube.obj");
+  std::vector<Eigen::Vector3d> top;
+  for (int ring = 0; ring < 2; ++ring) {
+    for (int i = 0; i < kAround; ++i) {
+      const double angle = 2 * M_PI * i / kAround;
+      const Eigen::Vector3d v(0.2 * std::cos(angle), waist - 0.4 * ring, 0.2 * std::sin(angle));
+      if (ring == 0) top.push_back(v);
+      obj << "v " << v.x() << " " << v.y() << " " << v.z() << "\n";
+    }
+  }
+  for (int i = 0; i < kAround; ++i) {
+    const int j = (i + 1) % kAround;
+    obj << "f " << i + 1 << " " << j + 1 << " " << kAround + j + 1 << " " << kAround + i + 1
+        << "\n";
+  }
+  obj.close();
+  std::ofstream(dir / "scene.toml")
+      << "[avatar]\n[[garment]]\nname = \"tube\"\npin_waistband = 0.05\n"
+         "[garment.mesh]\nfile = \"tube.obj\"\n";
+  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
+  const sim::GarmentSpec& tube = scene.garments.at(0);
+  ASSERT_EQ(tube.pin_points.size(), top.size());
+  for (const Eigen::Vector3d& pin : tube.pin_points) {
+    const auto match = std::find_if(top.begin(), top.end(), [&](const Eigen::Vector3d& v) {
+      return (v - pin).norm() < 1e-5;
+    });
+    EXPECT_NE(match, top.end()) << pin.transpose();
+  }
+  EXPECT_EQ(tube.attach_to, sim::HAnimJoint::kSacroiliac);
+
+  // A band that holds no edge, and a waistband without an avatar, are refused.
+  std::ofstream(dir / "far.toml") << "[avatar]\nposition = [0, 1, 0]\n[[garment]]\nname = "
+                                     "\"tube\"\npin_waistband = 0.05\n[garment.mesh]\n"
+                                     "file = \"tube.obj\"\n";
+  try {
+    LoadSceneFile((dir / "far.toml").string());
+    ADD_FAILURE() << "a waistband 1 m off the mesh was accepted";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "garment[0].pin_waistband = 0.05 m: no open edge"));
+  }
+  std::ofstream(dir / "bare.toml") << "[[garment]]\nname = \"tube\"\npin_waistband = 0.05\n"
+                                      "[garment.mesh]\nfile = \"tube.obj\"\n";
+  try {
+    LoadSceneFile((dir / "bare.toml").string());
+    ADD_FAILURE() << "a waistband without an avatar was accepted";
+  } catch (const InputError& error) {
+    EXPECT_TRUE(Contains(error.what(), "needs [garment.mesh] and an [avatar]"));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A MakeHuman garment (.mhclo) is fitted to MakeHuman's body, which the avatar must be.
+TEST(ParseSceneText, RefusesAMakeHumanGarmentOnAnotherAvatar) {
+  const std::string text = "[avatar]\n[[garment]]\nname = \"suit\"\n[garment.mesh]\n"
+                           "file = \"suit.mhclo\"\n";
+  EXPECT_TRUE(Contains(ErrorOf(text), "garment[0].mesh.file = \"suit.mhclo\": a MakeHuman "
+                                      "garment is fitted to MakeHuman's body"));
+}
+
+// The MakeHuman suit from ../shared/data in a scene file: MakeHuman's own fit of every
+// vertex of its OBJ (counted here from the file's "v" lines), its waistband pinned.
+TEST(LoadSceneFile, ReadsAMakeHumanGarmentOnTheMakeHumanBody) {
+  const std::filesystem::path data = std::filesystem::absolute(test::kSharedData / "makehuman");
+  const std::filesystem::path suit = data / "clothes" / "female_casualsuit02";
+  if (!std::filesystem::exists(suit / "female_casualsuit02.mhclo")) GTEST_SKIP() << "no " << suit;
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / "costume_scene_file_mhclo_test";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "scene.toml")
+      << "[avatar]\nmodel = \"" << (data / "body/base.obj").string() << "\"\nskeleton = \""
+      << (data / "body/default.mhskel").string() << "\"\nweights = \""
+      << (data / "body/default_weights.mhw").string() << "\"\n"
+      << "[[garment]]\nname = \"suit\"\npin_waistband = 0.08\n[garment.mesh]\nfile = \""
+      << (suit / "female_casualsuit02.mhclo").string() << "\"\n";
+  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
+  std::filesystem::remove_all(dir);
+  std::ifstream obj(suit / "female_casualsuit02.obj");
+  long vertices = 0;
+  for (std::string line; std::getline(obj, line);) vertices += line.rfind("v ", 0) == 0;
+  const sim::GarmentSpec& garment = scene.garments.at(0);
+  ASSERT_TRUE(garment.mesh);
+  EXPECT_EQ(garment.mesh->vertices.rows(), vertices);
+  // In metres on the body: within its height (base.obj's origin at the hips).
+  EXPECT_LT(garment.mesh->vertices.col(1).maxCoeff(), 1.0);
+  EXPECT_GT(garment.mesh->vertices.col(1).minCoeff(), -1.0);
+  EXPECT_GT(garment.pin_points.size(), 10u);
 }
 
 // ---- the file-independent checks --------------------------------------------------------
