@@ -628,7 +628,8 @@ TEST(ParseSceneText, RefusesMissingAvatarAndClipFilesListingTheBuiltIns) {
   const std::string garment = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   const std::string model = ErrorOf(garment + "[avatar]\nmodel = \"body.glb\"\n", "people");
   EXPECT_TRUE(Contains(model, "avatar.model = \"body.glb\": must be one of \"builtin\", or an "
-                              "avatar file (.glb .gltf .fbx .dae .obj); no file \"people/body.glb\""));
+                              "avatar file (.glb .gltf .fbx .dae .obj); no file "
+                              "\"people/body.glb\""));
   const std::string clip = ErrorOf(garment + "[avatar]\nclip = \"wlak\"\n");
   EXPECT_TRUE(Contains(clip, "avatar.clip = \"wlak\": must be one of \"none\", \"stand\", "
                              "\"walk\""));
@@ -657,22 +658,32 @@ TEST(ParseSceneText, RefusesAvatarFilesWhereTheCallerForbidsThem) {
   EXPECT_NO_THROW(ParseSceneText(built_in, "test.toml", "", AvatarFiles::kRefused));
 }
 
-// The MakeHuman triple from ../shared/data: the avatar the importer reads, its body's
-// vertex count that of base.obj's "body" group (counted here from the file's faces).
-TEST(LoadSceneFile, ReadsTheMakeHumanTripleWithABuiltInClip) {
-  const std::filesystem::path body =
-      std::filesystem::absolute(test::kSharedData / "makehuman" / "body");
-  if (!std::filesystem::exists(body / "base.obj")) GTEST_SKIP() << "no " << body;
+const std::filesystem::path kMakeHumanBody =
+    std::filesystem::absolute(test::kSharedData / "makehuman" / "body");
+
+/// Loads `text` as the file scene.toml of a scratch folder, after an [avatar] table naming
+/// the MakeHuman triple of ../shared/data and `avatar_extra` lines.
+SceneDescription LoadOnMakeHuman(const std::string& avatar_extra, const std::string& text) {
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / "costume_scene_file_makehuman_test";
   std::filesystem::create_directories(dir);
   std::ofstream(dir / "scene.toml")
-      << "[avatar]\nmodel = \"" << (body / "base.obj").string() << "\"\nskeleton = \""
-      << (body / "default.mhskel").string() << "\"\nweights = \""
-      << (body / "default_weights.mhw").string() << "\"\nclip = \"walk\"\n"
-      << "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
+      << "[avatar]\nmodel = \"" << (kMakeHumanBody / "base.obj").string() << "\"\nskeleton = \""
+      << (kMakeHumanBody / "default.mhskel").string() << "\"\nweights = \""
+      << (kMakeHumanBody / "default_weights.mhw").string() << "\"\n"
+      << avatar_extra << text;
   const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
   std::filesystem::remove_all(dir);
+  return scene;
+}
+
+// The MakeHuman triple from ../shared/data: the avatar the importer reads, its body's
+// vertex count that of base.obj's "body" group (counted here from the file's faces).
+TEST(LoadSceneFile, ReadsTheMakeHumanTripleWithABuiltInClip) {
+  const std::filesystem::path& body = kMakeHumanBody;
+  if (!std::filesystem::exists(body / "base.obj")) GTEST_SKIP() << "no " << body;
+  const SceneDescription scene =
+      LoadOnMakeHuman("clip = \"walk\"\n", "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n");
   ASSERT_TRUE(scene.avatar && scene.avatar->clip);
   // base.obj's "body" group: the distinct vertices its faces use.
   std::ifstream obj(body / "base.obj");
@@ -765,20 +776,12 @@ TEST(ParseSceneText, RefusesAMakeHumanGarmentOnAnotherAvatar) {
 // The MakeHuman suit from ../shared/data in a scene file: MakeHuman's own fit of every
 // vertex of its OBJ (counted here from the file's "v" lines), its waistband pinned.
 TEST(LoadSceneFile, ReadsAMakeHumanGarmentOnTheMakeHumanBody) {
-  const std::filesystem::path data = std::filesystem::absolute(test::kSharedData / "makehuman");
-  const std::filesystem::path suit = data / "clothes" / "female_casualsuit02";
+  const std::filesystem::path suit =
+      kMakeHumanBody.parent_path() / "clothes" / "female_casualsuit02";
   if (!std::filesystem::exists(suit / "female_casualsuit02.mhclo")) GTEST_SKIP() << "no " << suit;
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / "costume_scene_file_mhclo_test";
-  std::filesystem::create_directories(dir);
-  std::ofstream(dir / "scene.toml")
-      << "[avatar]\nmodel = \"" << (data / "body/base.obj").string() << "\"\nskeleton = \""
-      << (data / "body/default.mhskel").string() << "\"\nweights = \""
-      << (data / "body/default_weights.mhw").string() << "\"\n"
-      << "[[garment]]\nname = \"suit\"\npin_waistband = 0.08\n[garment.mesh]\nfile = \""
-      << (suit / "female_casualsuit02.mhclo").string() << "\"\n";
-  const SceneDescription scene = LoadSceneFile((dir / "scene.toml").string());
-  std::filesystem::remove_all(dir);
+  const SceneDescription scene =
+      LoadOnMakeHuman("", "[[garment]]\nname = \"suit\"\npin_waistband = 0.08\n[garment.mesh]\n"
+                          "file = \"" + (suit / "female_casualsuit02.mhclo").string() + "\"\n");
   std::ifstream obj(suit / "female_casualsuit02.obj");
   long vertices = 0;
   for (std::string line; std::getline(obj, line);) vertices += line.rfind("v ", 0) == 0;
