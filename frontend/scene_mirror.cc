@@ -29,6 +29,14 @@ std::vector<Eigen::Vector3f> ToFloat(const Points& points) {
   return out;
 }
 
+/// The lowest skin point once the fit has moved the avatar into its posture and position.
+/// Fixed there: a floor following the feet would rise with every jump of the clip.
+float FloorUnder(const sim::AvatarSpec& spec) {
+  sim::AvatarMotion fitted(spec.avatar, nullptr, spec.motion);
+  fitted.Evaluate(spec.motion.fit_time);
+  return static_cast<float>(fitted.vertices().col(1).minCoeff());
+}
+
 }  // namespace
 
 sim::SceneDescription LoadScene(const std::string& builtin, const std::string& file) {
@@ -48,6 +56,7 @@ SceneMirror::SceneMirror(sim::SceneDescription scene) : scene_(std::move(scene))
     motion_ = std::make_unique<sim::AvatarMotion>(spec.avatar, spec.clip, spec.motion);
     avatar_indices_ = Flatten(spec.avatar->triangles());
     PoseAvatar();
+    floor_height_ = FloorUnder(spec);
   }
 }
 

@@ -66,6 +66,10 @@ class SceneMirror {
 
   /// Box around the avatar's rest pose and the cloth as built [m].
   Eigen::AlignedBox3d Bounds() const;
+  /// Where the view's floor goes [m]: under the avatar's feet in its fitting posture and
+  /// position (MakeHuman's base.obj puts its origin at the hips, the feet at −0.8 m); 0
+  /// without an avatar.
+  float floor_height() const { return floor_height_; }
 
  private:
   void PoseAvatar();
@@ -77,6 +81,7 @@ class SceneMirror {
   std::unique_ptr<sim::AvatarMotion> motion_;
   std::vector<Eigen::Vector3f> avatar_vertices_;
   std::vector<std::uint32_t> avatar_indices_;
+  float floor_height_ = 0.0f;
   /// The server's posture transition (SimServerOptions::posture_transition) [s].
   static constexpr double kPostureTransition = 0.5;
   double posture_start_ = 0.0;

@@ -82,6 +82,7 @@ std::optional<Eigen::Vector3d> ViewWidget::grab_point() const {
 render::RenderScene ViewWidget::BuildScene() const {
   render::RenderScene scene;
   scene.background = colours_.background;
+  if (mirror_) scene.floor_height = mirror_->floor_height();
   if (mirror_ && mirror_->has_avatar()) {
     render::DrawMesh avatar;
     avatar.positions = mirror_->avatar_vertices();

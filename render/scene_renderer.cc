@@ -363,7 +363,7 @@ void SceneRenderer::Impl::DrawFloor(const RenderScene& scene) {
     centre = box.center();
     extent = std::max(2.0f, 0.5f * Eigen::Vector2f(box.sizes().x(), box.sizes().z()).norm() + 1.0f);
   }
-  centre.y() = 0.0f;
+  centre.y() = scene.floor_height;
   Eigen::Matrix4f model = Eigen::Matrix4f::Identity();
   model.diagonal().head<3>().setConstant(extent);
   model.topRightCorner<3, 1>() = centre;

@@ -52,7 +52,8 @@ struct RenderScene {
   std::optional<DrawSphere> selection;      ///< drawn last, blended
   std::optional<DrawCursor> cursor;         ///< the device cursor
   Eigen::Vector3f background{0.93f, 0.93f, 0.95f};  ///< clear colour, RGB in [0, 1]
-  bool floor = true;  ///< a floor grid at y = 0 (under the scene's footprint)
+  bool floor = true;  ///< a floor grid at y = floor_height (under the scene's footprint)
+  float floor_height = 0.0f;  ///< [m]: where the avatar's feet are (MakeHuman's are at −0.8 m)
 };
 
 /// Draws a RenderScene into the current framebuffer. Holds GL objects (program, vertex arrays,

@@ -58,6 +58,18 @@ TEST_F(SceneMirrorTest, HasTheServersClothAndAvatar) {
   EXPECT_TRUE(mirror_->Bounds().sizes().minCoeff() > 0.1);
 }
 
+// The view's floor lies under the avatar's feet where the scene stands it: the lowest rest
+// skin vertex plus the avatar's position (MakeHuman's feet are at -0.8 m in its own frame);
+// at 0 without an avatar.
+TEST(SceneMirrorFloor, LiesUnderTheAvatarsFeet) {
+  sim::SceneDescription scene = LoadScene("garment", "");
+  scene.avatar->motion.posture.root_translation = Eigen::Vector3d(0.3, -0.8, 0.1);
+  const SceneMirror raised(scene);
+  const auto& rest = scene.avatar->avatar->rest_vertices();
+  EXPECT_NEAR(raised.floor_height(), rest.col(1).minCoeff() - 0.8, 1e-4);
+  EXPECT_EQ(SceneMirror(LoadScene("hang", "")).floor_height(), 0.0f);
+}
+
 TEST_F(SceneMirrorTest, TheAvatarWalksInModeAAndStandsInModeB) {
   SceneMirror& m = *mirror_;
   m.Follow(Frame(0, false));

@@ -231,6 +231,11 @@ TEST(SceneRenderer, FloorIsDrawnUnderTheScene) {
   scene.floor = false;
   const Image without = Render(context, renderer, scene, camera);
   EXPECT_FALSE(DiffersFrom(without, kWidth / 2, kHeight - 2, scene.background));
+  // Raised above the eye, the floor no longer shows below the horizon.
+  scene.floor = true;
+  scene.floor_height = 1.0f;
+  const Image raised = Render(context, renderer, scene, camera);
+  EXPECT_FALSE(DiffersFrom(raised, kWidth / 2, kHeight - 2, scene.background));
 }
 
 // A loader for a context that claims an old OpenGL.
