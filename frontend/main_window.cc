@@ -673,9 +673,10 @@ void MainWindow::ShowWarnings(const Status& status, const QString& process) {
     }
   }
   previous = current;
-  if (!figures.isEmpty()) {
-    (process == "haptic" ? haptic_label_ : sim_label_)->setToolTip(figures.join("\n"));
-  }
+  // The whole status line (a narrow window clips it), then the once-a-second figures.
+  QLabel* label = process == "haptic" ? haptic_label_ : sim_label_;
+  label->setToolTip(figures.isEmpty() ? label->text()
+                                      : label->text() + "\n" + figures.join("\n"));
 }
 
 void MainWindow::ShowSilence() {

@@ -313,7 +313,8 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   h.process = "haptic_server";
   h.measured_rate = 999.6;
   h.period_p99_us = 1019;
-  h.num_warnings = 0;
+  h.warnings = {"loop: 1000 ticks, 0 missed"};  // a once-a-second figure, not a warning
+  h.num_warnings = 1;
   ASSERT_TRUE(bus::Publish(bus_, bus::kHapticStatusChannel, h));
   const std::vector<Command> sent_meanwhile = Sent();
   const QString sim = window_->sim_label()->text();
@@ -327,6 +328,7 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   EXPECT_TRUE(sent_meanwhile.empty());                  // ... without sending a command
   EXPECT_TRUE(sim.contains("undo 2 redo 0"));
   EXPECT_TRUE(window_->undo_button()->toolTip().startsWith("2 edit(s)"));
+  EXPECT_EQ(window_->sim_label()->toolTip(), sim);  // whole where a narrow window clips it
   EXPECT_TRUE(window_->warning_label()->text().contains("LOAD_COSTUME refused"));
   // Clipped to the room the figures leave, the warning stays whole in its tooltip.
   EXPECT_EQ(window_->warning_label()->toolTip(), window_->warning_label()->text());
@@ -343,6 +345,8 @@ TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {
   const QString haptic = window_->haptic_label()->text();
   EXPECT_TRUE(haptic.contains("1000 Hz")) << haptic.toStdString();
   EXPECT_TRUE(haptic.contains("p99 1019"));
+  EXPECT_EQ(window_->haptic_label()->toolTip(), haptic + "\nloop: 1000 ticks, 0 missed");
+  EXPECT_FALSE(window_->message_log()->toPlainText().contains("loop: 1000"));
 }
 
 /// The mirrored sheet moved by `offset`, sent as `chunks` chunks of frame `frame`.
