@@ -208,11 +208,16 @@ int main(int argc, char** argv) {
                     ->check(CLI::ExistingFile);
   app.add_option("--builtin", options.builtin, "Built-in scene the session ran (default garment)")
       ->excludes(scene);
+  // Within an hour either way: CLI11 saturates a number too large for 64 bits to the largest
+  // one, which would pass unbounded as a limit nobody typed.
+  const auto within_an_hour = CLI::Range(std::int64_t{-3'600'000'000}, std::int64_t{3'600'000'000});
   app.add_option("--max-age-us", options.max_age_us,
                  "The live server's stale limit for old utimes [µs] (<= 0: off)")
+      ->check(within_an_hour)
       ->capture_default_str();
   app.add_option("--max-lead-us", options.max_lead_us,
                  "The live server's limit for utimes ahead of its clock [µs] (<= 0: off)")
+      ->check(within_an_hour)
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   try {
