@@ -25,6 +25,17 @@ namespace {
 
 using Command = costume_lcm::command;
 
+/// Publishes a simulation server status carrying `warnings` and dispatches what `bus` holds.
+void PublishSimWarnings(bus::MessageBus& bus, std::vector<std::string> warnings) {
+  costume_lcm::status status{};
+  status.utime = bus::NowUtime();
+  status.num_warnings = static_cast<std::int16_t>(warnings.size());
+  status.warnings = std::move(warnings);
+  ASSERT_TRUE(bus::Publish(bus, bus::kSimStatusChannel, status));
+  while (bus.HandleSubscriptions(0) > 0) {
+  }
+}
+
 class MainWindowTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -428,12 +439,7 @@ TEST_F(MainWindowTest, MousePressOnTheClothGrabsAndReleaseLetsGo) {
 TEST_F(MainWindowTest, AStandingWarningIsShownOnce) {
   const std::string standing = "grab acknowledger: SCHED_FIFO priority 70 refused";
   const auto publish = [&](std::vector<std::string> warnings) {
-    costume_lcm::status s{};
-    s.utime = bus::NowUtime();
-    s.num_warnings = static_cast<std::int16_t>(warnings.size());
-    s.warnings = std::move(warnings);
-    ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
-    Sent();
+    PublishSimWarnings(bus_, std::move(warnings));
   };
   publish({standing});
   publish({standing, "command UNDO: nothing to undo"});
@@ -639,13 +645,8 @@ TEST(MainWindowLoads, TheViewFollowsALoadedCostumeOnceTheServerRunsIt) {
   EXPECT_EQ(window.mirror().num_particles(), skirt);  // until the server shows the cape
 
   // The server refuses: the view keeps the skirt.
-  costume_lcm::status refused{};
-  refused.utime = bus::NowUtime();
-  refused.num_warnings = 1;
-  refused.warnings = {"command LOAD_COSTUME: not available until the database issue; ignored"};
-  ASSERT_TRUE(bus::Publish(bus, bus::kSimStatusChannel, refused));
-  while (bus.HandleSubscriptions(0) > 0) {
-  }
+  PublishSimWarnings(bus,
+                     {"command LOAD_COSTUME: not available until the database issue; ignored"});
   EXPECT_EQ(window.pending_mirror(), nullptr);
 
   // Loaded again and accepted: the server's frames start again at 0 with the cape.
@@ -705,9 +706,6 @@ TEST(MainWindowLoads, ALoadedSceneKeepsTheSettingsSentBeforeIt) {
 namespace costume::frontend {
 namespace {
 
-/// How many times `text` holds `part`.
-int Count(const QString& text, const QString& part) { return text.count(part); }
-
 // A catalogue without thumbnails (made with --no-thumbnails; a version the simulation server
 // saved) gets them from a child `costume-catalog thumbnails`, and the lists show them without
 // losing the designer's pick.
@@ -749,14 +747,8 @@ TEST(MainWindowCatalogue, MissingThumbnailsAreRenderedByAChildAndListed) {
   // again and the new version's picture is made.
   db->SaveGarmentVersion(skirt, db->Data(skirt), "edited", {});
   EXPECT_TRUE(db->Thumbnail(skirt).empty());
-  costume_lcm::status saved{};
-  saved.utime = bus::NowUtime();
-  saved.num_warnings = 1;
-  saved.warnings = {"command SAVE_VERSION: saved garment 'skirt' version 2 'edited'"};
-  ASSERT_TRUE(bus::Publish(bus, bus::kSimStatusChannel, saved));
-  while (bus.HandleSubscriptions(0) > 0) {
-  }
-  QTRY_COMPARE_WITH_TIMEOUT(Count(window.message_log()->toPlainText(), "thumbnails made"), 2,
+  PublishSimWarnings(bus, {"command SAVE_VERSION: saved garment 'skirt' version 2 'edited'"});
+  QTRY_COMPARE_WITH_TIMEOUT(window.message_log()->toPlainText().count("thumbnails made"), 2,
                             60000);
   EXPECT_FALSE(window.lists_lack_thumbnails());
   EXPECT_FALSE(db->Thumbnail(skirt).empty());
