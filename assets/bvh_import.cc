@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "assets/skeleton_families.h"
+#include "sim_core/avatar/clip.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::assets {
@@ -18,7 +19,6 @@ using sim::InputError;
 
 constexpr int kMaxJoints = 10000;
 constexpr long kMaxFrames = 10000000;
-constexpr double kMaxFrameTime = 10.0;
 constexpr double kDegrees = M_PI / 180.0;
 
 /// The file split into whitespace-separated words, each with its line number.
@@ -198,9 +198,10 @@ void ParseMotion(Tokens& tokens, BvhFile& file) {
   tokens.Expect("Frame");
   tokens.Expect("Time:");
   file.frame_time = tokens.TakeNumber("Frame Time");
-  if (!(file.frame_time > 0.0 && file.frame_time <= kMaxFrameTime)) {
-    tokens.RefuseLast("Frame Time is " + sim::FormatValue(file.frame_time) +
-                      " s (allowed: (0, " + sim::FormatValue(kMaxFrameTime) + "])");
+  if (!(file.frame_time >= sim::kMinFrameTime && file.frame_time <= sim::kMaxFrameTime)) {
+    tokens.RefuseLast("Frame Time is " + sim::FormatValue(file.frame_time) + " s (allowed: [" +
+                      sim::FormatValue(sim::kMinFrameTime) + ", " +
+                      sim::FormatValue(sim::kMaxFrameTime) + "])");
   }
   const long total = file.num_frames * file.num_channels;
   file.values.reserve(static_cast<std::size_t>(std::min<long>(total, 100000000)));

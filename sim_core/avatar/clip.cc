@@ -95,9 +95,9 @@ void ValidateClip(const Clip& clip) {
   const std::string where = "clip '" + clip.name + "'";
   if (!clip.skeleton) throw InputError(where + ": has no skeleton");
   if (clip.frames.empty()) throw InputError(where + ": has no frames");
-  if (!std::isfinite(clip.frame_time) || clip.frame_time <= 0.0) {
-    throw InputError(where + ": frame_time " + FormatValue(clip.frame_time) +
-                     " s (allowed: > 0)");
+  if (!(clip.frame_time >= kMinFrameTime && clip.frame_time <= kMaxFrameTime)) {
+    throw InputError(where + ": frame_time " + FormatValue(clip.frame_time) + " s (allowed: [" +
+                     FormatValue(kMinFrameTime) + ", " + FormatValue(kMaxFrameTime) + "])");
   }
   const std::size_t num_joints = clip.skeleton->num_joints();
   for (std::size_t f = 0; f < clip.frames.size(); ++f) {

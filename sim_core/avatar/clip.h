@@ -15,12 +15,18 @@ namespace costume::sim {
 /// "basic" (stand, walk, run, jump, kick) or "choreography".
 enum class ClipCategory { kBasic, kChoreography };
 
+/// Bounds of a clip's frame time [s]. Motion capture records at most a few kHz; a file
+/// claiming more (1e-300 s a frame) holds a whole clip in no time, which plays as one pose
+/// jumping at random. Ten seconds a frame is a slide show, not an animation.
+constexpr double kMinFrameTime = 1e-4;
+constexpr double kMaxFrameTime = 10.0;
+
 struct Clip {
   std::string name;
   ClipCategory category = ClipCategory::kBasic;
   /// The skeleton the frames are poses of (the source file's, or the built-in humanoid's).
   std::shared_ptr<const Skeleton> skeleton;
-  /// Time between frames [s] > 0.
+  /// Time between frames [s], within [kMinFrameTime, kMaxFrameTime].
   double frame_time = 1.0 / 30.0;
   /// Poses of `skeleton`, at least one.
   std::vector<Pose> frames;
@@ -35,7 +41,7 @@ struct Clip {
 };
 
 /// Validates a clip: throws InputError naming the clip, the field and the allowed range
-/// for no skeleton, no frames, frame_time <= 0 or non-finite, a frame whose rotation count
+/// for no skeleton, no frames, frame_time outside [kMinFrameTime, kMaxFrameTime], a frame whose rotation count
 /// differs from the skeleton's joint count, non-finite values, a root translation beyond
 /// kMaxCoordinate.
 void ValidateClip(const Clip& clip);

@@ -113,8 +113,17 @@ TEST(BvhImport, MalformedTextNamesFileAndLine) {
     ADD_FAILURE();
   } catch (const InputError& e) {
     // Placed on the Frame Time line (18), not the first frame's after it.
-    EXPECT_NE(std::string(e.what()).find("time.bvh:18: Frame Time is -1 s (allowed: (0, 10])"),
+    EXPECT_NE(std::string(e.what()).find("time.bvh:18: Frame Time is -1 s (allowed: [0.0001, 10])"),
               std::string::npos)
+        << e.what();
+  }
+  // A whole clip in no time: 1e-300 s a frame used to be taken and played as one pose.
+  try {
+    LoadClip(dir.Write("instant.bvh", TwoJointBvh("Xrotation Zrotation", "1 2").replace(
+                                          good.find("0.5"), 3, "1e-300")));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("instant.bvh:18: Frame Time is 1e-300 s"), std::string::npos)
         << e.what();
   }
 }

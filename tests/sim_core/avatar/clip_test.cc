@@ -110,10 +110,17 @@ TEST(ValidateClip, RefusalsNameTheClipAndField) {
   clip = ThreeFrames(true);
   clip.frames.clear();
   expect(clip, "no frames");
-  for (double bad : {0.0, -0.1, std::nan("")}) {
+  for (double bad : {0.0, -0.1, std::nan(""), 1e-300, 0.99e-4, 10.01, HUGE_VAL}) {
     clip = ThreeFrames(true);
     clip.frame_time = bad;
     expect(clip, "frame_time");
+    expect(clip, "(allowed: [0.0001, 10])");
+  }
+  // The bounds themselves are kept: 10 kHz capture, and a slide show's ten seconds.
+  for (double edge : {kMinFrameTime, kMaxFrameTime}) {
+    clip = ThreeFrames(true);
+    clip.frame_time = edge;
+    EXPECT_NO_THROW(ValidateClip(clip)) << edge;
   }
   clip = ThreeFrames(true);
   clip.frames[1].rotations.push_back(Eigen::Quaterniond::Identity());
