@@ -41,10 +41,11 @@ bool LooksLikeBackground(const Eigen::Vector3f& c, const Eigen::Vector3f& backgr
   return (c - background).cwiseAbs().maxCoeff() < 0.06f;
 }
 
-/// Fraction of `points` [m] whose pixel in `image` passes `test`.
+/// Fraction of `points` [m] whose pixel in `image`, or one within `reach` pixels of it, passes
+/// `test` (a vertex on a mesh's outline may fall just outside the pixels its triangles cover).
 template <class Test>
 double FractionMatching(const QImage& image, const render::Camera& camera,
-                        const std::vector<Eigen::Vector3d>& points, Test test) {
+                        const std::vector<Eigen::Vector3d>& points, Test test, int reach = 0) {
   int inside = 0, matching = 0;
   for (const Eigen::Vector3d& p : points) {
     const auto pixel = render::ProjectToPixel(camera, p, image.width(), image.height());
@@ -53,7 +54,16 @@ double FractionMatching(const QImage& image, const render::Camera& camera,
       continue;
     }
     ++inside;
-    if (test(ColourAt(image, *pixel))) ++matching;
+    bool found = false;
+    for (int dy = -reach; dy <= reach && !found; ++dy) {
+      for (int dx = -reach; dx <= reach && !found; ++dx) {
+        const Eigen::Vector2d near = *pixel + Eigen::Vector2d(dx, dy);
+        const bool on_image = near.x() >= 0 && near.y() >= 0 && near.x() < image.width() &&
+                              near.y() < image.height();
+        found = on_image && test(ColourAt(image, near));
+      }
+    }
+    if (found) ++matching;
   }
   return inside == 0 ? 0.0 : static_cast<double>(matching) / inside;
 }
@@ -232,9 +242,17 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
     overlays.push_back(drawn.cursor->position.cast<float>());
     overlay_clearance = std::max(overlay_clearance, drawn.cursor->size + 0.02);
   }
+  // Heights from the cloth as drawn now: the grab and the edit have moved it since `before`,
+  // and a band placed from the old extent held the hem once, whose vertex lies on the mesh's
+  // edge, where a pixel may show the background (1 run in about 20).
+  float now_min = 1e9f, now_max = -1e9f;
+  for (const auto& p : cloth) {
+    now_min = std::min(now_min, p.y());
+    now_max = std::max(now_max, p.y());
+  }
   std::vector<Eigen::Vector3d> skirt;
-  for (float t : {0.25f, 0.5f, 0.75f}) {
-    const float y = y_min + t * (y_max - y_min);
+  for (float t : {0.3f, 0.5f, 0.75f}) {
+    const float y = now_min + t * (now_max - now_min);
     int best = -1;
     double best_d = 1e9;
     for (int i = 0; i < static_cast<int>(cloth.size()); ++i) {
@@ -254,7 +272,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
     if (best >= 0) skirt.push_back(cloth[best].cast<double>());
   }
   ASSERT_GE(skirt.size(), 2u);
-  EXPECT_EQ(FractionMatching(shot, camera, skirt, LooksLikeCloth), 1.0) << [&] {
+  EXPECT_EQ(FractionMatching(shot, camera, skirt, LooksLikeCloth, 1), 1.0) << [&] {
     std::ostringstream seen;  // what each point's pixel shows, to tell what covered it
     for (const Eigen::Vector3d& p : skirt) {
       const auto at_pixel = render::ProjectToPixel(camera, p, shot.width(), shot.height());
