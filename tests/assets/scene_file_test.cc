@@ -707,9 +707,11 @@ TEST(LoadSceneFile, ReadsTheMakeHumanTripleWithABuiltInClip) {
 // an open tube written here, its top ring at the built-in humanoid's vl5, its bottom 40 cm
 // lower; exactly the top ring's 16 vertices are pinned.
 TEST(LoadSceneFile, PinsTheWaistbandOfAMeshAtTheAvatarsWaist) {
-  const sim::Skeleton& skeleton = *sim::MakeHumanoidSkeleton();
+  // Held by its pointer: a reference to *MakeHumanoidSkeleton() dangled once the temporary
+  // pointer died (AddressSanitizer: heap-use-after-free).
+  const std::shared_ptr<const sim::Skeleton> skeleton = sim::MakeHumanoidSkeleton();
   const double waist =
-      skeleton.rest_world()[skeleton.Find(sim::HAnimJoint::kVl5)].translation().y();
+      skeleton->rest_world()[skeleton->Find(sim::HAnimJoint::kVl5)].translation().y();
   const std::filesystem::path dir =
       std::filesystem::temp_directory_path() / "costume_scene_file_waistband_test";
   std::filesystem::create_directories(dir);

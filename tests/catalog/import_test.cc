@@ -20,6 +20,7 @@
 #include "catalog/fabric_presets.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/scene/simulation.h"
+#include "tests/support/sanitizer.h"
 #include "tests/support/shared_data.h"
 #include "tests/support/test_scenes.h"
 
@@ -211,6 +212,7 @@ const char kCollapsingCollada[] = R"(<?xml version="1.0" encoding="utf-8"?>
 )";
 
 TEST_F(ImportTest, AFileThatMakesTheImporterAllocateWithoutEndIsRefusedAtTheLimit) {
+  SKIP_WITH_ADDRESS_SANITIZER_MEMORY_LIMIT();
   ImportRequest request;
   request.kind = Kind::kAvatar;
   request.files = {Write("damaged.dae", kCollapsingCollada)};

@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "tests/support/sanitizer.h"
+
 namespace costume::process {
 namespace {
 
@@ -48,6 +50,7 @@ TEST(RunLimited, AnExceptionComesBackAsItsMessage) {
 }
 
 TEST(RunLimited, WorkAllocatingBeyondTheMemoryLimitEndsOutOfMemory) {
+  SKIP_WITH_ADDRESS_SANITIZER_MEMORY_LIMIT();
   const ChildLimits limits{.memory_bytes = 64ull << 20, .cpu_seconds = 0};
   // Touching 512 MB page by page: fails at the limit, far below what the machine has.
   const ChildResult result = RunLimited(
