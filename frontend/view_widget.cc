@@ -28,7 +28,14 @@ ViewWidget::ViewWidget(QWidget* parent) : QOpenGLWidget(parent) {
   setMinimumSize(320, 240);
 }
 
-ViewWidget::~ViewWidget() { ReleaseRenderer(); }
+ViewWidget::~ViewWidget() {
+  // QOpenGLWidget's own destructor destroys the context after this one has run, and the
+  // context's aboutToBeDestroyed would then call ReleaseRenderer on what is no longer a
+  // ViewWidget (UndefinedBehaviorSanitizer: "member call ... not an object of type
+  // 'ViewWidget'"): cut that connection first, and release here, with the context alive.
+  if (QOpenGLContext* gl = context()) disconnect(gl, nullptr, this, nullptr);
+  ReleaseRenderer();
+}
 
 void ViewWidget::ReleaseRenderer() {
   if (!renderer_) return;

@@ -14,6 +14,10 @@
 /// event's timestamp), not the wall clock of the replay. A message within a few milliseconds
 /// of the age limit could fall either way (the logger and the server received it at slightly
 /// different times); everything clearly stale or out of order is decided as it was live.
+///
+/// Exit status: 0 when every compared frame is identical; 3 when frames differ after an input
+/// the live server took in that the log lacks (lcm-logger missed it; the message says which);
+/// 1 when they differ otherwise; 2 for a bad log or scene.
 
 #include <CLI/CLI.hpp>
 #include <lcm/lcm-cpp.hpp>
@@ -21,6 +25,8 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <optional>
+#include <set>
 #include <vector>
 
 #include "assets/scene_file.h"
@@ -116,6 +122,38 @@ std::int64_t BoundFor(const RecordedFrame& frame, const std::string& channel) {
   return frame.haptic_command_seq;
 }
 
+/// The first input the live server had taken in that the log lacks: a frame names a seq as
+/// its step's last one, and no logged message on that channel carries it. lcm-logger is a
+/// normal-priority process with its own socket and may miss a message under load; the
+/// frames from there on cannot be reproduced from the log.
+struct MissingInput {
+  std::string channel;
+  std::int64_t seq = -1, frame = -1;
+};
+
+std::optional<MissingInput> FirstMissingInput(const std::vector<Input>& inputs,
+                                              const std::map<std::int64_t, RecordedFrame>& frames) {
+  std::map<std::string, std::set<std::int64_t>> logged;
+  for (const Input& input : inputs) logged[input.channel].insert(input.seq);
+  std::map<std::string, std::int64_t> previous;
+  for (const auto& [number, frame] : frames) {
+    for (const std::string& channel :
+         {bus::kGrabChannel, bus::kCommandChannel, bus::kHapticCommandChannel}) {
+      const std::int64_t bound = BoundFor(frame, channel);
+      const auto before = previous.find(channel);
+      const bool newly_taken = before == previous.end() || bound != before->second;
+      previous[channel] = bound;
+      if (newly_taken && bound >= 0 && !logged[channel].contains(bound)) {
+        return MissingInput{channel, bound, number};
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+/// Exit status when frames differ after an input the log lacks (FirstMissingInput).
+constexpr int kIncompleteLog = 3;
+
 struct Options {
   std::string log, scene_file, builtin = "garment";
   /// The live server's acceptance window (bus::ReceivePolicy's defaults) [µs].
@@ -195,7 +233,17 @@ int Replay(const Options& options) {
               identical);
   if (first_difference >= 0) std::printf(", first difference at frame %lld", static_cast<long long>(first_difference));
   std::printf("\n");
-  return compared > 0 && identical == compared ? 0 : 1;
+  if (compared > 0 && identical == compared) return 0;
+  if (const std::optional<MissingInput> missing = FirstMissingInput(inputs, recorded);
+      missing && (first_difference < 0 || missing->frame <= first_difference)) {
+    std::printf("replay: the log lacks %s seq %lld, which the live server had taken in by frame "
+                "%lld: lcm-logger missed it, and the frames from there on cannot be reproduced "
+                "from this log\n",
+                missing->channel.c_str(), static_cast<long long>(missing->seq),
+                static_cast<long long>(missing->frame));
+    return kIncompleteLog;
+  }
+  return 1;
 }
 
 }  // namespace

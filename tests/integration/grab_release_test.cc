@@ -27,6 +27,8 @@
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
 #include "bus/typed_bus.h"
+#include <lcm/lcm-cpp.hpp>
+
 #include "lcm_types/costume_lcm/cloth_frame.hpp"
 #include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/feedback.hpp"
@@ -379,12 +381,38 @@ TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
   ASSERT_GE(run.positions.size(), 200u);
   EXPECT_EQ(run.positions.begin()->first, 1);
   EXPECT_EQ(run.positions.rbegin()->first, 240);
-  const std::string command = std::string(COSTUME_BUILD_DIR) + "/tools/replay " +
-                              (dir / "session.lcm").string() + " --scene " +
-                              (dir / "scene.toml").string();
-  const int status = std::system(command.c_str());
+  const auto replay = [&dir](const std::string& log) {
+    const std::string command = std::string(COSTUME_BUILD_DIR) + "/tools/replay " +
+                                (dir / log).string() + " --scene " + (dir / "scene.toml").string();
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  const int whole = replay("session.lcm");
+  // A log without grab seqs 400-499 (the hold, 1.4-1.9 s into the device's 4 s) lacks inputs
+  // the frames name: the replay must say so (exit 3), not only that the frames differ.
+  {
+    lcm::LogFile in((dir / "session.lcm").string(), "r");
+    lcm::LogFile out((dir / "cut.lcm").string(), "w");
+    ASSERT_TRUE(in.good() && out.good());
+    while (const lcm::LogEvent* event = in.readNextEvent()) {
+      costume_lcm::grab grab;
+      if (event->channel == bus::kGrabChannel &&
+          grab.decode(event->data, 0, event->datalen) == event->datalen && grab.seq >= 400 &&
+          grab.seq < 500) {
+        continue;
+      }
+      lcm::LogEvent copy = *event;
+      out.writeEvent(&copy);
+    }
+  }
+  const int cut = replay("cut.lcm");
   std::filesystem::remove_all(dir);
-  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 0) << command;
+  EXPECT_EQ(cut, 3) << "a log missing grabs the live server took in";
+  // The same, on the whole log: lcm-logger, a normal-priority process with its own socket,
+  // missed a message the server took in (seen once, with another test beside this one on an
+  // AddressSanitizer build). The replay cannot be judged then.
+  if (whole == 3) GTEST_SKIP() << "lcm-logger missed an input under load: replay not judged";
+  EXPECT_EQ(whole, 0);
 }
 
 // The safety case of issue 5: `kill -9` of the simulation server while the device holds a

@@ -44,6 +44,7 @@ using testing::InNetworkNamespace;
 using testing::kNeedsNetworkNamespace;
 using testing::Running;
 using testing::Spawn;
+using testing::TerminatedOnExit;
 using testing::Terminate;
 
 /// The drops one batch of bad traffic must add to a receiver's status, per channel.
@@ -170,7 +171,10 @@ TEST(MalformedTraffic, BothProcessesCountAndDropItKeepRunningAndStillGrab) {
   const std::string root = COSTUME_BUILD_DIR;
   const pid_t sim = Spawn({root + "/sim_core/app/costume_sim_server", "--scene",
                            (dir / "scene.toml").string(), "--editing"});
+  const TerminatedOnExit sim_guard(sim);
   listen(2.0);
+  // A loaded or sanitizer-built server needed more than 2 s for its first status: up to 30.
+  for (int waited = 0; sim_status.count == 0 && waited < 56; ++waited) listen(0.5);
   ASSERT_GT(sim_status.count, 0) << "the simulation server did not come up";
   const costume_lcm::status sim_before = sim_status.last;
   rest_z = watched_z;
@@ -204,7 +208,9 @@ TEST(MalformedTraffic, BothProcessesCountAndDropItKeepRunningAndStillGrab) {
   // ---- the haptic server's channels ----
   const pid_t haptic = Spawn({root + "/haptic_server/costume_haptic_server", "--device", "mouse",
                               "--radius", "0.05", "--priority", "0"});
+  const TerminatedOnExit haptic_guard(haptic);
   listen(2.0);
+  for (int waited = 0; haptic_status.count == 0 && waited < 56; ++waited) listen(0.5);
   ASSERT_GT(haptic_status.count, 0) << "the haptic server did not come up";
   const costume_lcm::status haptic_before = haptic_status.last;
   Drops to_haptic;

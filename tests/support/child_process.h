@@ -28,4 +28,19 @@ using process::Running;
 /// SIGTERM, then its exit status as Wait (−1 for a pid that never started).
 using process::Terminate;
 
+/// Terminates its child when the test leaves early (a failed ASSERT): a server left running
+/// holds ctest's output pipe, and ctest then waits for it until the test's timeout.
+class TerminatedOnExit {
+ public:
+  explicit TerminatedOnExit(pid_t pid) : pid_(pid) {}
+  TerminatedOnExit(const TerminatedOnExit&) = delete;
+  TerminatedOnExit& operator=(const TerminatedOnExit&) = delete;
+  ~TerminatedOnExit() {
+    if (pid_ > 0 && Running(pid_)) Terminate(pid_);
+  }
+
+ private:
+  pid_t pid_;
+};
+
 }  // namespace costume::testing
