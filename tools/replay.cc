@@ -267,6 +267,8 @@ int main(int argc, char** argv) {
                  "The live server's limit for utimes ahead of its clock [µs] (<= 0: off)")
       ->check(within_an_hour)
       ->capture_default_str();
+  app.footer("Exit status: 0 every recorded frame reproduced bit for bit; 1 frames differ; 3 frames "
+             "differ after an input the log lacks (lcm-logger missed it); 2 bad log or scene.");
   CLI11_PARSE(app, argc, argv);
   try {
     return Replay(options);

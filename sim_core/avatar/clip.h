@@ -41,9 +41,9 @@ struct Clip {
 };
 
 /// Validates a clip: throws InputError naming the clip, the field and the allowed range
-/// for no skeleton, no frames, frame_time outside [kMinFrameTime, kMaxFrameTime], a frame whose rotation count
-/// differs from the skeleton's joint count, non-finite values, a root translation beyond
-/// kMaxCoordinate.
+/// for no skeleton, no frames, frame_time outside [kMinFrameTime, kMaxFrameTime], a frame
+/// whose rotation count differs from the skeleton's joint count, non-finite values, a root
+/// translation beyond kMaxCoordinate.
 void ValidateClip(const Clip& clip);
 
 /// The clip's pose at time t [s] (any t; wrapped or held as `loops` says), interpolated

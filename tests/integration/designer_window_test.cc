@@ -243,8 +243,8 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
     overlay_clearance = std::max(overlay_clearance, drawn.cursor->size + 0.02);
   }
   // Heights from the cloth as drawn now: the grab and the edit have moved it since `before`,
-  // and a band placed from the old extent held the hem once, whose vertex lies on the mesh's
-  // edge, where a pixel may show the background (1 run in about 20).
+  // and a band placed from the old extent could hold the hem, whose vertices lie on the
+  // mesh's edge, where a pixel may show the background (a sample did, once in about 20 runs).
   float now_min = 1e9f, now_max = -1e9f;
   for (const auto& p : cloth) {
     now_min = std::min(now_min, p.y());

@@ -24,11 +24,11 @@
 #include <set>
 #include <thread>
 
+#include <lcm/lcm-cpp.hpp>
+
 #include "bus/channels.h"
 #include "bus/lcm_bus.h"
 #include "bus/typed_bus.h"
-#include <lcm/lcm-cpp.hpp>
-
 #include "lcm_types/costume_lcm/cloth_frame.hpp"
 #include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/feedback.hpp"
@@ -388,7 +388,7 @@ TEST(GrabRelease, ReplayOfARecordedSessionReproducesItsClothFramesBitForBit) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   };
   const int whole = replay("session.lcm");
-  // A log without grab seqs 400-499 (the hold, 1.4-1.9 s into the device's 4 s) lacks inputs
+  // A log without grab seqs 400-499 (sent while the device holds the cloth) lacks inputs
   // the frames name: the replay must say so (exit 3), not only that the frames differ.
   {
     lcm::LogFile in((dir / "session.lcm").string(), "r");
