@@ -145,7 +145,7 @@ constexpr Range kThicknessRange{0.0, sim::kMaxThickness, false, false};
 constexpr Range kFrictionRange{0.0, sim::kMaxFriction, false, false};
 constexpr Range kStiffnessRange{0.0, sim::kMaxStiffness, false, false};
 constexpr Range kFrameRateRange{1.0, 1000.0, false, false};
-constexpr Range kToleranceRange{0.0, 1.0, true, true};
+constexpr Range kToleranceRange{sim::kMinSolverTolerance, 1.0, false, true};
 constexpr Range kStrainLimitRange{0.0, 10.0, false, false};
 constexpr Range kPostureRange{-sim::kMaxPostureDegrees, sim::kMaxPostureDegrees, false, false};
 

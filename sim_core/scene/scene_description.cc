@@ -96,7 +96,7 @@ class Refuser {
 };
 
 void ValidateSolver(const SolverSettings& solver, const Refuser& refuser) {
-  refuser.RequireNumber("solver.tolerance", solver.tolerance, 0.0, 1.0, true, true, "");
+  refuser.RequireNumber("solver.tolerance", solver.tolerance, kMinSolverTolerance, 1.0, false, true, "");
   refuser.RequireInteger("solver.max_iterations", solver.max_iterations, 1, 100000);
   refuser.RequireInteger("solver.levels", solver.levels, 0, 16);
   refuser.RequireInteger("solver.substeps", solver.substeps, 1, kMaxSubsteps);

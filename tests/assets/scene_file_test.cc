@@ -280,7 +280,8 @@ TEST(ParseSceneText, StatesTheAllowedRangeOfEachField) {
   const Case cases[] = {
       {"duration = 4000", "duration = 4000 s", "(0, 3600]"},
       {"frame_rate = 0.5", "frame_rate = 0.5 Hz", "[1, 1000]"},
-      {"[solver]\ntolerance = 2", "solver.tolerance = 2", "(0, 1)"},
+      {"[solver]\ntolerance = 2", "solver.tolerance = 2", "[1e-12, 1)"},
+      {"[solver]\ntolerance = 1e-300", "solver.tolerance = 1e-300", "[1e-12, 1)"},
       {"[solver]\nmax_iterations = 0", "solver.max_iterations = 0", "[1, 100000]"},
       {"[solver]\nsubsteps = 5000", "solver.substeps = 5000", "[1, 1000]"},
       {"[[sphere]]\nradius = 0", "sphere[0].radius = 0 m", "(0, 10000]"},
@@ -795,7 +796,7 @@ TEST(ValidateScene, NamesTheSourceFieldAndRange) {
     sim::ValidateScene(scene);
     FAIL() << "accepted tolerance 2";
   } catch (const InputError& error) {
-    EXPECT_TRUE(Contains(error.what(), "built-in: solver.tolerance = 2: allowed range (0, 1)"));
+    EXPECT_TRUE(Contains(error.what(), "built-in: solver.tolerance = 2: allowed range [1e-12, 1)"));
   }
 }
 
