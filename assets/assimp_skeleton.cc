@@ -9,16 +9,11 @@
 #include <filesystem>
 #include <unordered_set>
 
+#include "assets/import_units.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::assets {
 namespace {
-
-std::string LowerExtension(const std::string& path) {
-  std::string extension = std::filesystem::path(path).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
-}
 
 /// A numeric metadata entry of the scene, if present.
 std::optional<double> MetadataNumber(const aiScene& scene, const char* key) {

@@ -13,6 +13,7 @@
 #include "assets/assimp_skeleton.h"
 #include "assets/bvh_import.h"
 #include "assets/deepmimic_import.h"
+#include "assets/import_units.h"
 #include "assets/skeleton_families.h"
 #include "sim_core/common/input_error.h"
 
@@ -26,12 +27,6 @@ constexpr double kLoopAngle = 10.0 * M_PI / 180.0;
 constexpr double kLoopDistance = 0.05;
 /// More frames than this is a damaged file or a wrong time unit, not a clip.
 constexpr double kMaxFrames = 1e6;
-
-std::string LowerExtension(const std::string& path) {
-  std::string extension = std::filesystem::path(path).extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
-}
 
 /// Index of the last key at or before `time` (0 if none is).
 template <typename Key>

@@ -1,6 +1,7 @@
 #include "assets/import_units.h"
 
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -59,6 +60,12 @@ std::string ReadWholeFile(const std::string& path, const std::string& what) {
   content << stream.rdbuf();
   if (stream.bad()) throw sim::InputError(path + ": cannot read the " + what + ": read error");
   return content.str();
+}
+
+std::string LowerExtension(const std::string& path) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return extension;
 }
 
 }  // namespace costume::assets

@@ -36,6 +36,10 @@ void ValidateScaleOption(const std::string& path, double scale);
 /// a regular file that can be opened.
 void RequireReadableFile(const std::string& path, const std::string& what);
 
+/// The file name's extension with its dot, in lower case ("model.GLB" -> ".glb"; "" for none):
+/// what the importers pick a format by.
+std::string LowerExtension(const std::string& path);
+
 /// The whole file as a string; throws sim::InputError naming `path` if it cannot be read.
 std::string ReadWholeFile(const std::string& path, const std::string& what);
 

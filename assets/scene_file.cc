@@ -553,12 +553,7 @@ auto ImportAt(const Field& field, const std::string& path, Load&& load) {
   }
 }
 
-bool IsMakeHumanGarment(const std::string& path) {
-  std::string extension = std::filesystem::path(path).extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return extension == ".mhclo";
-}
+bool IsMakeHumanGarment(const std::string& path) { return LowerExtension(path) == ".mhclo"; }
 
 /// [garment.mesh]: a mesh file through assimp, or a MakeHuman garment (.mhclo) fitted to the
 /// MakeHuman body `makehuman_body` (its base.obj; empty when the avatar is not MakeHuman's).

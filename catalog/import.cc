@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "assets/deepmimic_import.h"
+#include "assets/import_units.h"
 #include "assets/scene_file.h"
 #include "catalog/bundle.h"
 #include "catalog/catalog_loader.h"
@@ -40,7 +41,7 @@ std::string Lower(std::string text) {
 }
 
 std::string Extension(const fs::path& path) {
-  std::string extension = Lower(path.extension().string());
+  const std::string extension = assets::LowerExtension(path.string());
   return extension.empty() ? extension : extension.substr(1);
 }
 

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <sstream>
+#include <utility>
 
 #include <cstdio>
 #include <cstdlib>
@@ -66,6 +67,16 @@ double FractionMatching(const QImage& image, const render::Camera& camera,
     if (found) ++matching;
   }
   return inside == 0 ? 0.0 : static_cast<double>(matching) / inside;
+}
+
+/// The lowest and highest y of `points` [m].
+std::pair<float, float> HeightRange(const std::vector<Eigen::Vector3f>& points) {
+  float low = 1e9f, high = -1e9f;
+  for (const auto& p : points) {
+    low = std::min(low, p.y());
+    high = std::max(high, p.y());
+  }
+  return {low, high};
 }
 
 /// Centre of the avatar's head: the mean of the vertices within 12 cm of the top [m].
@@ -167,11 +178,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
 
   // Grab the skirt's front, at the particle nearest the camera at the middle of the skirt.
   const std::vector<Eigen::Vector3f> before = view.cloth_positions();
-  float y_min = 1e9f, y_max = -1e9f;
-  for (const auto& p : before) {
-    y_min = std::min(y_min, p.y());
-    y_max = std::max(y_max, p.y());
-  }
+  const auto [y_min, y_max] = HeightRange(before);
   const float y_mid = 0.5f * (y_min + y_max);
   int front = -1;
   double nearest = 1e9;
@@ -245,11 +252,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   // Heights from the cloth as drawn now: the grab and the edit have moved it since `before`,
   // and a band placed from the old extent could hold the hem, whose vertices lie on the
   // mesh's edge, where a pixel may show the background (a sample did, once in about 20 runs).
-  float now_min = 1e9f, now_max = -1e9f;
-  for (const auto& p : cloth) {
-    now_min = std::min(now_min, p.y());
-    now_max = std::max(now_max, p.y());
-  }
+  const auto [now_min, now_max] = HeightRange(cloth);
   std::vector<Eigen::Vector3d> skirt;
   for (float t : {0.3f, 0.5f, 0.75f}) {
     const float y = now_min + t * (now_max - now_min);

@@ -172,9 +172,12 @@ TEST(MalformedTraffic, BothProcessesCountAndDropItKeepRunningAndStillGrab) {
   const pid_t sim = Spawn({root + "/sim_core/app/costume_sim_server", "--scene",
                            (dir / "scene.toml").string(), "--editing"});
   const TerminatedOnExit sim_guard(sim);
-  listen(2.0);
-  // A loaded or sanitizer-built server needed more than 2 s for its first status: up to 30.
-  for (int waited = 0; sim_status.count == 0 && waited < 56; ++waited) listen(0.5);
+  // 2 s, then up to 30 for a first status: a loaded or sanitizer-built server needed more.
+  auto listen_until_status = [&listen](const StatusLog& log) {
+    listen(2.0);
+    for (int waited = 0; log.count == 0 && waited < 56; ++waited) listen(0.5);
+  };
+  listen_until_status(sim_status);
   ASSERT_GT(sim_status.count, 0) << "the simulation server did not come up";
   const costume_lcm::status sim_before = sim_status.last;
   rest_z = watched_z;
@@ -209,8 +212,7 @@ TEST(MalformedTraffic, BothProcessesCountAndDropItKeepRunningAndStillGrab) {
   const pid_t haptic = Spawn({root + "/haptic_server/costume_haptic_server", "--device", "mouse",
                               "--radius", "0.05", "--priority", "0"});
   const TerminatedOnExit haptic_guard(haptic);
-  listen(2.0);
-  for (int waited = 0; haptic_status.count == 0 && waited < 56; ++waited) listen(0.5);
+  listen_until_status(haptic_status);
   ASSERT_GT(haptic_status.count, 0) << "the haptic server did not come up";
   const costume_lcm::status haptic_before = haptic_status.last;
   Drops to_haptic;
