@@ -13,6 +13,7 @@
 #include "assets/import_units.h"
 #include "assets/skeleton_families.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/scene/garment_fit.h"
 
 namespace costume::assets {
 namespace {
@@ -392,6 +393,14 @@ Eigen::Vector3d FitRow(const std::string& where, const std::vector<std::string>&
   return position;
 }
 
+/// The word after "obj_file" on a .mhclo line; empty for other lines.
+std::string ObjFileOf(const std::string& line) {
+  std::istringstream split(line);
+  std::string key, name, extra;
+  if (!(split >> key >> name) || key != "obj_file" || (split >> extra)) return "";
+  return name;
+}
+
 MhcloFit ReadMhclo(const std::string& path, const ObjMesh& body) {
   std::istringstream stream(ReadWholeFile(path, "MakeHuman clothes file"));
   MhcloFit fit;
@@ -423,8 +432,8 @@ MhcloFit ReadMhclo(const std::string& path, const ObjMesh& body) {
                          sim::FormatValue(size) + ", reference " + sim::FormatValue(reference) + ")");
       }
       fit.axis_scale[axis] = size / reference;
-    } else if (words[0] == "obj_file" && words.size() == 2) {
-      fit.obj_file = words[1];
+    } else if (const std::string obj = ObjFileOf(line); !obj.empty()) {
+      fit.obj_file = obj;
     }
   }
   if (fit.obj_file.empty()) throw InputError(path + ": missing 'obj_file' line");
@@ -452,6 +461,30 @@ sim::SurfaceMesh LoadMakeHumanGarment(const std::string& mhclo_path, const ObjMe
     mesh.vertices.row(static_cast<Eigen::Index>(v)) = scale * fit.positions[v].transpose();
   }
   return mesh;
+}
+
+std::string MakeHumanGarmentObjFile(const std::string& mhclo_path) {
+  std::istringstream stream(ReadWholeFile(mhclo_path, "MakeHuman clothes file"));
+  for (std::string line; std::getline(stream, line);) {
+    if (std::string obj = ObjFileOf(line); !obj.empty()) return obj;
+  }
+  throw InputError(mhclo_path + ": missing 'obj_file' line");
+}
+
+sim::GarmentSpec MakeHumanGarmentSpec(const std::string& mhclo_path, const ObjMesh& body,
+                                      const sim::Skeleton& skeleton) {
+  const int vl5 = skeleton.Find(sim::HAnimJoint::kVl5);
+  if (vl5 < 0) {
+    throw InputError(mhclo_path + ": the MakeHuman skeleton has no joint mapped onto vl5 "
+                     "(the waist its waistband is held at)");
+  }
+  sim::GarmentSpec garment;
+  garment.mesh = sim::WeldShortEdges(LoadMakeHumanGarment(mhclo_path, body), kMakeHumanGarmentWeld);
+  const double waist = skeleton.rest_world()[vl5].translation().y();
+  garment.pin_points = sim::WaistbandPoints(*garment.mesh, waist, kMakeHumanWaistband);
+  if (!garment.pin_points.empty()) garment.attach_to = sim::HAnimJoint::kSacroiliac;
+  garment.fit_outside_body = true;
+  return garment;
 }
 
 }  // namespace costume::assets

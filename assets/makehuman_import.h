@@ -11,6 +11,7 @@
 
 #include "sim_core/avatar/avatar.h"
 #include "sim_core/cloth/mesh_cloth.h"
+#include "sim_core/scene/scene_description.h"
 
 namespace costume::assets {
 
@@ -71,5 +72,29 @@ std::shared_ptr<const sim::Avatar> LoadMakeHumanAvatar(const std::string& obj_pa
 /// what ReadObj refuses.
 sim::SurfaceMesh LoadMakeHumanGarment(const std::string& mhclo_path, const ObjMesh& body,
                                       double scale = 0.1);
+
+/// The garment OBJ a .mhclo names on its `obj_file` line, as written there (MakeHuman's
+/// files name a plain file beside the .mhclo). Throws sim::InputError naming the .mhclo
+/// when it cannot be read or has no such line.
+std::string MakeHumanGarmentObjFile(const std::string& mhclo_path);
+
+/// Open boundary loops within this of the waist (the vl5 joint's height at rest) are a
+/// MakeHuman garment's waistband [m]: the shorts' and trousers' tops on MakeHuman's body.
+inline constexpr double kMakeHumanWaistband = 0.08;
+/// MakeHuman garments' rolled hems are strips of 0.5 mm edges and the fit leaves slivers:
+/// edges shorter than this are welded [m], or their particles of a few milligrams would need
+/// a step of 2 ms.
+inline constexpr double kMakeHumanGarmentWeld = 0.005;
+
+/// A MakeHuman garment ready to simulate, as the catalogue and collision_bench use it:
+/// fitted to `body` (LoadMakeHumanGarment, MakeHuman's scale), welded below
+/// kMakeHumanGarmentWeld, its waistband at `skeleton`'s vl5 (MakeHuman's skeleton on that
+/// body, in metres) pinned and held by the pelvis (sacroiliac), and moved out of the
+/// avatar's skin when the cloth is built (fit_outside_body). A garment with no open loop at
+/// the waist (a dress worn from the shoulders) gets no pins. Name and material are left for
+/// the caller. Throws sim::InputError for what LoadMakeHumanGarment refuses and for a
+/// skeleton without vl5.
+sim::GarmentSpec MakeHumanGarmentSpec(const std::string& mhclo_path, const ObjMesh& body,
+                                      const sim::Skeleton& skeleton);
 
 }  // namespace costume::assets

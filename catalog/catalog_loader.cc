@@ -7,6 +7,7 @@
 #include "assets/avatar_import.h"
 #include "assets/clip_import.h"
 #include "assets/edited_garment.h"
+#include "assets/import_units.h"
 #include "assets/makehuman_import.h"
 #include "assets/scene_file.h"
 #include "catalog/bundle.h"
@@ -183,6 +184,35 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
                         "fbx, dae, deepmimic");
 }
 
+/// A "makehuman-garment" bundle's garment (catalog_loader.h), fitted as MakeHuman fits it
+/// and made for the MakeHuman body of the bundle.
+sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::string& what) {
+  TempDir dir;
+  std::string mhclo, body, skeleton, weights;
+  for (const BundleFile& file : UnpackBundle(data.bytes, what)) {
+    // Messages name the .mhclo as the entry itself, the others as its parts.
+    const bool main = assets::LowerExtension(file.name) == ".mhclo";
+    const std::string path = dir.Write(file.name, file.bytes, main ? what : what + " (" + file.name + ")");
+    if (main) mhclo = path;
+    if (file.name == kMakeHumanBodyMember) body = path;
+    if (file.name == kMakeHumanSkeletonMember) skeleton = path;
+    if (file.name == kMakeHumanWeightsMember) weights = path;
+  }
+  if (mhclo.empty() || body.empty() || skeleton.empty() || weights.empty()) {
+    throw sim::InputError(what + ": the bundle needs a .mhclo, " + kMakeHumanBodyMember + ", " +
+                          kMakeHumanSkeletonMember + " and " + kMakeHumanWeightsMember);
+  }
+  return dir.Guard([&] {
+    assets::MakeHumanImportOptions options;
+    options.name = "MakeHuman's base.obj";
+    auto avatar = assets::LoadMakeHumanAvatar(body, skeleton, weights, options);
+    sim::GarmentSpec garment =
+        assets::MakeHumanGarmentSpec(mhclo, assets::ReadObj(body), avatar->skeleton());
+    garment.made_for = std::move(avatar);
+    return garment;
+  });
+}
+
 sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
                                  const std::string& what) {
   sim::GarmentSpec spec;
@@ -212,10 +242,12 @@ sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
                             std::to_string(scene.garments.size()));
     }
     spec = scene.garments.front();
+  } else if (data.format == "makehuman-garment") {
+    spec = MakeHumanGarmentFromBundle(data, what);
   } else {
     throw sim::InputError(what + ": format '" + data.format +
                           "' is not a garment format: allowed are builtin, garment-toml, "
-                          "edited-garment");
+                          "makehuman-garment, edited-garment");
   }
   spec.name = name;
   spec.material = name + "_fabric";
@@ -309,11 +341,12 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
       sim::SceneDescription scene;
       scene.name = name;
       scene.source = what;
+      sim::GarmentSpec garment = GarmentFromData(name, data, what);
       sim::AvatarSpec avatar;
-      avatar.avatar = sim::MakeHumanoid();
+      // A garment made for one body (MakeHuman's) is shown on it.
+      avatar.avatar = garment.made_for ? garment.made_for : sim::MakeHumanoid();
       request.avatar = avatar.avatar;
       scene.avatar = avatar;
-      sim::GarmentSpec garment = GarmentFromData(name, data, what);
       if (garment.pattern) request.pattern = *garment.pattern;
       scene.materials.push_back(MaterialFromFabric(fabric, garment.material));
       scene.garments.push_back(std::move(garment));

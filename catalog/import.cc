@@ -11,6 +11,7 @@
 
 #include "assets/deepmimic_import.h"
 #include "assets/import_units.h"
+#include "assets/makehuman_import.h"
 #include "assets/scene_file.h"
 #include "catalog/bundle.h"
 #include "catalog/catalog_loader.h"
@@ -93,6 +94,61 @@ AssetData GarmentTomlData(const fs::path& root, const fs::path& path, const std:
                       {plain, ReadBytes(mesh, shown + " (mesh " + mesh_name + ")")}})};
 }
 
+/// `file` resolved inside the root, for the part `part` of the entry of `shown`; a refusal
+/// names both, and the option that gives the file.
+fs::path ResolvePart(const fs::path& root, const std::string& file, const std::string& shown,
+                     const std::string& part, const std::string& option) {
+  try {
+    return ResolveInsideRoot(root, file);
+  } catch (const sim::InputError& error) {
+    throw sim::InputError(shown + ": " + part + ": " + error.what() + " (give it with " + option +
+                          ")");
+  }
+}
+
+/// A MakeHuman garment (.mhclo), the garment OBJ its obj_file line names beside it, and the
+/// MakeHuman body it is fitted to (base.obj, skeleton, skin weights), bundled
+/// (catalog_loader.h). The body is `request.makehuman_body`, else <garment
+/// folder>/../../body/base.obj (the layout of ../shared/data/makehuman); its skeleton and
+/// weights are the request's, else default.mhskel and default_weights.mhw beside the body.
+AssetData MakeHumanGarmentData(const fs::path& root, const ImportRequest& request,
+                               const fs::path& path, const std::string& shown) {
+  const std::vector<std::uint8_t> mhclo = ReadBytes(path, shown);
+  std::string obj_name;
+  try {
+    obj_name = assets::MakeHumanGarmentObjFile(path.string());
+  } catch (const sim::InputError&) {
+    throw sim::InputError(shown + ": missing 'obj_file' line (the garment OBJ it is made of)");
+  }
+  if (fs::path(obj_name).filename() != obj_name || obj_name == "." || obj_name == ".." ||
+      obj_name == kMakeHumanBodyMember) {
+    throw sim::InputError(shown + ": obj_file '" + obj_name +
+                          "' must name a file beside it (a plain file name)");
+  }
+  const fs::path obj = ResolvePart(root, (path.parent_path() / obj_name).string(), shown,
+                                   "its garment OBJ", "its obj_file line");
+  const fs::path body = ResolvePart(
+      root,
+      request.makehuman_body.empty() ? (path.parent_path() / ".." / ".." / "body" / "base.obj").string()
+                                     : request.makehuman_body,
+      shown, "the MakeHuman body it is fitted to", "--makehuman-body");
+  auto beside_body = [&](const std::string& given, const char* name) {
+    return given.empty() ? (body.parent_path() / name).string() : given;
+  };
+  const fs::path skeleton =
+      ResolvePart(root, beside_body(request.makehuman_skeleton, "default.mhskel"), shown,
+                  "the MakeHuman body's skeleton", "--makehuman-skeleton");
+  const fs::path weights =
+      ResolvePart(root, beside_body(request.makehuman_weights, "default_weights.mhw"), shown,
+                  "the MakeHuman body's skin weights", "--makehuman-weights");
+  return {"makehuman-garment",
+          PackBundle({{path.filename().string(), mhclo},
+                      {obj_name, ReadBytes(obj, shown + " (its garment OBJ)")},
+                      {kMakeHumanBodyMember, ReadBytes(body, body.string())},
+                      {kMakeHumanSkeletonMember, ReadBytes(skeleton, skeleton.string())},
+                      {kMakeHumanWeightsMember, ReadBytes(weights, weights.string())}})};
+}
+
 /// The fabric a garment file defines: its garment's material when the file defines it, else
 /// a built-in material of that name.
 FabricParameters FabricOfGarmentFile(const fs::path& path) {
@@ -103,6 +159,17 @@ FabricParameters FabricOfGarmentFile(const fs::path& path) {
     if (m.name == garment.material) return FabricFromMaterial(m);
   }
   return FabricFromMaterial(sim::NamedMaterial(garment.material));
+}
+
+/// A garment's fabric: the request's preset, else the garment file's material; a MakeHuman
+/// garment gets the built-in garments' cotton, which its welded hems' slivers bear at one
+/// step a frame (collision_bench simulates them in it); the presets' KES-F cottons are about
+/// 30 times as stiff.
+FabricParameters DefaultFabric(const Candidate& c, const ImportRequest& request) {
+  if (!request.fabric_preset.empty()) return FindFabricPreset(request.fabric_preset).fabric;
+  if (c.entry.data.format == "garment-toml") return FabricOfGarmentFile(c.path);
+  if (c.entry.data.format == "makehuman-garment") return BuiltInGarmentFabric();
+  return FabricParameters{};
 }
 
 /// The candidates of the request, before loading: files grouped into entries, bytes read.
@@ -176,7 +243,8 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                                    ? ".glb, .gltf, .fbx, .dae, .obj, MakeHuman's .obj+.mhskel+.mhw"
                                : request.kind == Kind::kAnimation
                                    ? ".bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json"
-                                   : ".toml (one [[garment]]), .cdgarment (edited garment)"));
+                                   : ".toml (one [[garment]]), MakeHuman's .mhclo, .cdgarment "
+                                     "(edited garment)"));
       }
       if (format == "deepmimic") {
         // Resolved from the real motion path (a symbolic link on the way is followed), named
@@ -201,6 +269,8 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                         {"character.txt", ReadBytes(character, shown + " (character file)")}})};
       } else if (format == "garment-toml") {
         c.entry.data = GarmentTomlData(root, path, shown);
+      } else if (format == "makehuman-garment") {
+        c.entry.data = MakeHumanGarmentData(root, request, path, shown);
       } else {
         c.entry.data = {format, ReadBytes(path, shown)};
       }
@@ -230,6 +300,7 @@ std::string FormatOfExtension(Kind kind, const std::string& extension) {
       break;
     case Kind::kGarment:
       if (e == "toml") return "garment-toml";
+      if (e == "mhclo") return "makehuman-garment";
       if (e == "cdgarment") return "edited-garment";
       break;
   }
@@ -329,10 +400,7 @@ std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& req
     try {
       if (c.entry.kind == Kind::kAnimation && c.entry.category.empty()) c.entry.category = "basic";
       if (c.entry.kind == Kind::kGarment) {
-        c.entry.fabric = !request.fabric_preset.empty()
-                             ? FindFabricPreset(request.fabric_preset).fabric
-                         : c.entry.data.format == "garment-toml" ? FabricOfGarmentFile(c.path)
-                                                                 : FabricParameters{};
+        c.entry.fabric = DefaultFabric(c, request);
       }
       std::optional<ThumbnailRequest> thumbnail = CheckCandidate(c, request);
       progress << " loaded in " << std::fixed << std::setprecision(1) << SecondsSince(start) << " s"

@@ -28,7 +28,8 @@ struct ImportRequest {
   /// Animations: .bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json (its character file is
   /// `character`, else <motion folder>/../characters/humanoid3d.txt). Garments: .toml (a
   /// scene file with one [[garment]]; a mesh file it names is stored with it) or .cdgarment
-  /// (an edited garment, assets/edited_garment.h).
+  /// (an edited garment, assets/edited_garment.h) or MakeHuman's .mhclo (stored with its
+  /// garment OBJ and the body it is fitted to: makehuman_body and the two below).
   std::vector<std::string> files;
   /// Entry name (only with one entry); empty: the file name without extension.
   std::string name;
@@ -41,6 +42,12 @@ struct ImportRequest {
   std::string fabric_preset;
   /// DeepMimic clips: the character file (inside the root).
   std::string character;
+  /// MakeHuman garments: the body they are fitted to (base.obj; default <garment
+  /// folder>/../../body/base.obj), its skeleton and skin weights (default default.mhskel and
+  /// default_weights.mhw beside the body), all inside the root.
+  std::string makehuman_body;
+  std::string makehuman_skeleton;
+  std::string makehuman_weights;
   /// Garments: the first version's label.
   std::string label = "initial";
   /// Thumbnails (none when empty).

@@ -116,17 +116,9 @@ sim::SceneDescription MakeHumanGarmentScene(std::shared_ptr<const sim::Avatar> b
                                             const assets::ObjMesh& base_obj,
                                             const std::filesystem::path& mhclo, const Options& options) {
   sim::SceneDescription scene = GarmentScene(body, clip, method, options);
-  sim::GarmentSpec garment;
+  sim::GarmentSpec garment = assets::MakeHumanGarmentSpec(mhclo.string(), base_obj, body->skeleton());
   garment.name = options.makehuman_garment;
   garment.material = scene.materials[0].name;
-  // Its rolled hems are strips of 0.5 mm edges, and the fit leaves slivers: welded at 5 mm,
-  // or their microgram particles would need a step of 2 ms.
-  garment.mesh = sim::WeldShortEdges(assets::LoadMakeHumanGarment(mhclo.string(), base_obj), 0.005);
-  const sim::Skeleton& skeleton = body->skeleton();
-  const double waist = skeleton.rest_world()[skeleton.Find(sim::HAnimJoint::kVl5)].translation().y();
-  garment.pin_points = sim::WaistbandPoints(*garment.mesh, waist, 0.08);
-  garment.attach_to = sim::HAnimJoint::kSacroiliac;
-  garment.fit_outside_body = true;
   scene.garments = {garment};
   return scene;
 }

@@ -145,7 +145,8 @@ int main(int argc, char** argv) {
                    "the import folder: every file must lie inside it (no '..' or symbolic "
                    "links leading out)")
       ->required();
-  import->add_option("files", request.files, "files to import (MakeHuman: .obj .mhskel .mhw)")
+  import->add_option("files", request.files,
+                     "files to import (MakeHuman avatar: .obj .mhskel .mhw together; garment: .mhclo)")
       ->required();
   import->add_option("--name", request.name, "entry name (one entry only; default: file stem)");
   import->add_option("--category", request.category,
@@ -159,6 +160,15 @@ int main(int argc, char** argv) {
   import->add_option("--character", request.character,
                      "DeepMimic clips: the character file (default: "
                      "<motion folder>/../characters/humanoid3d.txt)");
+  import->add_option("--makehuman-body", request.makehuman_body,
+                     "MakeHuman garments (.mhclo): the body they are fitted to (default: "
+                     "<garment folder>/../../body/base.obj)");
+  import->add_option("--makehuman-skeleton", request.makehuman_skeleton,
+                     "MakeHuman garments: the body's skeleton, whose waist holds the "
+                     "waistband (default: default.mhskel beside the body)");
+  import->add_option("--makehuman-weights", request.makehuman_weights,
+                     "MakeHuman garments: the body's skin weights (default: "
+                     "default_weights.mhw beside the body)");
   import->add_option("--label", request.label, "garments: the first version's label")
       ->capture_default_str();
   std::uint64_t check_memory_mb = costume::catalog::ImportRequest::kDefaultCheckMemoryMb;

@@ -95,6 +95,12 @@ Avatar::Avatar(AvatarData data) : data_(std::move(data)) {
   }
 }
 
+bool SameRestSkin(const Avatar& a, const Avatar& b) {
+  constexpr double kTolerance = 1e-6;  // [m]: an importer's rounding, not another body
+  return a.num_vertices() == b.num_vertices() &&
+         (a.rest_vertices() - b.rest_vertices()).cwiseAbs().maxCoeff() <= kTolerance;
+}
+
 void SkinVertices(const Avatar& avatar, const std::vector<Eigen::Isometry3d>& joint_world,
                   std::vector<Eigen::Isometry3d>& skinning, Points& vertices) {
   const std::vector<Eigen::Isometry3d>& inverse_bind = avatar.inverse_bind();

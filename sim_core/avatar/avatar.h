@@ -61,6 +61,10 @@ class Avatar {
   std::vector<Eigen::Isometry3d> inverse_bind_;
 };
 
+/// Whether `a` and `b` have the same skin at rest: as many vertices, each within 1 µm (two
+/// avatars imported from the same body file).
+bool SameRestSkin(const Avatar& a, const Avatar& b);
+
 /// Linear blend skinning: the vertices of `avatar` for joint frames `joint_world` (from
 /// ComputeJointWorld) into `vertices` (resized to n×3). `skinning` is scratch for the
 /// per-joint skinning transforms. Never throws; allocates only if `vertices` or `skinning`

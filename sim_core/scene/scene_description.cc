@@ -231,6 +231,16 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
   const AvatarSpec& avatar = *scene.avatar;
   const Refuser refuser = scene_refuser.AtLine(avatar.source_line);
   if (!avatar.avatar) refuser.Refuse("avatar", "none", "the avatar was not loaded");
+  for (std::size_t i = 0; i < scene.garments.size(); ++i) {
+    const GarmentSpec& garment = scene.garments[i];
+    if (garment.made_for && !SameRestSkin(*avatar.avatar, *garment.made_for)) {
+      scene_refuser.AtLine(garment.source_line)
+          .Refuse("garment[" + std::to_string(i) + "]", Quote(garment.name),
+                  "is modelled on the body '" + garment.made_for->name() +
+                      "' and fits no other avatar; the avatar '" + avatar.avatar->name() +
+                      "' has another skin: choose an avatar imported from that body");
+    }
+  }
   refuser.RequireNumber("avatar.thickness", avatar.thickness, 0.0, kMaxThickness, false, false,
                         "m");
   refuser.RequireNumber("avatar.friction", avatar.friction, 0.0, kMaxFriction, false, false, "");

@@ -86,6 +86,11 @@ struct GarmentSpec {
   /// are those of the moved mesh; pin points are matched on the mesh as given. Needs a mesh
   /// and an avatar whose surface is closed. Off: the mesh is used as it is.
   bool fit_outside_body = false;
+  /// A mesh garment modelled on one body (a MakeHuman garment fitted to the MakeHuman body
+  /// it came with): worn only by an avatar with that body's rest skin (SameRestSkin), which
+  /// ValidateScene checks. Moved out of another body, the suits' welded hems became springs
+  /// too stiff for any step. Null: any avatar.
+  std::shared_ptr<const Avatar> made_for;
   /// Line of the garment's table in the scene file (0 when not from a file), for messages.
   int source_line = 0;
 };

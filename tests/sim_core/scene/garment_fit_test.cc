@@ -13,6 +13,7 @@
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
+#include "sim_core/common/input_error.h"
 #include "sim_core/common/percentile.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
@@ -127,16 +128,10 @@ SuitRun RunSuit(bool fit, double walk_seconds,
   cotton.bending_rigidity = 5e-6;
   cotton.friction = 0.5;  // as scenes/garment.toml's skirt_cotton
   scene.materials.push_back(cotton);
-  GarmentSpec suit;
+  GarmentSpec suit = assets::MakeHumanGarmentSpec(
+      (mh / "clothes" / garment / (garment + ".mhclo")).string(), obj, body->skeleton());
   suit.name = garment;
   suit.material = cotton.name;
-  suit.mesh = WeldShortEdges(
-      assets::LoadMakeHumanGarment((mh / "clothes" / garment / (garment + ".mhclo")).string(), obj),
-      0.005);
-  const Skeleton& skeleton = body->skeleton();
-  const double waist = skeleton.rest_world()[skeleton.Find(HAnimJoint::kVl5)].translation().y();
-  suit.pin_points = WaistbandPoints(*suit.mesh, waist, 0.08);
-  suit.attach_to = HAnimJoint::kSacroiliac;
   suit.fit_outside_body = fit;
   scene.garments.push_back(suit);
 
@@ -173,6 +168,37 @@ SuitRun RunSuit(bool fit, double walk_seconds,
                                                    static_cast<std::int64_t>(walk_strains.size()), 0.5);
   }
   return run;
+}
+
+// A garment made for one body (GarmentSpec::made_for) is refused on an avatar whose skin
+// differs by 1 mm at one vertex, and taken on another avatar with the same skin.
+TEST(GarmentFit, AGarmentMadeForOneBodyIsWornByThatBodyOnly) {
+  const auto humanoid = MakeHumanoid();
+  AvatarData moved = humanoid->data();
+  moved.name = "moved humanoid";
+  moved.rest_vertices(0, 1) += 0.001;
+  SceneDescription scene;
+  scene.source = "garment_fit_test";
+  scene.avatar.emplace();
+  scene.avatar->avatar = humanoid;
+  GarmentSpec skirt;
+  skirt.name = "skirt";
+  skirt.pattern = "skirt";
+  skirt.made_for = Avatar::Create(moved);
+  scene.garments.push_back(skirt);
+  try {
+    ValidateScene(scene);
+    ADD_FAILURE() << "a garment made for another body was taken";
+  } catch (const InputError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("garment_fit_test: garment[0] = \"skirt\": is modelled on the body "
+                           "'moved humanoid' and fits no other avatar; the avatar 'built-in "
+                           "humanoid' has another skin"),
+              std::string::npos)
+        << message;
+  }
+  scene.garments[0].made_for = MakeHumanoid();  // another avatar object, the same skin
+  EXPECT_NO_THROW(ValidateScene(scene));
 }
 
 // The suit as MakeHuman fits it (.mhclo) starts within the 4 mm shell at 817 of its 2,2xx
