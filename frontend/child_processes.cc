@@ -18,12 +18,16 @@ ChildProcesses::ChildProcesses(ServerOptions options, QObject* parent)
     : QObject(parent), options_(std::move(options)) {
   // A child gets SIGTERM when the GUI dies, however it dies (even SIGKILL): no server is left
   // running without the window that owns it.
-  for (QProcess* process : {&sim_, &haptic_, &thumbnails_}) {
+  for (QProcess* process : {&sim_, &haptic_, &thumbnails_, &import_}) {
     process->setChildProcessModifier([] { prctl(PR_SET_PDEATHSIG, SIGTERM); });
   }
   Forward(sim_, "sim_server");
   Forward(haptic_, "haptic_server");
   Forward(thumbnails_, "catalogue");
+  Forward(import_, "catalogue");
+  connect(&import_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
+    emit importFinished(status == QProcess::CrashExit ? -1 : code, import_output_);
+  });
   connect(&thumbnails_, &QProcess::finished, this, [this](int code, QProcess::ExitStatus status) {
     emit thumbnailsMade(status == QProcess::CrashExit ? -1 : code);
   });
@@ -60,6 +64,7 @@ void ChildProcesses::Forward(QProcess& process, const QString& name) {
     while (process.canReadLine()) {
       const QString line = QString::fromUtf8(process.readLine()).trimmed();
       if (&process == &haptic_) haptic_output_ += line + "\n";
+      if (&process == &import_) import_output_ += line + "\n";
       emit output(name, line);
     }
   });
@@ -165,6 +170,45 @@ bool ChildProcesses::MakeMissingThumbnails(QString* error) {
   return true;
 }
 
+bool ChildProcesses::ImportFiles(const QString& kind, const QString& root,
+                                 const QStringList& files, QString* error) {
+  if (importing()) {
+    if (error) *error = "an import is still running";
+    return false;
+  }
+  if (!QFileInfo(CatalogProgramPath()).isExecutable()) {
+    if (error) *error = "no catalogue program at " + CatalogProgramPath() + " (build it first)";
+    return false;
+  }
+  import_output_.clear();
+  import_.setProcessEnvironment(ChildEnvironment());
+  // "--": a file named like an option stays a file.
+  import_.start(CatalogProgramPath(),
+                QStringList{"import", "--kind", kind, "--root", root, "--"} + files);
+  if (!import_.waitForStarted(5000)) {
+    if (error) *error = "cannot start " + CatalogProgramPath() + ": " + import_.errorString();
+    return false;
+  }
+  return true;
+}
+
+QString ImportRoot(const QStringList& files) {
+  // Paths as text: QDir::cdUp refuses a parent that does not exist.
+  auto parent = [](const QString& path) { return QDir::cleanPath(path + "/.."); };
+  QString root;
+  for (const QString& file : files) {
+    QString path = QFileInfo(file).absolutePath();
+    if (file.endsWith(".mhclo", Qt::CaseInsensitive)) path = parent(parent(path));
+    if (root.isEmpty()) {
+      root = path;
+      continue;
+    }
+    // The deepest folder holding both: shorten the root until `path` lies inside it.
+    while (root != "/" && path != root && !path.startsWith(root + '/')) root = parent(root);
+  }
+  return root;
+}
+
 void ChildProcesses::Stop(QProcess& process) {
   if (process.state() == QProcess::NotRunning) return;
   process.terminate();  // SIGTERM: both servers stop cleanly (the grab fades out first)
@@ -184,6 +228,7 @@ void ChildProcesses::StopAll() {
   stopping_sim_ = true;
   Stop(sim_);
   Stop(thumbnails_);
+  Stop(import_);
 }
 
 }  // namespace costume::frontend

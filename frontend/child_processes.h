@@ -40,6 +40,12 @@ struct ServerOptions {
   bool editing = false;      ///< start the simulation server in mode B
 };
 
+/// The import folder (`costume-catalog import --root`) for files a designer picked in a
+/// file dialog: the deepest folder holding them all, raised for a MakeHuman garment (.mhclo)
+/// to two levels above its own folder, where MakeHuman's asset layout keeps the body it is
+/// fitted to (clothes/<name>/<name>.mhclo beside body/base.obj).
+QString ImportRoot(const QStringList& files);
+
 /// The device menu's devices, as `--device` names them.
 QStringList DeviceNames();
 /// Whether `device` reports in a frame of its own (a workspace scale and centre apply).
@@ -71,6 +77,13 @@ class ChildProcesses : public QObject {
   /// Starts `costume-catalog thumbnails` on the catalogue unless it is already running;
   /// thumbnailsMade follows when it ends. False with the reason in `*error`.
   bool MakeMissingThumbnails(QString* error = nullptr);
+  /// Starts `costume-catalog import --kind <kind> --root <root> <files>` on the catalogue
+  /// (one import at a time), which checks each file, renders its thumbnail and stores all
+  /// or none; its progress lines come as output("catalogue", …) and importFinished follows.
+  /// False with the reason in `*error`.
+  bool ImportFiles(const QString& kind, const QString& root, const QStringList& files,
+                   QString* error = nullptr);
+  bool importing() const { return import_.state() != QProcess::NotRunning; }
   /// The children's environment: the GUI's, with COSTUME_CATALOG set to `catalog_url` when
   /// one was given. The URL goes there, not on a command line, because a PostgreSQL URL may
   /// hold a password that `ps` would show every user of the machine.
@@ -97,6 +110,9 @@ class ChildProcesses : public QObject {
   void simServerExited(const QString& how);
   /// The thumbnails child ended (0: every thumbnail it could make is stored).
   void thumbnailsMade(int exit_code);
+  /// The import child ended: 0 when every file was imported (otherwise none was), with
+  /// everything it printed.
+  void importFinished(int exit_code, const QString& output);
 
  private:
   void Forward(QProcess& process, const QString& name);
@@ -106,8 +122,10 @@ class ChildProcesses : public QObject {
   QProcess sim_;
   QProcess haptic_;
   QProcess thumbnails_;
+  QProcess import_;
   QString device_;
   QString haptic_output_;
+  QString import_output_;
   bool stopping_haptic_ = false;
   bool stopping_sim_ = false;
 };

@@ -5,11 +5,13 @@
 #include <QDateTime>
 #include <QDir>
 #include <QDockWidget>
+#include <QFileDialog>
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QMenuBar>
 #include <QPainter>
 #include <QPixmap>
+#include <QRegularExpression>
 #include <QScrollArea>
 #include <QScrollBar>
 #include <QSignalBlocker>
@@ -29,6 +31,13 @@ namespace {
 using Status = costume_lcm::status;
 
 const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
+/// Per list: what `costume-catalog import --kind` calls its entries, and the files it reads
+/// (docs/catalog.md).
+const char* kImportKinds[3] = {"avatar", "garment", "animation"};
+const char* kImportFilters[3] = {
+    "Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhskel *.mhw)",
+    "Costumes (*.toml *.mhclo *.cdgarment)",
+    "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
 constexpr int kIdRole = Qt::UserRole;
 constexpr int kNameRole = Qt::UserRole + 1;
 /// A server whose status has not come for this long is shown as silent: each sends one a
@@ -201,6 +210,18 @@ void MainWindow::RefreshCatalogue() {
   thumbnails_tried_ = false;
   FillLists();
   MakeMissingThumbnails();
+}
+
+void MainWindow::ImportFiles(EntryKind kind, const QStringList& files) {
+  if (files.isEmpty()) return;
+  import_folder_ = QFileInfo(files.front()).absolutePath();
+  const QString root = ImportRoot(files);
+  QString error;
+  if (children_->ImportFiles(kImportKinds[static_cast<int>(kind)], root, files, &error)) {
+    Log(QString("catalogue: importing %1 file(s) from %2").arg(files.size()).arg(root));
+  } else {
+    Warn("catalogue: nothing imported: " + error);
+  }
 }
 
 void MainWindow::MakeMissingThumbnails() {
@@ -378,6 +399,21 @@ void MainWindow::BuildMenus() {
   refresh->setToolTip("List the catalogue's entries again (another program may have imported "
                       "some) and render the thumbnails they lack");
   connect(refresh, &QAction::triggered, this, [this] { RefreshCatalogue(); });
+  for (int k = 0; k < 3; ++k) {
+    const auto kind = static_cast<EntryKind>(k);
+    import_actions_[k] = file->addAction(QString("Import %1…").arg(QString(kListTitles[k]).toLower()));
+    import_actions_[k]->setEnabled(catalog_->IsDatabase());
+    import_actions_[k]->setToolTip(
+        catalog_->IsDatabase()
+            ? QString("Add files to the catalogue (MakeHuman's avatar: its .obj, .mhskel and .mhw together)")
+            : QString("This build has no catalogue database to import into"));
+    connect(import_actions_[k], &QAction::triggered, this, [this, kind, k] {
+      const QStringList files = QFileDialog::getOpenFileNames(
+          this, QString("Import %1").arg(QString(kListTitles[k]).toLower()), import_folder_,
+          kImportFilters[k]);
+      if (!files.isEmpty()) ImportFiles(kind, files);
+    });
+  }
   file->addSeparator();
   QAction* quit = file->addAction("Quit");
   connect(export_, &QAction::triggered, this, [this] { ToggleExport(); });
@@ -554,6 +590,22 @@ void MainWindow::ConnectSignals() {
           });
   connect(children_, &ChildProcesses::output, this,
           [this](const QString& process, const QString& line) { Log(process + ": " + line); });
+  connect(children_, &ChildProcesses::importFinished, this,
+          [this](int code, const QString& output) {
+            if (code == 0) {
+              Log("catalogue: imported");
+              RefreshCatalogue();
+              return;
+            }
+            // The program's refusal ("error: 1 problem; nothing was imported:" and a line per
+            // bad file naming what is wrong with it) follows its progress lines.
+            const qsizetype at =
+                output.indexOf(QRegularExpression("^error: ", QRegularExpression::MultilineOption));
+            const QString reason =
+                at >= 0 ? output.mid(at + 7).simplified()
+                        : QString("costume-catalog import exited with code %1, nothing imported").arg(code);
+            Warn("catalogue: " + reason);
+          });
   connect(children_, &ChildProcesses::simServerExited, this, [this](const QString& how) {
     sim_status_age_.invalidate();  // not silent: gone
     sim_label_->setText("sim: not running");

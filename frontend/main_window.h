@@ -123,6 +123,11 @@ class MainWindow : public QMainWindow {
   /// Starts the haptic server for `device`, a physical one with its workspace centred on the
   /// cloth at the scale field's value; errors go to the status bar.
   void ConnectDevice(const QString& device);
+  /// Imports `files` (picked in File → Import …) as entries of `kind` through a child
+  /// `costume-catalog import`: progress in the message log, then the lists filled again, or
+  /// the refusal (nothing imported) on the status bar.
+  void ImportFiles(EntryKind kind, const QStringList& files);
+  QAction* import_action(EntryKind kind) const { return import_actions_[static_cast<int>(kind)]; }
 
  public slots:
   void OnClothChunk(const costume_lcm::cloth_frame& chunk);
@@ -192,6 +197,8 @@ class MainWindow : public QMainWindow {
   bool lists_lack_thumbnails_ = false;
   /// The thumbnails child ended since the last refresh: what is still missing will not come.
   bool thumbnails_tried_ = false;
+  /// Where the import dialog opens: the folder of the last files imported.
+  QString import_folder_;
   /// Each server's warnings in its last status ("sim", "haptic").
   QHash<QString, QStringList> previous_warnings_;
   /// Since the designer last switched modes.
@@ -213,6 +220,7 @@ class MainWindow : public QMainWindow {
   QAction* pause_ = nullptr;
   QAction* stop_ = nullptr;
   QAction* export_ = nullptr;
+  QAction* import_actions_[3] = {nullptr, nullptr, nullptr};
   QAction* start_server_ = nullptr;
   QRadioButton* animation_mode_ = nullptr;
   QRadioButton* editing_mode_ = nullptr;

@@ -4,10 +4,10 @@
 // the view, and a mouse press on the cloth becomes a pointer sample.
 #include "frontend/main_window.h"
 
-#include <QTest>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <QTest>
 #include <filesystem>
 #include <fstream>
 
@@ -22,6 +22,8 @@
 
 namespace costume::frontend {
 namespace {
+
+using costume::testing::WaitFor;
 
 using Command = costume_lcm::command;
 
@@ -470,7 +472,8 @@ TEST_F(MainWindowTest, AStoppedServerIsReportedAndStartsAgain) {
   children.options().bin_dir = QString::fromStdString(bin.string());
   write_program("echo 'cannot allocate the cloth'; exit 3");
   window_->start_server_action()->trigger();
-  QTRY_VERIFY_WITH_TIMEOUT(window_->warning_label()->text().contains("exit code 3"), 10000);
+  ASSERT_TRUE(
+      WaitFor([&] { return window_->warning_label()->text().contains("exit code 3"); }, 10000));
   EXPECT_TRUE(window_->warning_label()->text().contains("Start server"));
   EXPECT_EQ(window_->sim_label()->text(), "sim: not running");
   EXPECT_TRUE(window_->message_log()->toPlainText().contains("cannot allocate the cloth"));
@@ -497,7 +500,8 @@ TEST_F(MainWindowTest, ASilentServerIsShownAsSilent) {
   EXPECT_TRUE(window_->sim_label()->text().contains("59.9 Hz"));
   QTest::qWait(1500);
   EXPECT_TRUE(window_->sim_label()->text().contains("59.9 Hz"));  // within a status period
-  QTRY_VERIFY_WITH_TIMEOUT(window_->sim_label()->text().contains("no status for 3 s"), 4000);
+  ASSERT_TRUE(
+      WaitFor([&] { return window_->sim_label()->text().contains("no status for 3 s"); }, 4000));
   EXPECT_TRUE(window_->haptic_label()->text().contains("no status yet"));  // never heard
   s.utime = bus::NowUtime();
   ASSERT_TRUE(bus::Publish(bus_, bus::kSimStatusChannel, s));
@@ -576,8 +580,8 @@ TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
   ASSERT_TRUE(children.options().workspace_centre);
   EXPECT_LT((*children.options().workspace_centre - centroid).norm(), 1e-9);
   EXPECT_TRUE(window_->message_log()->toPlainText().contains("workspace centred on the cloth"));
-  QTRY_VERIFY_WITH_TIMEOUT(!children.device_running(), 10000);
-  QTRY_VERIFY_WITH_TIMEOUT(window_->device_label()->text().contains("failed"), 5000);
+  ASSERT_TRUE(WaitFor([&] { return !children.device_running(); }, 10000));
+  ASSERT_TRUE(WaitFor([&] { return window_->device_label()->text().contains("failed"); }, 5000));
   EXPECT_TRUE(window_->message_log()->toPlainText().contains("openhaptics", Qt::CaseInsensitive))
       << window_->message_log()->toPlainText().toStdString();
 }
@@ -587,6 +591,8 @@ TEST_F(MainWindowTest, AnUnavailableDeviceShowsTheServersError) {
 
 namespace costume::frontend {
 namespace {
+
+using costume::testing::WaitFor;
 
 TEST_F(MainWindowTest, DragOnEmptySpaceOrbitsShiftDragPansWheelZooms) {
   ViewWidget& view = window_->view();
@@ -623,6 +629,8 @@ TEST_F(MainWindowTest, DragOnEmptySpaceOrbitsShiftDragPansWheelZooms) {
 
 namespace costume::frontend {
 namespace {
+
+using costume::testing::WaitFor;
 
 TEST(MainWindowLoads, TheViewFollowsALoadedCostumeOnceTheServerRunsIt) {
   costume::testing::TestApp();
@@ -706,6 +714,8 @@ TEST(MainWindowLoads, ALoadedSceneKeepsTheSettingsSentBeforeIt) {
 namespace costume::frontend {
 namespace {
 
+using costume::testing::WaitFor;
+
 // A catalogue without thumbnails (made with --no-thumbnails; a version the simulation server
 // saved) gets them from a child `costume-catalog thumbnails`, and the lists show them without
 // losing the designer's pick.
@@ -736,8 +746,8 @@ TEST(MainWindowCatalogue, MissingThumbnailsAreRenderedByAChildAndListed) {
   costumes->setCurrentItem(costumes->findItems("skirt", Qt::MatchExactly).at(0));
 
   window.StartChildren();
-  QTRY_VERIFY_WITH_TIMEOUT(window.message_log()->toPlainText().contains("thumbnails made"),
-                           60000);
+  ASSERT_TRUE(WaitFor(
+      [&] { return window.message_log()->toPlainText().contains("thumbnails made"); }, 60000));
   EXPECT_FALSE(window.lists_lack_thumbnails()) << window.message_log()->toPlainText().toStdString();
   EXPECT_FALSE(db->Thumbnail(skirt).empty());
   ASSERT_NE(costumes->currentItem(), nullptr);
@@ -748,13 +758,79 @@ TEST(MainWindowCatalogue, MissingThumbnailsAreRenderedByAChildAndListed) {
   db->SaveGarmentVersion(skirt, db->Data(skirt), "edited", {});
   EXPECT_TRUE(db->Thumbnail(skirt).empty());
   PublishSimWarnings(bus, {"command SAVE_VERSION: saved garment 'skirt' version 2 'edited'"});
-  QTRY_COMPARE_WITH_TIMEOUT(window.message_log()->toPlainText().count("thumbnails made"), 2,
-                            60000);
+  ASSERT_TRUE(WaitFor(
+      [&] { return window.message_log()->toPlainText().count("thumbnails made") == 2; }, 60000));
   EXPECT_FALSE(window.lists_lack_thumbnails());
   EXPECT_FALSE(db->Thumbnail(skirt).empty());
   EXPECT_EQ(costumes->currentItem()->text(), "skirt");
   db.reset();
   std::filesystem::remove_all(dir);
+}
+
+// File → Import …: the picked files go to a child `costume-catalog import`; what it stores is
+// listed, with its thumbnail. A bad file is refused with its name and what is wrong, in the
+// status bar's warning, and nothing of that batch is stored.
+TEST(MainWindowCatalogue, FilesImportedFromTheFileMenuAreListed) {
+  costume::testing::TestApp();
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("main_window_import_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "garments");
+  const std::string url = "sqlite:" + (dir / "c.sqlite").string();
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / "garments" / name) << text;
+    return QString::fromStdString((dir / "garments" / name).string());
+  };
+  const QString scarf = write("scarf.toml",
+                              "[[garment]]\nname = \"scarf\"\n[garment.panel]\n"
+                              "origin = [0, 1, 0]\nu_axis = [1, 0, 0]\nv_axis = [0, 0, 1]\n"
+                              "size = [0.2, 1.0]\nresolution = [5, 17]\n");
+  const QString bad = write("bad.toml",
+                            "[[garment]]\nname = \"bad\"\n[garment.panel]\n"
+                            "size = [-1, 1]\n");
+
+  bus::LcmBus bus("memq://");
+  FrontendOptions options;
+  options.builtin = "hang";
+  options.servers.bin_dir = COSTUME_BUILD_DIR;
+  options.servers.catalog_url = QString::fromStdString(url);
+  std::string warning;
+  MainWindow window(bus, options, OpenCatalogSource(url, &warning));
+  ASSERT_TRUE(warning.empty()) << warning;
+  if (!QFileInfo(window.children().CatalogProgramPath()).isExecutable()) {
+    GTEST_SKIP() << "costume-catalog not built";
+  }
+  ASSERT_TRUE(window.import_action(EntryKind::kCostume)->isEnabled());
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  const int listed = costumes->count();
+
+  window.ImportFiles(EntryKind::kCostume, {scarf, bad});
+  ASSERT_TRUE(
+      WaitFor([&] { return window.warning_label()->text().contains("nothing was imported"); },
+              60000))
+      << window.message_log()->toPlainText().toStdString();
+  const std::string refusal = window.warning_label()->text().toStdString();
+  EXPECT_NE(refusal.find("bad.toml"), std::string::npos) << refusal;
+  EXPECT_NE(refusal.find("size"), std::string::npos) << refusal;
+  EXPECT_EQ(costumes->count(), listed);
+
+  window.ImportFiles(EntryKind::kCostume, {scarf});
+  ASSERT_TRUE(WaitFor([&] { return costumes->count() == listed + 1; }, 60000));
+  const QList<QListWidgetItem*> found = costumes->findItems("scarf", Qt::MatchExactly);
+  ASSERT_EQ(found.size(), 1);
+  EXPECT_TRUE(window.message_log()->toPlainText().contains("catalogue: [1/1]"))
+      << window.message_log()->toPlainText().toStdString();  // the program's progress line
+  EXPECT_FALSE(window.lists_lack_thumbnails()) << "the import renders the scarf's thumbnail";
+  std::filesystem::remove_all(dir);
+}
+
+// The import folder holds every picked file, and a MakeHuman garment's body two levels up.
+TEST(ImportRoot, IsTheDeepestFolderHoldingThemAll) {
+  EXPECT_EQ(ImportRoot({"/data/a/x.bvh", "/data/a/y.bvh"}), "/data/a");
+  EXPECT_EQ(ImportRoot({"/data/a/x.bvh", "/data/ab/y.bvh"}), "/data");  // not "/data/a"
+  EXPECT_EQ(ImportRoot({"/data/a/b/x.bvh", "/data/a/y.bvh"}), "/data/a");
+  EXPECT_EQ(ImportRoot({"/mh/clothes/suit/suit.mhclo"}), "/mh");
+  EXPECT_EQ(ImportRoot({"/x/a.bvh", "/y/b.bvh"}), "/");
 }
 
 }  // namespace

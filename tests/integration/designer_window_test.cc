@@ -28,6 +28,7 @@ namespace costume::frontend {
 namespace {
 
 using costume::testing::InNetworkNamespace;
+using costume::testing::WaitFor;
 
 /// The colour at `pixel` of `image` as RGB in [0, 1].
 Eigen::Vector3f ColourAt(const QImage& image, const Eigen::Vector2d& pixel) {
@@ -147,15 +148,15 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
       << view.gl_info().toStdString();
 
   // 2 s of the walk after the 0.5 s fitting, exported as PNG frames from 1 s on.
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame().has_value(), 60000);
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 1.0, 120000);
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame().has_value(); }, 60000));
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame()->sim_time >= 1.0; }, 120000));
   const QString export_dir = QString(COSTUME_BUILD_DIR) + "/designer_window_export";
   QDir(export_dir).removeRecursively();
   ASSERT_TRUE(window.exporter().Start(export_dir));
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= 2.5, 120000);
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame()->sim_time >= 2.5; }, 120000));
   QSignalSpy video(&window.exporter(), &FrameExporter::videoDone);
   EXPECT_TRUE(window.exporter().Finish().contains("encoding animation.mp4"));
-  QTRY_COMPARE_WITH_TIMEOUT(video.count(), 1, 10000);
+  ASSERT_TRUE(WaitFor([&] { return video.count() == 1; }, 10000));
   EXPECT_TRUE(video.at(0).at(0).toString().startsWith("video written"));
   EXPECT_TRUE(QFileInfo(export_dir + "/animation.mp4").isFile());
   QFile args(export_dir + "/ffmpeg_args.txt");
@@ -172,7 +173,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
 
   // Mode B: the avatar stops, the cloth keeps simulating and takes grabs.
   window.editing_mode()->click();
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->editing, 10000);
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame()->editing; }, 10000));
   QTest::qWait(500);
   EXPECT_NEAR(window.mirror().avatar_time(), walked, 0.2);
 
@@ -207,7 +208,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
   // Hold for 1 s of simulated time, not wall time: a loaded machine simulates slower, and the
   // particle needs the simulated second to follow the pointer.
   const double held_from = window.last_frame()->sim_time;
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->sim_time >= held_from + 1.0, 60000);
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame()->sim_time >= held_from + 1.0; }, 60000));
   const Eigen::Vector3d pulled_to = *view.grab_point();
   const std::vector<Eigen::Vector3f> held = view.cloth_positions();
   QTest::mouseRelease(&view, Qt::LeftButton, Qt::NoModifier, at + QPoint(40, 0));
@@ -221,7 +222,7 @@ TEST(DesignerWindow, WalkGrabStretchAndScreenshot) {
 
   // "Eliminate stretch energy" at the grab: an edit the server can undo.
   window.stretch_button()->click();
-  QTRY_VERIFY_WITH_TIMEOUT(window.sim_label()->text().contains("undo 1"), 10000);
+  ASSERT_TRUE(WaitFor([&] { return window.sim_label()->text().contains("undo 1"); }, 10000));
   QTest::qWait(300);
 
   // The screenshot: the avatar's head and the skirt where the camera puts them.
@@ -317,8 +318,8 @@ TEST(DesignerWindow, DoubleClickingACostumeLoadsItOnTheServerAndInTheView) {
   window.StartBusThread();
   window.StartChildren();
   const int skirt = window.mirror().num_particles();
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame().has_value(), 60000);
-  QTRY_VERIFY_WITH_TIMEOUT(window.last_frame()->frame >= 30, 60000);
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame().has_value(); }, 60000));
+  ASSERT_TRUE(WaitFor([&] { return window.last_frame()->frame >= 30; }, 60000));
 
   QListWidget* costumes = window.list(EntryKind::kCostume);
   const QList<QListWidgetItem*> cape = costumes->findItems("cape", Qt::MatchExactly);
@@ -327,13 +328,20 @@ TEST(DesignerWindow, DoubleClickingACostumeLoadsItOnTheServerAndInTheView) {
   const QPoint at = costumes->visualItemRect(cape[0]).center();
   QTest::mouseClick(costumes->viewport(), Qt::LeftButton, Qt::NoModifier, at);
   QTest::mouseDClick(costumes->viewport(), Qt::LeftButton, Qt::NoModifier, at);
-  QTRY_VERIFY_WITH_TIMEOUT(window.pending_mirror() != nullptr ||
-                               window.mirror().num_particles() != skirt, 5000);
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        return window.pending_mirror() != nullptr || window.mirror().num_particles() != skirt;
+      },
+      5000));
   // The server rebuilds with the cape (a second or so) and its frames start again at 0.
-  QTRY_VERIFY_WITH_TIMEOUT(window.mirror().num_particles() != skirt, 60000);
+  ASSERT_TRUE(WaitFor([&] { return window.mirror().num_particles() != skirt; }, 60000));
   EXPECT_EQ(window.pending_mirror(), nullptr);
-  QTRY_VERIFY_WITH_TIMEOUT(static_cast<int>(window.view().cloth_positions().size()) ==
-                               window.mirror().num_particles(), 10000);
+  ASSERT_TRUE(WaitFor(
+      [&] {
+        return static_cast<int>(window.view().cloth_positions().size()) ==
+               window.mirror().num_particles();
+      },
+      10000));
   EXPECT_FALSE(window.message_log()->toPlainText().contains("refused"))
       << window.message_log()->toPlainText().toStdString();
   std::printf("cape loaded: %d particles (skirt %d)\n", window.mirror().num_particles(), skirt);

@@ -4,6 +4,7 @@
 /// unless the environment chose one (the Xvfb test sets DISPLAY and QT_QPA_PLATFORM=xcb).
 
 #include <QApplication>
+#include <QTest>
 #include <cstdlib>
 
 namespace costume::testing {
@@ -15,6 +16,15 @@ inline QApplication& TestApp() {
   if (!std::getenv("QT_QPA_PLATFORM")) setenv("QT_QPA_PLATFORM", "offscreen", 1);
   static QApplication* app = new QApplication(argc, argv);
   return *app;
+}
+
+/// Processes Qt events until `condition()` holds or `timeout_ms` pass; returns whether it
+/// holds. Use it inside ASSERT_TRUE or EXPECT_TRUE, never QtTest's QTRY_*, QVERIFY or
+/// QCOMPARE: outside a QtTest run those only return from the test function when they fail
+/// (after waiting twice the timeout more), and GoogleTest counts that as a pass.
+template <typename Condition>
+bool WaitFor(Condition condition, int timeout_ms) {
+  return QTest::qWaitFor(condition, timeout_ms);
 }
 
 }  // namespace costume::testing
