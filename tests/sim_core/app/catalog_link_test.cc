@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "bus/lcm_bus.h"
 #include "bus/typed_bus.h"
 #include "catalog/catalog_loader.h"
+#include "catalog/import.h"
 #include "sim_core/app/sim_server.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
@@ -229,6 +231,46 @@ TEST_F(CatalogLinkTest, AGarmentThatCannotBeFittedIsRefused) {
   EXPECT_EQ(server_->frame(), 3);
   EXPECT_EQ(server_->scene().garments[0].name, "sheet");
   EXPECT_TRUE(Warned("garment 'skirt'"));
+}
+
+// A MakeHuman suit from the catalogue is worn by the MakeHuman body it was imported with and
+// by no other avatar, whichever is loaded first; a refusal keeps what runs and says why.
+TEST_F(CatalogLinkTest, AMakeHumanSuitIsWornByItsBodyOnly) {
+  const fs::path data = ::costume::test::kSharedData;
+  const std::string suit = "makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo";
+  if (!fs::exists(data / suit)) GTEST_SKIP() << data / suit << " is absent";
+  auto import = [&](Kind kind, std::vector<std::string> files) {
+    catalog::ImportRequest request;
+    request.kind = kind;
+    request.root = data.string();
+    for (std::string& file : files) request.files.push_back((data / file).string());
+    std::ostringstream progress;
+    return catalog::ImportFiles(*catalog_, request, progress).at(0);
+  };
+  const std::int64_t body = import(Kind::kAvatar, {"makehuman/body/base.obj",
+                                                   "makehuman/body/default.mhskel",
+                                                   "makehuman/body/default_weights.mhw"});
+  const std::int64_t suit_id = import(Kind::kGarment, {suit});
+
+  Start(SkirtScene());
+  SendLoad(command::KIND_LOAD_COSTUME, suit_id);
+  Step();
+  EXPECT_TRUE(Warned("is modelled on the body 'MakeHuman's base.obj' and fits no other avatar"));
+  EXPECT_EQ(server_->scene().garments[0].name, "skirt");
+
+  SendLoad(command::KIND_LOAD_AVATAR, body);
+  Step();
+  SendLoad(command::KIND_LOAD_COSTUME, suit_id);
+  Step();
+  EXPECT_EQ(server_->scene().garments[0].name, "female_casualsuit02");
+  EXPECT_EQ(server_->ignored().commands_refused, 1);
+
+  SendLoad(command::KIND_LOAD_AVATAR, 0, "humanoid");
+  Step();
+  EXPECT_TRUE(Warned("the avatar 'built-in humanoid' has another skin"));
+  EXPECT_EQ(server_->ignored().commands_refused, 2);
+  EXPECT_EQ(server_->simulation().avatar()->avatar().num_vertices(),
+            catalog::LoadAvatar(*catalog_, body)->num_vertices());
 }
 
 TEST_F(CatalogLinkTest, ACatalogueThatCannotBeOpenedIsAWarningNamingItsUrl) {
