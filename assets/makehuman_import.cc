@@ -475,7 +475,8 @@ sim::GarmentSpec MakeHumanGarmentSpec(const std::string& mhclo_path, const ObjMe
                                       const sim::Skeleton& skeleton) {
   const int vl5 = skeleton.Find(sim::HAnimJoint::kVl5);
   if (vl5 < 0) {
-    throw InputError(mhclo_path + ": the MakeHuman skeleton has no joint mapped onto vl5 "
+    throw InputError(mhclo_path +
+                     ": the MakeHuman skeleton has no joint mapped onto vl5 "
                      "(the waist its waistband is held at)");
   }
   sim::GarmentSpec garment;

@@ -192,7 +192,8 @@ sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::st
   for (const BundleFile& file : UnpackBundle(data.bytes, what)) {
     // Messages name the .mhclo as the entry itself, the others as its parts.
     const bool main = assets::LowerExtension(file.name) == ".mhclo";
-    const std::string path = dir.Write(file.name, file.bytes, main ? what : what + " (" + file.name + ")");
+    const std::string path =
+        dir.Write(file.name, file.bytes, main ? what : what + " (" + file.name + ")");
     if (main) mhclo = path;
     if (file.name == kMakeHumanBodyMember) body = path;
     if (file.name == kMakeHumanSkeletonMember) skeleton = path;
@@ -209,6 +210,7 @@ sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::st
     sim::GarmentSpec garment =
         assets::MakeHumanGarmentSpec(mhclo, assets::ReadObj(body), avatar->skeleton());
     garment.made_for = std::move(avatar);
+    garment.mesh->source = what;  // for the cloth's messages: the temporary folder goes
     return garment;
   });
 }
@@ -242,6 +244,8 @@ sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
                             std::to_string(scene.garments.size()));
     }
     spec = scene.garments.front();
+    // Messages of the cloth built later name the stored file, not the folder gone by then.
+    if (spec.mesh) spec.mesh->source = dir.Clean(spec.mesh->source);
   } else if (data.format == "makehuman-garment") {
     spec = MakeHumanGarmentFromBundle(data, what);
   } else {

@@ -127,11 +127,12 @@ AssetData MakeHumanGarmentData(const fs::path& root, const ImportRequest& reques
   }
   const fs::path obj = ResolvePart(root, (path.parent_path() / obj_name).string(), shown,
                                    "its garment OBJ", "its obj_file line");
-  const fs::path body = ResolvePart(
-      root,
-      request.makehuman_body.empty() ? (path.parent_path() / ".." / ".." / "body" / "base.obj").string()
-                                     : request.makehuman_body,
-      shown, "the MakeHuman body it is fitted to", "--makehuman-body");
+  const fs::path body =
+      ResolvePart(root,
+                  request.makehuman_body.empty()
+                      ? (path.parent_path() / ".." / ".." / "body" / "base.obj").string()
+                      : request.makehuman_body,
+                  shown, "the MakeHuman body it is fitted to", "--makehuman-body");
   auto beside_body = [&](const std::string& given, const char* name) {
     return given.empty() ? (body.parent_path() / name).string() : given;
   };

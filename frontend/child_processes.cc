@@ -170,8 +170,8 @@ bool ChildProcesses::MakeMissingThumbnails(QString* error) {
   return true;
 }
 
-bool ChildProcesses::ImportFiles(const QString& kind, const QString& root,
-                                 const QStringList& files, QString* error) {
+bool ChildProcesses::ImportFiles(const QString& kind, const QString& root, const QStringList& files,
+                                 QString* error) {
   if (importing()) {
     if (error) *error = "an import is still running";
     return false;

@@ -34,10 +34,9 @@ const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 /// Per list: what `costume-catalog import --kind` calls its entries, and the files it reads
 /// (docs/catalog.md).
 const char* kImportKinds[3] = {"avatar", "garment", "animation"};
-const char* kImportFilters[3] = {
-    "Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhskel *.mhw)",
-    "Costumes (*.toml *.mhclo *.cdgarment)",
-    "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
+const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhskel *.mhw)",
+                                 "Costumes (*.toml *.mhclo *.cdgarment)",
+                                 "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
 constexpr int kIdRole = Qt::UserRole;
 constexpr int kNameRole = Qt::UserRole + 1;
 /// A server whose status has not come for this long is shown as silent: each sends one a
@@ -224,6 +223,22 @@ void MainWindow::ImportFiles(EntryKind kind, const QStringList& files) {
   }
 }
 
+void MainWindow::ShowImportResult(int code, const QString& output) {
+  if (code == 0) {
+    Log("catalogue: imported");
+    RefreshCatalogue();
+    return;
+  }
+  // The program's refusal ("error: 1 problem; nothing was imported:" and a line per bad file
+  // naming what is wrong with it) follows its progress lines.
+  const qsizetype at =
+      output.indexOf(QRegularExpression("^error: ", QRegularExpression::MultilineOption));
+  Warn("catalogue: " + (at >= 0 ? output.mid(at + 7).simplified()
+                                : QString("costume-catalog import exited with code %1; nothing "
+                                          "was imported")
+                                      .arg(code)));
+}
+
 void MainWindow::MakeMissingThumbnails() {
   if (!catalog_->IsDatabase() || !lists_lack_thumbnails_) return;
   QString error;
@@ -401,12 +416,13 @@ void MainWindow::BuildMenus() {
   connect(refresh, &QAction::triggered, this, [this] { RefreshCatalogue(); });
   for (int k = 0; k < 3; ++k) {
     const auto kind = static_cast<EntryKind>(k);
-    import_actions_[k] = file->addAction(QString("Import %1…").arg(QString(kListTitles[k]).toLower()));
+    import_actions_[k] =
+        file->addAction(QString("Import %1…").arg(QString(kListTitles[k]).toLower()));
     import_actions_[k]->setEnabled(catalog_->IsDatabase());
     import_actions_[k]->setToolTip(
-        catalog_->IsDatabase()
-            ? QString("Add files to the catalogue (MakeHuman's avatar: its .obj, .mhskel and .mhw together)")
-            : QString("This build has no catalogue database to import into"));
+        catalog_->IsDatabase() ? QString("Add files to the catalogue (MakeHuman's avatar: its "
+                                         ".obj, .mhskel and .mhw together)")
+                               : QString("This build has no catalogue database to import into"));
     connect(import_actions_[k], &QAction::triggered, this, [this, kind, k] {
       const QStringList files = QFileDialog::getOpenFileNames(
           this, QString("Import %1").arg(QString(kListTitles[k]).toLower()), import_folder_,
@@ -590,22 +606,7 @@ void MainWindow::ConnectSignals() {
           });
   connect(children_, &ChildProcesses::output, this,
           [this](const QString& process, const QString& line) { Log(process + ": " + line); });
-  connect(children_, &ChildProcesses::importFinished, this,
-          [this](int code, const QString& output) {
-            if (code == 0) {
-              Log("catalogue: imported");
-              RefreshCatalogue();
-              return;
-            }
-            // The program's refusal ("error: 1 problem; nothing was imported:" and a line per
-            // bad file naming what is wrong with it) follows its progress lines.
-            const qsizetype at =
-                output.indexOf(QRegularExpression("^error: ", QRegularExpression::MultilineOption));
-            const QString reason =
-                at >= 0 ? output.mid(at + 7).simplified()
-                        : QString("costume-catalog import exited with code %1, nothing imported").arg(code);
-            Warn("catalogue: " + reason);
-          });
+  connect(children_, &ChildProcesses::importFinished, this, &MainWindow::ShowImportResult);
   connect(children_, &ChildProcesses::simServerExited, this, [this](const QString& how) {
     sim_status_age_.invalidate();  // not silent: gone
     sim_label_->setText("sim: not running");

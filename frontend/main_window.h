@@ -155,6 +155,9 @@ class MainWindow : public QMainWindow {
   void RestartSimServer();
   /// Lists again and has the missing thumbnails rendered (after a saved version, on F5).
   void RefreshCatalogue();
+  /// After a child `costume-catalog import` (ImportFiles): the lists filled again, or its
+  /// refusal as the warning.
+  void ShowImportResult(int code, const QString& output);
   /// Starts the child that renders the thumbnails the lists lack (a database only); the
   /// lists are filled again when it ends.
   void MakeMissingThumbnails();

@@ -116,7 +116,8 @@ sim::SceneDescription MakeHumanGarmentScene(std::shared_ptr<const sim::Avatar> b
                                             const assets::ObjMesh& base_obj,
                                             const std::filesystem::path& mhclo, const Options& options) {
   sim::SceneDescription scene = GarmentScene(body, clip, method, options);
-  sim::GarmentSpec garment = assets::MakeHumanGarmentSpec(mhclo.string(), base_obj, body->skeleton());
+  sim::GarmentSpec garment =
+      assets::MakeHumanGarmentSpec(mhclo.string(), base_obj, body->skeleton());
   garment.name = options.makehuman_garment;
   garment.material = scene.materials[0].name;
   scene.garments = {garment};

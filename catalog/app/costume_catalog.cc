@@ -145,8 +145,10 @@ int main(int argc, char** argv) {
                    "the import folder: every file must lie inside it (no '..' or symbolic "
                    "links leading out)")
       ->required();
-  import->add_option("files", request.files,
-                     "files to import (MakeHuman avatar: .obj .mhskel .mhw together; garment: .mhclo)")
+  import
+      ->add_option(
+          "files", request.files,
+          "files to import (MakeHuman avatar: .obj .mhskel .mhw together; garment: .mhclo)")
       ->required();
   import->add_option("--name", request.name, "entry name (one entry only; default: file stem)");
   import->add_option("--category", request.category,

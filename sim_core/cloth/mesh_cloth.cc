@@ -124,10 +124,11 @@ void ValidateVertices(const SurfaceMesh& mesh, const std::string& where) {
     throw InputError(where + "mesh has no vertices: vertices count = 0, allowed >= 3");
   }
   const char* axis[] = {"x", "y", "z"};
+  // Before any area is computed: a damaged file's 1e300 was reported as an infinite mass.
   for (Eigen::Index v = 0; v < mesh.vertices.rows(); ++v) {
     for (int c = 0; c < 3; ++c) {
-      RequireFinite(where + "vertices[" + std::to_string(v) + "]." + axis[c],
-                    mesh.vertices(v, c), "m");
+      RequireInRange(where + "vertices[" + std::to_string(v) + "]." + axis[c], mesh.vertices(v, c),
+                     -kMaxCoordinate, kMaxCoordinate, "m");
     }
   }
 }

@@ -158,6 +158,10 @@ TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
        "[garment.panel]\n",
        "exactly one [[garment]]"},
       {Kind::kGarment, "noise.cdgarment", "CDGARMNT but then nothing sensible", "noise.cdgarment"},
+      // Its mesh (written below) has a vertex 1e30 m away: named as stored, in the bundle.
+      {Kind::kGarment, "far.toml",
+       "[[garment]]\nname = \"far\"\n[garment.mesh]\nfile = \"far.obj\"\n",
+       "far.toml (far.obj)' of garment 'far': vertices[1].x = 1e+30 m is out of range"},
       {Kind::kAnimation, "motions/lonely.txt", "{\"Frames\": []}", "lonely.txt"},
       // Well formed, but a skeleton of one joint: no avatar could play it.
       {Kind::kAnimation, "alone.bvh",
@@ -166,6 +170,7 @@ TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
        "alone.bvh: cannot be put on any avatar: retargeting skeleton 'alone' onto 'built-in "
        "humanoid': both must map the H-Anim joints humanoid_root, l_hip"},
   };
+  Write("far.obj", "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n");
   for (const Case& c : cases) {
     ImportRequest request;
     request.kind = c.kind;
@@ -409,7 +414,8 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsWornByItsBody) {
   const std::int64_t suit_id = ImportShared(Kind::kGarment, {suit}).at(0);
   EXPECT_EQ(catalog_->Data(suit_id).format, "makehuman-garment");
   ASSERT_TRUE(catalog_->Get(suit_id).fabric);
-  EXPECT_EQ(catalog_->Get(suit_id).fabric->stretch_stiffness, BuiltInGarmentFabric().stretch_stiffness);
+  EXPECT_EQ(catalog_->Get(suit_id).fabric->stretch_stiffness,
+            BuiltInGarmentFabric().stretch_stiffness);
 
   sim::SceneDescription scene;
   scene.source = "import_test";
@@ -453,8 +459,9 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsRefusedOnAnotherAvatar) {
     ADD_FAILURE() << "the built-in humanoid was given MakeHuman's suit";
   } catch (const sim::InputError& error) {
     const std::string message = error.what();
-    EXPECT_TRUE(Contains(message, "garment[0] = \"male_casualsuit02\": is modelled on the body "
-                                  "'MakeHuman's base.obj' and fits no other avatar"))
+    EXPECT_TRUE(Contains(message,
+                         "garment[0] = \"male_casualsuit02\": is modelled on the body "
+                         "'MakeHuman's base.obj' and fits no other avatar"))
         << message;
     EXPECT_TRUE(Contains(message, "'built-in humanoid'")) << message;
   }

@@ -805,9 +805,8 @@ TEST(MainWindowCatalogue, FilesImportedFromTheFileMenuAreListed) {
   const int listed = costumes->count();
 
   window.ImportFiles(EntryKind::kCostume, {scarf, bad});
-  ASSERT_TRUE(
-      WaitFor([&] { return window.warning_label()->text().contains("nothing was imported"); },
-              60000))
+  ASSERT_TRUE(WaitFor(
+      [&] { return window.warning_label()->text().contains("nothing was imported"); }, 60000))
       << window.message_log()->toPlainText().toStdString();
   const std::string refusal = window.warning_label()->text().toStdString();
   EXPECT_NE(refusal.find("bad.toml"), std::string::npos) << refusal;

@@ -247,9 +247,9 @@ TEST_F(CatalogLinkTest, AMakeHumanSuitIsWornByItsBodyOnly) {
     std::ostringstream progress;
     return catalog::ImportFiles(*catalog_, request, progress).at(0);
   };
-  const std::int64_t body = import(Kind::kAvatar, {"makehuman/body/base.obj",
-                                                   "makehuman/body/default.mhskel",
-                                                   "makehuman/body/default_weights.mhw"});
+  const std::int64_t body =
+      import(Kind::kAvatar, {"makehuman/body/base.obj", "makehuman/body/default.mhskel",
+                             "makehuman/body/default_weights.mhw"});
   const std::int64_t suit_id = import(Kind::kGarment, {suit});
 
   Start(SkirtScene());

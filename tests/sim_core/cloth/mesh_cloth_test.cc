@@ -462,12 +462,15 @@ TEST(BuildMeshCloth, RefusesEdgeBetweenCoincidentVertices) {
   ExpectRefused(mesh, {"faces[0] edge 1-2 length = 0", "coincident"});
 }
 
-TEST(BuildMeshCloth, RefusesNonFiniteCoordinates) {
+TEST(BuildMeshCloth, RefusesNonFiniteAndFarCoordinates) {
   SurfaceMesh mesh = SmallMesh();
   mesh.vertices(1, 1) = std::numeric_limits<double>::quiet_NaN();
   ExpectRefused(mesh, {"vertices[1].y = nan"});
   mesh.vertices(1, 1) = std::numeric_limits<double>::infinity();
   ExpectRefused(mesh, {"vertices[1].y = inf"});
+  // Beyond any stage (a damaged file): named, not read as an infinite particle mass.
+  mesh.vertices(1, 1) = 1e300;
+  ExpectRefused(mesh, {"mesh 'x.obj'", "vertices[1].y = 1e+300 m", "-10000"});
 }
 
 TEST(BuildMeshCloth, RefusesVertexInNoFace) {
