@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include "assets/avatar_import.h"
@@ -188,24 +189,32 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
 /// and made for the MakeHuman body of the bundle.
 sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::string& what) {
   TempDir dir;
-  std::string mhclo, body, skeleton, weights;
+  std::map<std::string, std::vector<std::string>> by_extension;  // paths written, per extension
   for (const BundleFile& file : UnpackBundle(data.bytes, what)) {
     // Messages name the .mhclo as the entry itself, the others as its parts.
-    const bool main = assets::LowerExtension(file.name) == ".mhclo";
-    const std::string path =
-        dir.Write(file.name, file.bytes, main ? what : what + " (" + file.name + ")");
-    if (main) mhclo = path;
-    if (file.name == kMakeHumanBodyMember) body = path;
-    if (file.name == kMakeHumanSkeletonMember) skeleton = path;
-    if (file.name == kMakeHumanWeightsMember) weights = path;
+    const std::string extension = assets::LowerExtension(file.name);
+    by_extension[extension].push_back(
+        dir.Write(file.name, file.bytes, extension == ".mhclo" ? what : what + " (" + file.name + ")"));
   }
-  if (mhclo.empty() || body.empty() || skeleton.empty() || weights.empty()) {
-    throw sim::InputError(what + ": the bundle needs a .mhclo, " + kMakeHumanBodyMember + ", " +
-                          kMakeHumanSkeletonMember + " and " + kMakeHumanWeightsMember);
-  }
+  auto one = [&](const std::string& extension, std::size_t count = 1) {
+    if (by_extension[extension].size() != count) {
+      throw sim::InputError(what + ": the bundle holds " +
+                            std::to_string(by_extension[extension].size()) + " '*" + extension +
+                            "' files: a MakeHuman garment has one .mhclo, .mhskel and .mhw and "
+                            "two .obj (the garment's and the body's)");
+    }
+    return by_extension[extension];
+  };
+  const std::string mhclo = one(".mhclo").front();
+  const std::string skeleton = one(".mhskel").front(), weights = one(".mhw").front();
   return dir.Guard([&] {
+    // The body is the OBJ the .mhclo does not name.
+    const std::vector<std::string> objs = one(".obj", 2);
+    const bool first_is_garment = std::filesystem::path(objs[0]).filename() ==
+                                  assets::MakeHumanGarmentObjFile(mhclo);
+    const std::string& body = objs[first_is_garment ? 1 : 0];
     assets::MakeHumanImportOptions options;
-    options.name = "MakeHuman's base.obj";
+    options.name = "MakeHuman's " + std::filesystem::path(body).filename().string();
     auto avatar = assets::LoadMakeHumanAvatar(body, skeleton, weights, options);
     sim::GarmentSpec garment =
         assets::MakeHumanGarmentSpec(mhclo, assets::ReadObj(body), avatar->skeleton());

@@ -40,14 +40,11 @@ sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
 void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene);
 
-/// A "makehuman-garment" bundle holds the .mhclo and the garment OBJ it names under their
-/// own names, and the MakeHuman body the garment is fitted to under these three (its
-/// base.obj, skeleton and skin weights): the garment loads as assets::MakeHumanGarmentSpec
-/// makes it, and is worn by that body only (GarmentSpec::made_for; its thumbnail shows it
-/// on that body).
-inline constexpr const char* kMakeHumanBodyMember = "makehuman-body.obj";
-inline constexpr const char* kMakeHumanSkeletonMember = "makehuman-body.mhskel";
-inline constexpr const char* kMakeHumanWeightsMember = "makehuman-body.mhw";
+/// A "makehuman-garment" bundle holds, under their own file names, the .mhclo, the garment
+/// OBJ its obj_file line names, and the MakeHuman body it is fitted to: the other .obj (its
+/// base.obj), a .mhskel and a .mhw. The garment loads as assets::MakeHumanGarmentSpec makes
+/// it and is worn by that body only (GarmentSpec::made_for; its thumbnail shows it on that
+/// body).
 
 /// What messages call a stored DeepMimic clip's character file (after the clip's own name):
 /// the character is kept in the clip's bundle, its file name lost.

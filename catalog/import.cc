@@ -120,8 +120,7 @@ AssetData MakeHumanGarmentData(const fs::path& root, const ImportRequest& reques
   } catch (const sim::InputError&) {
     throw sim::InputError(shown + ": missing 'obj_file' line (the garment OBJ it is made of)");
   }
-  if (fs::path(obj_name).filename() != obj_name || obj_name == "." || obj_name == ".." ||
-      obj_name == kMakeHumanBodyMember) {
+  if (fs::path(obj_name).filename() != obj_name || obj_name == "." || obj_name == "..") {
     throw sim::InputError(shown + ": obj_file '" + obj_name +
                           "' must name a file beside it (a plain file name)");
   }
@@ -142,12 +141,23 @@ AssetData MakeHumanGarmentData(const fs::path& root, const ImportRequest& reques
   const fs::path weights =
       ResolvePart(root, beside_body(request.makehuman_weights, "default_weights.mhw"), shown,
                   "the MakeHuman body's skin weights", "--makehuman-weights");
+  // Stored under their own names (the loader tells the body from the garment's OBJ by the
+  // obj_file line), so messages about them name the files the user has.
+  const std::string body_name = body.filename().string();
+  if (body_name == obj_name || assets::LowerExtension(body_name) != ".obj" ||
+      assets::LowerExtension(skeleton.string()) != ".mhskel" ||
+      assets::LowerExtension(weights.string()) != ".mhw") {
+    throw sim::InputError(shown + ": its MakeHuman body must be an .obj other than its garment's "
+                          "('" + body_name + "'), with a .mhskel and a .mhw ('" +
+                          skeleton.filename().string() + "', '" + weights.filename().string() +
+                          "')");
+  }
   return {"makehuman-garment",
           PackBundle({{path.filename().string(), mhclo},
                       {obj_name, ReadBytes(obj, shown + " (its garment OBJ)")},
-                      {kMakeHumanBodyMember, ReadBytes(body, body.string())},
-                      {kMakeHumanSkeletonMember, ReadBytes(skeleton, skeleton.string())},
-                      {kMakeHumanWeightsMember, ReadBytes(weights, weights.string())}})};
+                      {body_name, ReadBytes(body, body.string())},
+                      {skeleton.filename().string(), ReadBytes(skeleton, skeleton.string())},
+                      {weights.filename().string(), ReadBytes(weights, weights.string())}})};
 }
 
 /// The fabric a garment file defines: its garment's material when the file defines it, else

@@ -28,17 +28,22 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 
-# (kind, files of one import with their sources, extra arguments naming the second file)
+# (kind, files of one import with their sources, how each reaches the program: None as a
+# file argument, an option naming it, or 'beside' when it is found beside the first file)
+SUIT = 'makehuman/clothes/female_casualsuit02/female_casualsuit02'
 SEEDS = [
-    ('avatar', ['khronos-cesiumman/CesiumMan.glb'], None),
-    ('animation', ['khronos-cesiumman/CesiumMan.glb'], None),
-    ('animation', ['cmu-mocap-bvh/10_01.bvh'], None),
-    ('animation', ['makehuman/bvh/walk1_mhskel.bvh'], None),
+    ('avatar', ['khronos-cesiumman/CesiumMan.glb'], [None]),
+    ('animation', ['khronos-cesiumman/CesiumMan.glb'], [None]),
+    ('animation', ['cmu-mocap-bvh/10_01.bvh'], [None]),
+    ('animation', ['makehuman/bvh/walk1_mhskel.bvh'], [None]),
     ('animation', ['deepmimic-motions/motions/humanoid3d_kick.txt',
-                   'deepmimic-motions/characters/humanoid3d.txt'], '--character'),
+                   'deepmimic-motions/characters/humanoid3d.txt'], [None, '--character']),
     ('avatar', ['makehuman/body/base.obj', 'makehuman/body/default.mhskel',
-                'makehuman/body/default_weights.mhw'], None),
-    ('garment', ['@scenes/garment.toml'], None),
+                'makehuman/body/default_weights.mhw'], [None, None, None]),
+    ('garment', ['@scenes/garment.toml'], [None]),
+    ('garment', [SUIT + '.mhclo', SUIT + '.obj', 'makehuman/body/base.obj',
+                 'makehuman/body/default.mhskel', 'makehuman/body/default_weights.mhw'],
+     [None, 'beside', '--makehuman-body', '--makehuman-skeleton', '--makehuman-weights']),
 ]
 NUMBER = re.compile(rb'-?\d+(\.\d+)?([eE][-+]?\d+)?')
 EXTREMES = [b'1e308', b'-1e308', b'nan', b'inf', b'-1', b'0', b'999999999', b'-999999999',
@@ -91,7 +96,7 @@ def source_path(name, data_folder):
 
 
 def run_case(n, rng, args, work, catalogue):
-    kind, files, extra = rng.choice(SEEDS)
+    kind, files, roles = rng.choice([seed for seed in SEEDS if args.only in seed[1][0]])
     victim = rng.randrange(len(files))
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
@@ -107,7 +112,8 @@ def run_case(n, rng, args, work, catalogue):
         paths.append(path)
     command = [args.program, '--url', 'sqlite:' + catalogue, 'import', '--kind', kind,
                '--root', work, '--name', 'case%d' % n]
-    command += [paths[0], extra, paths[1]] if extra else paths
+    for path, role in zip(paths, roles):
+        command += [path] if role is None else [] if role == 'beside' else [role, path]
     try:
         done = subprocess.run(command, capture_output=True, timeout=args.timeout)
         status = done.returncode
@@ -138,9 +144,14 @@ def main():
                         help='the costume-catalog program (default build/catalog/...)')
     parser.add_argument('--timeout', type=float, default=120.0,
                         help='seconds a case may take before it counts as a hang (default 120)')
+    parser.add_argument('--only', default='',
+                        help='damage only the seeds whose first file path contains this '
+                             '(e.g. mhclo; default: all)')
     parser.add_argument('--keep', default=os.path.join(tempfile.gettempdir(), 'fuzz_import'),
                         help='folder for the bad cases (default /tmp/fuzz_import)')
     args = parser.parse_args()
+    if not any(args.only in files[0] for _, files, _ in SEEDS):
+        sys.exit('fuzz_import: no seed file matches --only %s' % args.only)
     for _, files, _ in SEEDS:
         for name in files:
             if not os.path.isfile(source_path(name, args.data)):
