@@ -3,6 +3,7 @@
 #include <sys/prctl.h>
 
 #include <QDir>
+#include <algorithm>
 #include <csignal>
 #include <QFileInfo>
 
@@ -170,8 +171,7 @@ bool ChildProcesses::MakeMissingThumbnails(QString* error) {
   return true;
 }
 
-bool ChildProcesses::ImportFiles(const QString& kind, const QString& root, const QStringList& files,
-                                 QString* error) {
+bool ChildProcesses::Import(const QStringList& arguments, QString* error) {
   if (importing()) {
     if (error) *error = "an import is still running";
     return false;
@@ -182,9 +182,7 @@ bool ChildProcesses::ImportFiles(const QString& kind, const QString& root, const
   }
   import_output_.clear();
   import_.setProcessEnvironment(ChildEnvironment());
-  // "--": a file named like an option stays a file.
-  import_.start(CatalogProgramPath(),
-                QStringList{"import", "--kind", kind, "--root", root, "--"} + files);
+  import_.start(CatalogProgramPath(), QStringList{"import"} + arguments);
   if (!import_.waitForStarted(5000)) {
     if (error) *error = "cannot start " + CatalogProgramPath() + ": " + import_.errorString();
     return false;
@@ -207,6 +205,29 @@ QString ImportRoot(const QStringList& files) {
     while (root != "/" && path != root && !path.startsWith(root + '/')) root = parent(root);
   }
   return root;
+}
+
+QStringList ImportArguments(const QString& kind, const QStringList& files) {
+  QStringList options{"--kind", kind, "--root", ImportRoot(files)};
+  QStringList entries;
+  const bool makehuman_garments =
+      kind == "garment" &&
+      std::any_of(files.begin(), files.end(),
+                  [](const QString& f) { return f.endsWith(".mhclo", Qt::CaseInsensitive); });
+  for (const QString& file : files) {
+    const QString suffix = QFileInfo(file).suffix().toLower();
+    if (makehuman_garments && suffix == "obj") {
+      options << "--makehuman-body" << file;
+    } else if (makehuman_garments && suffix == "mhskel") {
+      options << "--makehuman-skeleton" << file;
+    } else if (makehuman_garments && suffix == "mhw") {
+      options << "--makehuman-weights" << file;
+    } else {
+      entries << file;
+    }
+  }
+  // "--": a file named like an option stays a file.
+  return options + QStringList{"--"} + entries;
 }
 
 void ChildProcesses::Stop(QProcess& process) {

@@ -46,6 +46,12 @@ struct ServerOptions {
 /// fitted to (clothes/<name>/<name>.mhclo beside body/base.obj).
 QString ImportRoot(const QStringList& files);
 
+/// `costume-catalog import`'s arguments for `files` picked as entries of `kind` ("avatar",
+/// "garment", "animation"): --kind, --root (ImportRoot), then the files. Garments: a .obj,
+/// .mhskel or .mhw picked beside MakeHuman garments is the body they are fitted to
+/// (--makehuman-body, --makehuman-skeleton, --makehuman-weights), not an entry.
+QStringList ImportArguments(const QString& kind, const QStringList& files);
+
 /// The device menu's devices, as `--device` names them.
 QStringList DeviceNames();
 /// Whether `device` reports in a frame of its own (a workspace scale and centre apply).
@@ -77,12 +83,11 @@ class ChildProcesses : public QObject {
   /// Starts `costume-catalog thumbnails` on the catalogue unless it is already running;
   /// thumbnailsMade follows when it ends. False with the reason in `*error`.
   bool MakeMissingThumbnails(QString* error = nullptr);
-  /// Starts `costume-catalog import --kind <kind> --root <root> <files>` on the catalogue
-  /// (one import at a time), which checks each file, renders its thumbnail and stores all
-  /// or none; its progress lines come as output("catalogue", …) and importFinished follows.
+  /// Starts `costume-catalog import <arguments>` (ImportArguments) on the catalogue (one
+  /// import at a time), which checks each file, renders its thumbnail and stores all or
+  /// none; its progress lines come as output("catalogue", …) and importFinished follows.
   /// False with the reason in `*error`.
-  bool ImportFiles(const QString& kind, const QString& root, const QStringList& files,
-                   QString* error = nullptr);
+  bool Import(const QStringList& arguments, QString* error = nullptr);
   bool importing() const { return import_.state() != QProcess::NotRunning; }
   /// The children's environment: the GUI's, with COSTUME_CATALOG set to `catalog_url` when
   /// one was given. The URL goes there, not on a command line, because a PostgreSQL URL may

@@ -35,7 +35,8 @@ const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 /// (docs/catalog.md).
 const char* kImportKinds[3] = {"avatar", "garment", "animation"};
 const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhskel *.mhw)",
-                                 "Costumes (*.toml *.mhclo *.cdgarment)",
+                                 "Costumes (*.toml *.mhclo *.cdgarment);;MakeHuman garments with "
+                                 "their body (*.mhclo *.obj *.mhskel *.mhw)",
                                  "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
 constexpr int kIdRole = Qt::UserRole;
 constexpr int kNameRole = Qt::UserRole + 1;
@@ -214,10 +215,10 @@ void MainWindow::RefreshCatalogue() {
 void MainWindow::ImportFiles(EntryKind kind, const QStringList& files) {
   if (files.isEmpty()) return;
   import_folder_ = QFileInfo(files.front()).absolutePath();
-  const QString root = ImportRoot(files);
+  const QStringList arguments = ImportArguments(kImportKinds[static_cast<int>(kind)], files);
   QString error;
-  if (children_->ImportFiles(kImportKinds[static_cast<int>(kind)], root, files, &error)) {
-    Log(QString("catalogue: importing %1 file(s) from %2").arg(files.size()).arg(root));
+  if (children_->Import(arguments, &error)) {
+    Log("catalogue: costume-catalog import " + arguments.join(' '));
   } else {
     Warn("catalogue: nothing imported: " + error);
   }
@@ -233,10 +234,15 @@ void MainWindow::ShowImportResult(int code, const QString& output) {
   // naming what is wrong with it) follows its progress lines.
   const qsizetype at =
       output.indexOf(QRegularExpression("^error: ", QRegularExpression::MultilineOption));
-  Warn("catalogue: " + (at >= 0 ? output.mid(at + 7).simplified()
-                                : QString("costume-catalog import exited with code %1; nothing "
-                                          "was imported")
-                                      .arg(code)));
+  if (at >= 0) {
+    Warn("catalogue: " + output.mid(at + 7).simplified());
+    return;
+  }
+  // Refused before reading any file (options it could not take): its last line says why.
+  const QStringList lines = output.trimmed().split('\n');
+  Warn(QString("catalogue: nothing was imported (costume-catalog import exited with code %1): %2")
+           .arg(code)
+           .arg(lines.isEmpty() ? QString() : lines.back()));
 }
 
 void MainWindow::MakeMissingThumbnails() {

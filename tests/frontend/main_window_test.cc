@@ -19,6 +19,7 @@
 #endif
 #include "render/camera.h"
 #include "tests/support/qt_app.h"
+#include "tests/support/shared_data.h"
 
 namespace costume::frontend {
 namespace {
@@ -823,6 +824,42 @@ TEST(MainWindowCatalogue, FilesImportedFromTheFileMenuAreListed) {
   std::filesystem::remove_all(dir);
 }
 
+// A MakeHuman suit picked with the body it is fitted to is imported and listed with its
+// thumbnail (on that body).
+TEST(MainWindowCatalogue, AMakeHumanSuitPickedWithItsBodyIsImported) {
+  costume::testing::TestApp();
+  const std::filesystem::path mh = std::filesystem::absolute(test::kSharedData / "makehuman");
+  const std::filesystem::path suit = mh / "clothes/male_casualsuit02/male_casualsuit02.mhclo";
+  if (!std::filesystem::exists(suit)) GTEST_SKIP() << suit << " is absent";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("main_window_suit_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string url = "sqlite:" + (dir / "c.sqlite").string();
+  bus::LcmBus bus("memq://");
+  FrontendOptions options;
+  options.builtin = "hang";
+  options.servers.bin_dir = COSTUME_BUILD_DIR;
+  options.servers.catalog_url = QString::fromStdString(url);
+  std::string warning;
+  MainWindow window(bus, options, OpenCatalogSource(url, &warning));
+  ASSERT_TRUE(warning.empty()) << warning;
+  if (!QFileInfo(window.children().CatalogProgramPath()).isExecutable()) {
+    GTEST_SKIP() << "costume-catalog not built";
+  }
+  auto path = [](const std::filesystem::path& p) { return QString::fromStdString(p.string()); };
+  window.ImportFiles(EntryKind::kCostume,
+                     {path(suit), path(mh / "body/base.obj"), path(mh / "body/default.mhskel"),
+                      path(mh / "body/default_weights.mhw")});
+  QListWidget* costumes = window.list(EntryKind::kCostume);
+  ASSERT_TRUE(WaitFor(
+      [&] { return !costumes->findItems("male_casualsuit02", Qt::MatchExactly).isEmpty(); },
+      60000))
+      << window.message_log()->toPlainText().toStdString();
+  EXPECT_FALSE(window.lists_lack_thumbnails());
+  std::filesystem::remove_all(dir);
+}
+
 // The import folder holds every picked file, and a MakeHuman garment's body two levels up.
 TEST(ImportRoot, IsTheDeepestFolderHoldingThemAll) {
   EXPECT_EQ(ImportRoot({"/data/a/x.bvh", "/data/a/y.bvh"}), "/data/a");
@@ -830,6 +867,21 @@ TEST(ImportRoot, IsTheDeepestFolderHoldingThemAll) {
   EXPECT_EQ(ImportRoot({"/data/a/b/x.bvh", "/data/a/y.bvh"}), "/data/a");
   EXPECT_EQ(ImportRoot({"/mh/clothes/suit/suit.mhclo"}), "/mh");
   EXPECT_EQ(ImportRoot({"/x/a.bvh", "/y/b.bvh"}), "/");
+}
+
+// Picked beside MakeHuman garments, the body's files say which body they are fitted to; an
+// avatar's .obj, .mhskel and .mhw stay entries (MakeHuman's avatar triple).
+TEST(ImportArguments, GiveAMakeHumanGarmentsBodyAsOptions) {
+  EXPECT_EQ(ImportArguments("garment", {"/mh/clothes/s/s.mhclo", "/mh/b/base.obj",
+                                        "/mh/b/default.mhskel", "/mh/b/w.mhw"}),
+            (QStringList{"--kind", "garment", "--root", "/mh", "--makehuman-body", "/mh/b/base.obj",
+                         "--makehuman-skeleton", "/mh/b/default.mhskel", "--makehuman-weights",
+                         "/mh/b/w.mhw", "--", "/mh/clothes/s/s.mhclo"}));
+  EXPECT_EQ(ImportArguments("avatar", {"/mh/b/base.obj", "/mh/b/default.mhskel", "/mh/b/w.mhw"}),
+            (QStringList{"--kind", "avatar", "--root", "/mh/b", "--", "/mh/b/base.obj",
+                         "/mh/b/default.mhskel", "/mh/b/w.mhw"}));
+  EXPECT_EQ(ImportArguments("garment", {"/g/-x.toml"}),
+            (QStringList{"--kind", "garment", "--root", "/g", "--", "/g/-x.toml"}));
 }
 
 }  // namespace
