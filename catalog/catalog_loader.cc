@@ -193,8 +193,8 @@ sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::st
   for (const BundleFile& file : UnpackBundle(data.bytes, what)) {
     // Messages name the .mhclo as the entry itself, the others as its parts.
     const std::string extension = assets::LowerExtension(file.name);
-    by_extension[extension].push_back(
-        dir.Write(file.name, file.bytes, extension == ".mhclo" ? what : what + " (" + file.name + ")"));
+    const std::string label = extension == ".mhclo" ? what : what + " (" + file.name + ")";
+    by_extension[extension].push_back(dir.Write(file.name, file.bytes, label));
   }
   auto one = [&](const std::string& extension, std::size_t count = 1) {
     if (by_extension[extension].size() != count) {
