@@ -572,9 +572,10 @@ int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size, std::o
       log << KindName(kind) << " '" << entry.name << "' (id " << entry.id << "): thumbnail... "
           << std::flush;  // draping a garment takes seconds: say what is being made
       try {
-        ThumbnailRequest request =
-            CheckAssetData(kind, entry.name, Data(entry.id),
-                           entry.fabric.value_or(FabricParameters{}), entry.name);
+        ThumbnailRequest request = CheckAssetData(
+            kind, entry.name, Data(entry.id), entry.fabric.value_or(FabricParameters{}),
+            entry.name, kCharacterFileLabel,
+            kind == Kind::kGarment ? MadeForBody(*this, entry.id) : nullptr);
         request.size = size;
         const std::vector<std::uint8_t> png = maker(request);
         if (png.empty()) {

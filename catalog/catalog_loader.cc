@@ -185,44 +185,68 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
                         "fbx, dae, deepmimic");
 }
 
-/// A "makehuman-garment" bundle's garment (catalog_loader.h), fitted as MakeHuman fits it
-/// and made for the MakeHuman body of the bundle.
-sim::GarmentSpec MakeHumanGarmentFromBundle(const AssetData& data, const std::string& what) {
-  TempDir dir;
-  std::map<std::string, std::vector<std::string>> by_extension;  // paths written, per extension
-  for (const BundleFile& file : UnpackBundle(data.bytes, what)) {
-    // Messages name the .mhclo as the entry itself, the others as its parts.
-    const std::string extension = assets::LowerExtension(file.name);
-    const std::string label = extension == ".mhclo" ? what : what + " (" + file.name + ")";
-    by_extension[extension].push_back(dir.Write(file.name, file.bytes, label));
+/// A "makehuman-garment" bundle (catalog_loader.h) written out to a private folder, from
+/// which its body or its garment is loaded.
+class MakeHumanBundle {
+ public:
+  MakeHumanBundle(const AssetData& data, std::string what) : what_(std::move(what)) {
+    for (const BundleFile& file : UnpackBundle(data.bytes, what_)) {
+      // Messages name the .mhclo as the entry itself, the others as its parts.
+      const std::string extension = assets::LowerExtension(file.name);
+      const std::string label = extension == ".mhclo" ? what_ : what_ + " (" + file.name + ")";
+      by_extension_[extension].push_back(dir_.Write(file.name, file.bytes, label));
+    }
+    mhclo_ = One(".mhclo");
+    skeleton_ = One(".mhskel");
+    weights_ = One(".mhw");
+    dir_.Guard([&] {
+      // The body is the OBJ the .mhclo does not name.
+      const std::vector<std::string>& objs = Files(".obj", 2);
+      const bool first_is_garment = std::filesystem::path(objs[0]).filename() ==
+                                    assets::MakeHumanGarmentObjFile(mhclo_);
+      body_ = objs[first_is_garment ? 1 : 0];
+    });
   }
-  auto one = [&](const std::string& extension, std::size_t count = 1) {
-    if (by_extension[extension].size() != count) {
-      throw sim::InputError(what + ": the bundle holds " +
-                            std::to_string(by_extension[extension].size()) + " '*" + extension +
+
+  /// The MakeHuman avatar of the body, named "MakeHuman's <its OBJ's name>".
+  std::shared_ptr<const sim::Avatar> LoadBody() const {
+    return dir_.Guard([&] {
+      assets::MakeHumanImportOptions options;
+      options.name = "MakeHuman's " + std::filesystem::path(body_).filename().string();
+      return assets::LoadMakeHumanAvatar(body_, skeleton_, weights_, options);
+    });
+  }
+
+  /// The garment, fitted as MakeHuman fits it and made for the body.
+  sim::GarmentSpec LoadGarment() const {
+    std::shared_ptr<const sim::Avatar> body = LoadBody();
+    return dir_.Guard([&] {
+      sim::GarmentSpec garment =
+          assets::MakeHumanGarmentSpec(mhclo_, assets::ReadObj(body_), body->skeleton());
+      garment.made_for = std::move(body);
+      garment.mesh->source = what_;  // for the cloth's messages: the temporary folder goes
+      return garment;
+    });
+  }
+
+ private:
+  const std::vector<std::string>& Files(const std::string& extension, std::size_t count) {
+    const std::vector<std::string>& files = by_extension_[extension];
+    if (files.size() != count) {
+      throw sim::InputError(what_ + ": the bundle holds " + std::to_string(files.size()) + " '*" +
+                            extension +
                             "' files: a MakeHuman garment has one .mhclo, .mhskel and .mhw and "
                             "two .obj (the garment's and the body's)");
     }
-    return by_extension[extension];
-  };
-  const std::string mhclo = one(".mhclo").front();
-  const std::string skeleton = one(".mhskel").front(), weights = one(".mhw").front();
-  return dir.Guard([&] {
-    // The body is the OBJ the .mhclo does not name.
-    const std::vector<std::string> objs = one(".obj", 2);
-    const bool first_is_garment = std::filesystem::path(objs[0]).filename() ==
-                                  assets::MakeHumanGarmentObjFile(mhclo);
-    const std::string& body = objs[first_is_garment ? 1 : 0];
-    assets::MakeHumanImportOptions options;
-    options.name = "MakeHuman's " + std::filesystem::path(body).filename().string();
-    auto avatar = assets::LoadMakeHumanAvatar(body, skeleton, weights, options);
-    sim::GarmentSpec garment =
-        assets::MakeHumanGarmentSpec(mhclo, assets::ReadObj(body), avatar->skeleton());
-    garment.made_for = std::move(avatar);
-    garment.mesh->source = what;  // for the cloth's messages: the temporary folder goes
-    return garment;
-  });
-}
+    return files;
+  }
+  std::string One(const std::string& extension) { return Files(extension, 1).front(); }
+
+  std::string what_;
+  TempDir dir_;
+  std::map<std::string, std::vector<std::string>> by_extension_;  // paths written
+  std::string mhclo_, body_, skeleton_, weights_;
+};
 
 sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
                                  const std::string& what) {
@@ -256,7 +280,7 @@ sim::GarmentSpec GarmentFromData(const std::string& name, const AssetData& data,
     // Messages of the cloth built later name the stored file, not the folder gone by then.
     if (spec.mesh) spec.mesh->source = dir.Clean(spec.mesh->source);
   } else if (data.format == "makehuman-garment") {
-    spec = MakeHumanGarmentFromBundle(data, what);
+    spec = MakeHumanBundle(data, what).LoadGarment();
   } else {
     throw sim::InputError(what + ": format '" + data.format +
                           "' is not a garment format: allowed are builtin, garment-toml, "
@@ -315,9 +339,20 @@ std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id) {
                       kCharacterFileLabel);
 }
 
+std::shared_ptr<const sim::Avatar> MadeForBody(Catalog& catalog, std::int64_t id) {
+  const EntryInfo entry = EntryOfKind(catalog, id, Kind::kGarment);
+  const AssetData first = catalog.Data(id, 1);
+  if (first.format != "makehuman-garment") return nullptr;
+  return MakeHumanBundle(first, EntryWhat(entry, 1)).LoadBody();
+}
+
 sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version) {
   const EntryInfo entry = EntryOfKind(catalog, id, Kind::kGarment);
-  return GarmentFromData(entry.name, catalog.Data(id, version), EntryWhat(entry, version));
+  sim::GarmentSpec spec =
+      GarmentFromData(entry.name, catalog.Data(id, version), EntryWhat(entry, version));
+  // A saved edit of a MakeHuman garment is its model alone; the body is the first version's.
+  if (spec.model && !spec.made_for) spec.made_for = MadeForBody(catalog, id);
+  return spec;
 }
 
 sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id) {
@@ -336,7 +371,8 @@ void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
 
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
                                 const FabricParameters& fabric, const std::string& what,
-                                const std::string& character_what) {
+                                const std::string& character_what,
+                                std::shared_ptr<const sim::Avatar> made_for) {
   ThumbnailRequest request;
   request.kind = kind;
   request.name = name;
@@ -355,6 +391,7 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
       scene.name = name;
       scene.source = what;
       sim::GarmentSpec garment = GarmentFromData(name, data, what);
+      if (!garment.made_for) garment.made_for = std::move(made_for);
       sim::AvatarSpec avatar;
       // A garment made for one body (MakeHuman's) is shown on it.
       avatar.avatar = garment.made_for ? garment.made_for : sim::MakeHumanoid();

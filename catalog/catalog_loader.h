@@ -32,6 +32,10 @@ std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id);
 /// (GarmentSpec::model). Throws sim::InputError naming the entry and version.
 sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version = 0);
 
+/// The body garment `id` was made for (GarmentSpec::made_for): for a MakeHuman garment its
+/// first version's body, which its saved edits (prebuilt models) are worn by too; else null.
+std::shared_ptr<const sim::Avatar> MadeForBody(Catalog& catalog, std::int64_t id);
+
 /// The fabric of garment `id` as a sim::Material named "<entry name>_fabric".
 sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
 
@@ -54,9 +58,11 @@ inline constexpr const char* kCharacterFileLabel = "its character file";
 /// request a ThumbnailMaker needs to draw it. Throws sim::InputError naming `what` (a file
 /// name) and the problem; a DeepMimic clip's character file is named `character_what` (the
 /// importer passes the user's path). `fabric` is the garment's fabric (ignored for other
-/// kinds).
+/// kinds); `made_for`, the body a garment whose data does not name one was made for
+/// (MadeForBody: a saved edit of a MakeHuman garment), which it is checked and drawn on.
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,
                                 const FabricParameters& fabric, const std::string& what,
-                                const std::string& character_what = kCharacterFileLabel);
+                                const std::string& character_what = kCharacterFileLabel,
+                                std::shared_ptr<const sim::Avatar> made_for = nullptr);
 
 }  // namespace costume::catalog

@@ -24,6 +24,7 @@
 #include "sim_core/app/sim_server.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
+#include "sim_core/common/input_error.h"
 #include "tests/support/shared_data.h"
 #include "tests/support/test_scenes.h"
 
@@ -271,6 +272,32 @@ TEST_F(CatalogLinkTest, AMakeHumanSuitIsWornByItsBodyOnly) {
   EXPECT_EQ(server_->ignored().commands_refused, 2);
   EXPECT_EQ(server_->simulation().avatar()->avatar().num_vertices(),
             catalog::LoadAvatar(*catalog_, body)->num_vertices());
+
+  // A saved edit (its model alone) is the same body's: refused on another avatar, its
+  // thumbnail drawn on that body.
+  command save{};
+  save.kind = command::KIND_SAVE_VERSION;
+  save.name = "as worn";
+  Send(save);
+  Step();
+  ASSERT_TRUE(Warned("version 2"));
+  const sim::GarmentSpec saved = catalog::LoadGarment(*catalog_, suit_id, 2);
+  ASSERT_NE(saved.model, nullptr);
+  ASSERT_NE(saved.made_for, nullptr);
+  EXPECT_TRUE(sim::SameRestSkin(*saved.made_for, *catalog::LoadAvatar(*catalog_, body)));
+  sim::SceneDescription other = SkirtScene();
+  other.garments.clear();
+  catalog::AddGarmentToScene(*catalog_, suit_id, 2, other);
+  EXPECT_THROW(sim::ValidateScene(other), sim::InputError);
+  int drawn_on = 0;
+  std::ostringstream log;
+  catalog_->FillMissingThumbnails(
+      [&](const catalog::ThumbnailRequest& request) {
+        if (request.name == "female_casualsuit02") drawn_on = request.avatar->num_vertices();
+        return std::vector<std::uint8_t>{1};
+      },
+      64, log);
+  EXPECT_EQ(drawn_on, saved.made_for->num_vertices()) << log.str();
 }
 
 TEST_F(CatalogLinkTest, ACatalogueThatCannotBeOpenedIsAWarningNamingItsUrl) {
