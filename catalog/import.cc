@@ -95,14 +95,13 @@ AssetData GarmentTomlData(const fs::path& root, const fs::path& path, const std:
 }
 
 /// `file` resolved inside the root, for the part `part` of the entry of `shown`; a refusal
-/// names both, and the option that gives the file.
+/// names both, and `hint`: where the file's name comes from.
 fs::path ResolvePart(const fs::path& root, const std::string& file, const std::string& shown,
-                     const std::string& part, const std::string& option) {
+                     const std::string& part, const std::string& hint) {
   try {
     return ResolveInsideRoot(root, file);
   } catch (const sim::InputError& error) {
-    throw sim::InputError(shown + ": " + part + ": " + error.what() + " (give it with " + option +
-                          ")");
+    throw sim::InputError(shown + ": " + part + ": " + error.what() + " (" + hint + ")");
   }
 }
 
@@ -125,22 +124,22 @@ AssetData MakeHumanGarmentData(const fs::path& root, const ImportRequest& reques
                           "' must name a file beside it (a plain file name)");
   }
   const fs::path obj = ResolvePart(root, (path.parent_path() / obj_name).string(), shown,
-                                   "its garment OBJ", "its obj_file line");
+                                   "its garment OBJ", "named by its obj_file line");
   const fs::path body =
       ResolvePart(root,
                   request.makehuman_body.empty()
                       ? (path.parent_path() / ".." / ".." / "body" / "base.obj").string()
                       : request.makehuman_body,
-                  shown, "the MakeHuman body it is fitted to", "--makehuman-body");
+                  shown, "the MakeHuman body it is fitted to", "give it with --makehuman-body");
   auto beside_body = [&](const std::string& given, const char* name) {
     return given.empty() ? (body.parent_path() / name).string() : given;
   };
   const fs::path skeleton =
       ResolvePart(root, beside_body(request.makehuman_skeleton, "default.mhskel"), shown,
-                  "the MakeHuman body's skeleton", "--makehuman-skeleton");
+                  "the MakeHuman body's skeleton", "give it with --makehuman-skeleton");
   const fs::path weights =
       ResolvePart(root, beside_body(request.makehuman_weights, "default_weights.mhw"), shown,
-                  "the MakeHuman body's skin weights", "--makehuman-weights");
+                  "the MakeHuman body's skin weights", "give it with --makehuman-weights");
   // Stored under their own names (the loader tells the body from the garment's OBJ by the
   // obj_file line), so messages about them name the files the user has.
   const std::string body_name = body.filename().string();

@@ -235,7 +235,13 @@ void MainWindow::ShowImportResult(int code, const QString& output) {
   const qsizetype at =
       output.indexOf(QRegularExpression("^error: ", QRegularExpression::MultilineOption));
   if (at >= 0) {
-    Warn("catalogue: " + output.mid(at + 7).simplified());
+    QString reason = output.mid(at + 7).simplified();
+    // The program names its own options; here the body is picked in the dialog instead.
+    if (reason.contains("--makehuman-body")) {
+      reason += " — here: pick the garment together with its body's .obj, .mhskel and .mhw "
+                "(the filter \"MakeHuman garments with their body\")";
+    }
+    Warn("catalogue: " + reason);
     return;
   }
   // Refused before reading any file (options it could not take): its last line says why.

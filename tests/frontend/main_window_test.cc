@@ -848,6 +848,17 @@ TEST(MainWindowCatalogue, AMakeHumanSuitPickedWithItsBodyIsImported) {
     GTEST_SKIP() << "costume-catalog not built";
   }
   auto path = [](const std::filesystem::path& p) { return QString::fromStdString(p.string()); };
+  // Alone, out of MakeHuman's folders: its body cannot be found, and the warning says how to
+  // give it here.
+  std::filesystem::create_directories(dir / "lone");
+  std::filesystem::copy_file(suit, dir / "lone/male_casualsuit02.mhclo");
+  std::filesystem::copy_file(suit.parent_path() / "male_casualsuit02.obj",
+                             dir / "lone/male_casualsuit02.obj");
+  window.ImportFiles(EntryKind::kCostume, {path(dir / "lone/male_casualsuit02.mhclo")});
+  ASSERT_TRUE(WaitFor([&] { return window.warning_label()->text().contains("nothing was imported"); },
+                      60000));
+  EXPECT_TRUE(window.warning_label()->text().contains("pick the garment together with its body"))
+      << window.warning_label()->text().toStdString();
   window.ImportFiles(EntryKind::kCostume,
                      {path(suit), path(mh / "body/base.obj"), path(mh / "body/default.mhskel"),
                       path(mh / "body/default_weights.mhw")});
