@@ -855,10 +855,10 @@ TEST(MainWindowCatalogue, AMakeHumanSuitPickedWithItsBodyIsImported) {
   std::filesystem::copy_file(suit.parent_path() / "male_casualsuit02.obj",
                              dir / "lone/male_casualsuit02.obj");
   window.ImportFiles(EntryKind::kCostume, {path(dir / "lone/male_casualsuit02.mhclo")});
-  ASSERT_TRUE(WaitFor([&] { return window.warning_label()->text().contains("nothing was imported"); },
-                      60000));
-  EXPECT_TRUE(window.warning_label()->text().contains("pick the garment together with its body"))
-      << window.warning_label()->text().toStdString();
+  QLabel* label = window.warning_label();
+  ASSERT_TRUE(WaitFor([&] { return label->text().contains("nothing was imported"); }, 60000));
+  EXPECT_TRUE(label->text().contains("pick the garment together with its body"))
+      << label->text().toStdString();
   window.ImportFiles(EntryKind::kCostume,
                      {path(suit), path(mh / "body/base.obj"), path(mh / "body/default.mhskel"),
                       path(mh / "body/default_weights.mhw")});
