@@ -555,6 +555,22 @@ void Catalog::SetFabric(std::int64_t garment_id, const FabricParameters& fabric)
   });
 }
 
+EntryInfo Catalog::Remove(std::int64_t id) {
+  return InTransaction(*db_, true, [&] {
+    const EntryInfo entry = Get(id);
+    if (entry.provenance == kBuiltInProvenance) {
+      throw sim::InputError("catalog '" + url_ + "': " + KindName(entry.kind) + " '" + entry.name +
+                            "' (id " + std::to_string(id) +
+                            ") is built in: scenes and the other entries may name it, so it stays");
+    }
+    // Children first: SQLite applies ON DELETE CASCADE only with its foreign keys on.
+    db_->Execute("DELETE FROM fabrics WHERE entry_id = $1", {id});
+    db_->Execute("DELETE FROM versions WHERE entry_id = $1", {id});
+    db_->Execute("DELETE FROM entries WHERE id = $1", {id});
+    return entry;
+  });
+}
+
 void Catalog::SetThumbnail(std::int64_t id, const std::vector<std::uint8_t>& png) {
   InTransaction(*db_, true, [&] {
     const EntryInfo entry = Get(id);

@@ -201,6 +201,11 @@ class Catalog {
   std::int64_t Add(const NewEntry& entry);
   /// Adds several entries in one transaction: all of them or, when one is refused, none.
   std::vector<std::int64_t> AddAll(const std::vector<NewEntry>& entries);
+  /// Removes entry `id` with all its versions, thumbnails and fabric in one transaction and
+  /// returns what it was. Throws sim::InputError for an unknown id and for a built-in entry
+  /// (scene files and the defaults name them). A simulation that has the entry loaded keeps
+  /// it; lists show the removal when next filled.
+  EntryInfo Remove(std::int64_t id);
   /// Sets a garment's fabric parameters (validated first).
   void SetFabric(std::int64_t garment_id, const FabricParameters& fabric);
   /// Replaces the thumbnail of entry `id` (garments: of its latest version).

@@ -62,6 +62,11 @@ class BuiltInCatalog final : public CatalogSource {
       }
     }
   }
+
+  void Remove(const CatalogItem& item) override {
+    throw sim::InputError("'" + item.name + "' is built in, and there is no catalogue database "
+                          "to remove entries from");
+  }
 };
 
 #ifdef COSTUME_HAVE_CATALOG
@@ -86,6 +91,7 @@ class DatabaseCatalog final : public CatalogSource {
   }
   std::string Describe() const override { return db_->url(); }
   bool IsDatabase() const override { return true; }
+  void Remove(const CatalogItem& item) override { db_->Remove(item.id); }
 
   void ApplyToScene(EntryKind kind, const CatalogItem& item, sim::SceneDescription& scene) override {
     switch (kind) {

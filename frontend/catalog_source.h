@@ -47,6 +47,9 @@ class CatalogSource {
   /// scene without avatar).
   virtual void ApplyToScene(EntryKind kind, const CatalogItem& item,
                             sim::SceneDescription& scene) = 0;
+  /// Removes `item` with all its versions (catalog::Catalog::Remove). Throws sim::InputError
+  /// naming it for a built-in entry or a source without a database.
+  virtual void Remove(const CatalogItem& item) = 0;
 };
 
 /// The built-in assets: the humanoid; the clips of sim::BuiltInClipNames; the skirt, cape and

@@ -8,7 +8,9 @@
 #include <QFileDialog>
 #include <QFormLayout>
 #include <QHBoxLayout>
+#include <QMenu>
 #include <QMenuBar>
+#include <QMessageBox>
 #include <QPainter>
 #include <QPixmap>
 #include <QRegularExpression>
@@ -268,12 +270,45 @@ QWidget* MainWindow::BuildLists() {
     auto* column = new QVBoxLayout;
     column->addWidget(new QLabel(kListTitles[k]));
     lists_[k] = MakeThumbnailList();
+    lists_[k]->setContextMenuPolicy(Qt::CustomContextMenu);
+    connect(lists_[k], &QWidget::customContextMenuRequested, this,
+            [this, k](const QPoint& at) { OfferRemoval(static_cast<EntryKind>(k), at); });
     column->addWidget(lists_[k]);
     load_buttons_[k] = new QPushButton(QString("Load ") + kListTitles[k]);
     column->addWidget(load_buttons_[k]);
     layout->addLayout(column);
   }
   return box;
+}
+
+void MainWindow::OfferRemoval(EntryKind kind, const QPoint& at) {
+  const QListWidgetItem* item = list(kind)->itemAt(at);
+  if (!item || !catalog_->IsDatabase()) return;
+  const QString name = item->data(kNameRole).toString();
+  QMenu menu;
+  QAction* remove = menu.addAction(QString("Remove '%1' from the catalogue…").arg(name));
+  if (menu.exec(list(kind)->viewport()->mapToGlobal(at)) != remove) return;
+  const auto answer = QMessageBox::question(
+      this, "Remove from the catalogue",
+      QString("Remove '%1' and all its versions from %2? This cannot be undone; a simulation "
+              "that has it loaded keeps it.")
+          .arg(name, QString::fromStdString(catalog_->Describe())));
+  if (answer == QMessageBox::Yes) RemoveEntry(kind, name);
+}
+
+bool MainWindow::RemoveEntry(EntryKind kind, const QString& name) {
+  const QList<QListWidgetItem*> found = list(kind)->findItems(name, Qt::MatchExactly);
+  if (found.isEmpty()) return false;
+  const CatalogItem item{found.front()->data(kIdRole).toLongLong(), name.toStdString(), "", {}};
+  try {
+    catalog_->Remove(item);
+  } catch (const sim::InputError& error) {
+    Warn(QString("catalogue: '%1' not removed: %2").arg(name, error.what()));
+    return false;
+  }
+  Log(QString("catalogue: removed '%1'").arg(name));
+  FillLists();
+  return true;
 }
 
 void MainWindow::FillLists() {

@@ -128,6 +128,10 @@ class MainWindow : public QMainWindow {
   /// the refusal (nothing imported) on the status bar.
   void ImportFiles(EntryKind kind, const QStringList& files);
   QAction* import_action(EntryKind kind) const { return import_actions_[static_cast<int>(kind)]; }
+  /// Removes the listed entry `name` of `kind` from the catalogue (the lists' context menu
+  /// asks first) and fills the lists again; false, with the reason as the warning, when it
+  /// is built in or not listed.
+  bool RemoveEntry(EntryKind kind, const QString& name);
 
  public slots:
   void OnClothChunk(const costume_lcm::cloth_frame& chunk);
@@ -155,6 +159,8 @@ class MainWindow : public QMainWindow {
   void RestartSimServer();
   /// Lists again and has the missing thumbnails rendered (after a saved version, on F5).
   void RefreshCatalogue();
+  /// The context menu of a list's entry at `at`: remove it, after a confirmation.
+  void OfferRemoval(EntryKind kind, const QPoint& at);
   /// After a child `costume-catalog import` (ImportFiles): the lists filled again, or its
   /// refusal as the warning.
   void ShowImportResult(int code, const QString& output);

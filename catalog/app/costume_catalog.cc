@@ -44,6 +44,26 @@ EntryInfo Resolve(Catalog& catalog, const std::string& what, Kind kind_for_names
   return *entry;
 }
 
+/// `remove`: the entry named by id, or by name and kind; with `yes` it is removed, without
+/// only described (a removal cannot be undone, and a team may share the catalogue).
+void Remove(Catalog& catalog, const std::string& what, const std::string& kind, bool yes) {
+  const bool by_id = !what.empty() && what.find_first_not_of("0123456789") == std::string::npos;
+  if (!by_id && kind.empty()) {
+    throw costume::sim::InputError("remove '" + what + "': a name needs --kind (avatar, "
+                                   "animation or garment); or give the id ('list' shows it)");
+  }
+  const EntryInfo entry = Resolve(catalog, what, by_id ? Kind::kGarment : costume::catalog::ParseKind(kind));
+  const std::string described = std::string(KindName(entry.kind)) + " '" + entry.name + "' (id " +
+                                std::to_string(entry.id) + ", " +
+                                std::to_string(entry.latest_version) + " version(s))";
+  if (!yes) {
+    std::printf("would remove %s; nothing removed: run again with --yes\n", described.c_str());
+    return;
+  }
+  catalog.Remove(entry.id);
+  std::printf("removed %s\n", described.c_str());
+}
+
 void PrintList(Catalog& catalog, const std::vector<Kind>& kinds) {
   std::printf("%-6s %-10s %-24s %-14s %-8s %-19s %s\n", "id", "kind", "name", "category", "version",
               "modified (UTC)", "provenance / licence");
@@ -209,6 +229,16 @@ int main(int argc, char** argv) {
   exporter->add_flag("--thumbnail", export_thumbnail,
                      "write the entry's thumbnail (PNG) instead of its data");
 
+  std::string remove_id, remove_kind;
+  bool remove_yes = false;
+  auto* remover = app.add_subcommand(
+      "remove", "remove an entry with all its versions (built-in entries stay)");
+  remover->add_option("id", remove_id, "entry id, or name with --kind")->required();
+  remover->add_option("--kind", remove_kind, "avatar | animation | garment (for a name)")
+      ->check(CLI::IsMember({"avatar", "animation", "garment"}));
+  remover->add_flag("--yes", remove_yes,
+                    "remove it (without: say what would be removed, and remove nothing)");
+
   int thumbnail_size = 128;
   auto* thumbnails = app.add_subcommand(
       "thumbnails",
@@ -252,6 +282,8 @@ int main(int argc, char** argv) {
       const int made = catalog->FillMissingThumbnails(costume::catalog::RenderedThumbnails(),
                                                       thumbnail_size, std::cout);
       std::printf("made %d thumbnail(s)\n", made);
+    } else if (*remover) {
+      Remove(*catalog, remove_id, remove_kind, remove_yes);
     } else if (*exporter) {
       const EntryInfo entry = Resolve(*catalog, export_id, Kind::kGarment);
       if (export_thumbnail) {

@@ -255,6 +255,42 @@ TEST_P(CatalogTest, VersionsNeverOverwriteAndEveryVersionLoads) {
   EXPECT_TRUE(catalog->CheckIntegrity().empty());
 }
 
+// Remove takes an entry with every version, thumbnail and fabric, and nothing else; built-in
+// entries stay.
+TEST_P(CatalogTest, RemoveTakesAnEntryWithItsVersionsAndKeepsBuiltIns) {
+  auto catalog = Open();
+  NewEntry apron;
+  apron.kind = Kind::kGarment;
+  apron.name = "apron";
+  apron.fabric = FabricParameters{};
+  apron.data = {"edited-garment", PatternBlob(1, 64)};
+  apron.thumbnail_png = {0x89, 'P', 'N', 'G'};
+  const std::int64_t id = catalog->Add(apron);
+  catalog->SaveGarmentVersion(id, {"edited-garment", PatternBlob(2, 64)}, "edit", {1, 2});
+  const std::size_t garments = catalog->List(Kind::kGarment).size();
+
+  const EntryInfo removed = catalog->Remove(id);
+  EXPECT_EQ(removed.name, "apron");
+  EXPECT_EQ(removed.latest_version, 2);
+  EXPECT_FALSE(catalog->Find(Kind::kGarment, "apron"));
+  EXPECT_THROW(catalog->Get(id), sim::InputError);
+  EXPECT_THROW(catalog->Data(id, 1), sim::InputError);
+  EXPECT_EQ(catalog->List(Kind::kGarment).size(), garments - 1);
+  EXPECT_TRUE(catalog->CheckIntegrity().empty());
+  EXPECT_THROW(catalog->Remove(id), sim::InputError);  // gone already
+
+  try {
+    catalog->Remove(Skirt(*catalog));
+    FAIL() << "a built-in entry was removed";
+  } catch (const sim::InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("'skirt'"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("built in"), std::string::npos) << error.what();
+  }
+  EXPECT_EQ(catalog->Versions(Skirt(*catalog)).size(), 1u);
+  // The name is free again: the same garment imports anew as version 1.
+  EXPECT_EQ(catalog->Get(catalog->Add(apron)).latest_version, 1);
+}
+
 TEST_P(CatalogTest, FabricIsSetAndValidated) {
   auto catalog = Open();
   const std::int64_t skirt = Skirt(*catalog);

@@ -566,6 +566,19 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_TRUE(Contains(output, "is built into the programs")) << output;
   EXPECT_TRUE(Contains(output, "pattern = \"skirt\"")) << output;
   EXPECT_FALSE(std::filesystem::exists(builtin));
+  // Removing says what it would take, and takes it only with --yes; built-ins stay.
+  ASSERT_EQ(RunProgram(url + " remove sheet --kind garment", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "would remove garment 'sheet' (id ")) << output;
+  ASSERT_EQ(RunProgram(url + " list --kind garment", output), 0);
+  EXPECT_TRUE(Contains(output, "sheet")) << output;
+  EXPECT_EQ(RunProgram(url + " remove sheet --yes", output), 1);  // a name needs its kind
+  EXPECT_TRUE(Contains(output, "a name needs --kind")) << output;
+  ASSERT_EQ(RunProgram(url + " remove sheet --kind garment --yes", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "removed garment 'sheet'")) << output;
+  ASSERT_EQ(RunProgram(url + " list --kind garment", output), 0);
+  EXPECT_FALSE(Contains(output, "sheet")) << output;
+  EXPECT_EQ(RunProgram(url + " remove skirt --kind garment --yes", output), 1);
+  EXPECT_TRUE(Contains(output, "is built in")) << output;
 
   // A garment file names no avatar or clip file: a path stored with the garment would be
   // read wherever it is loaded, outside the import folder.

@@ -818,6 +818,13 @@ TEST(MainWindowCatalogue, FilesImportedFromTheFileMenuAreListed) {
   ASSERT_TRUE(WaitFor([&] { return costumes->count() == listed + 1; }, 60000));
   const QList<QListWidgetItem*> found = costumes->findItems("scarf", Qt::MatchExactly);
   ASSERT_EQ(found.size(), 1);
+  // Removed again (the context menu's action, after its confirmation); built-ins stay.
+  EXPECT_TRUE(window.RemoveEntry(EntryKind::kCostume, "scarf"));
+  EXPECT_EQ(costumes->count(), listed);
+  EXPECT_FALSE(window.RemoveEntry(EntryKind::kCostume, "skirt"));
+  EXPECT_TRUE(window.warning_label()->text().contains("built in"))
+      << window.warning_label()->text().toStdString();
+  EXPECT_EQ(costumes->count(), listed);
   EXPECT_TRUE(window.message_log()->toPlainText().contains("catalogue: [1/1]"))
       << window.message_log()->toPlainText().toStdString();  // the program's progress line
   EXPECT_FALSE(window.lists_lack_thumbnails()) << "the import renders the scarf's thumbnail";
