@@ -40,6 +40,12 @@ const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhsk
                                  "Costumes (*.toml *.mhclo *.cdgarment);;MakeHuman garments with "
                                  "their body (*.mhclo *.obj *.mhskel *.mhw)",
                                  "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
+const char* kImportHints[3] = {
+    "Add avatars to the catalogue (MakeHuman's: its .obj, .mhskel and .mhw picked together)",
+    "Add costumes to the catalogue (a MakeHuman garment: with its body's .obj, .mhskel and .mhw "
+    "when they are not in MakeHuman's folders)",
+    "Add animations to the catalogue (a DeepMimic clip finds its character file in "
+    "../characters)"};
 constexpr int kIdRole = Qt::UserRole;
 constexpr int kNameRole = Qt::UserRole + 1;
 /// A server whose status has not come for this long is shown as silent: each sends one a
@@ -466,10 +472,9 @@ void MainWindow::BuildMenus() {
     import_actions_[k] =
         file->addAction(QString("Import %1…").arg(QString(kListTitles[k]).toLower()));
     import_actions_[k]->setEnabled(catalog_->IsDatabase());
-    import_actions_[k]->setToolTip(
-        catalog_->IsDatabase() ? QString("Add files to the catalogue (MakeHuman's avatar: its "
-                                         ".obj, .mhskel and .mhw together)")
-                               : QString("This build has no catalogue database to import into"));
+    import_actions_[k]->setToolTip(catalog_->IsDatabase()
+                                       ? kImportHints[k]
+                                       : "This build has no catalogue database to import into");
     connect(import_actions_[k], &QAction::triggered, this, [this, kind, k] {
       const QStringList files = QFileDialog::getOpenFileNames(
           this, QString("Import %1").arg(QString(kListTitles[k]).toLower()), import_folder_,
