@@ -642,6 +642,16 @@ std::vector<std::string> Catalog::CheckIntegrity() {
       problems.push_back("entry " + std::to_string(AsInt(row[0])) + " ('" + AsText(row[1]) +
                          "'): a garment without fabric or another kind with several versions");
     }
+    // Names stored before they were checked (a line break in one split `list`'s rows).
+    for (Kind kind : {Kind::kAvatar, Kind::kAnimation, Kind::kGarment}) {
+      for (const EntryInfo& entry : List(kind)) {
+        try {
+          RequireName("entry " + std::to_string(entry.id), "name", entry.name, true);
+        } catch (const sim::InputError& error) {
+          problems.push_back(error.what());
+        }
+      }
+    }
     return problems;
   });
 }

@@ -219,7 +219,8 @@ class Catalog {
                             std::ostream& log = std::cerr);
   /// Checks the database: SQLite's integrity_check and foreign_key_check, and for every
   /// entry that its versions are exactly 1..latest_version, non-garments have one version,
-  /// garments have a fabric. Returns the problems found (empty: consistent).
+  /// garments have a fabric, its name is one short line (as Add requires). Returns the
+  /// problems found (empty: consistent). CheckEntries (catalog_loader.h) also loads them.
   std::vector<std::string> CheckIntegrity();
 
  private:

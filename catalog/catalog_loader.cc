@@ -412,4 +412,27 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
   return request;
 }
 
+std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log) {
+  std::vector<std::string> problems = catalog.CheckIntegrity();
+  for (const std::string& problem : problems) log << problem << "\n";
+  for (Kind kind : {Kind::kAvatar, Kind::kAnimation, Kind::kGarment}) {
+    for (const EntryInfo& entry : catalog.List(kind)) {
+      for (int version = 1; version <= entry.latest_version; ++version) {
+        const std::string what = EntryWhat(entry, version) + " (id " + std::to_string(entry.id) + ")";
+        log << what << ": " << std::flush;  // a garment's cloth takes a moment to build
+        try {
+          CheckAssetData(kind, entry.name, catalog.Data(entry.id, version),
+                         entry.fabric.value_or(FabricParameters{}), what, kCharacterFileLabel,
+                         kind == Kind::kGarment ? MadeForBody(catalog, entry.id) : nullptr);
+          log << "ok\n";
+        } catch (const sim::InputError& error) {
+          log << error.what() << "\n";
+          problems.push_back(error.what());
+        }
+      }
+    }
+  }
+  return problems;
+}
+
 }  // namespace costume::catalog

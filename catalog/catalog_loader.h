@@ -5,7 +5,9 @@
 
 #include <cstdint>
 #include <memory>
+#include <ostream>
 #include <string>
+#include <vector>
 
 #include "catalog/catalog.h"
 #include "sim_core/avatar/avatar.h"
@@ -64,5 +66,12 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
                                 const FabricParameters& fabric, const std::string& what,
                                 const std::string& character_what = kCharacterFileLabel,
                                 std::shared_ptr<const sim::Avatar> made_for = nullptr);
+
+/// Checks the whole catalogue as imports check a new file: Catalog::CheckIntegrity, then
+/// every version of every entry loaded (CheckAssetData: an importer's refusal, a clip no
+/// avatar can play, a garment whose cloth cannot be built). Entries stored by older builds
+/// may fail checks added since. Writes a line per entry and version to `log` and returns
+/// the problems (empty: all sound).
+std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log);
 
 }  // namespace costume::catalog

@@ -14,6 +14,7 @@
 
 #include "catalog/bundle.h"
 #include "catalog/catalog.h"
+#include "catalog/catalog_loader.h"
 #include "catalog/import.h"
 #include "catalog/rendered_thumbnails.h"
 #include "sim_core/common/input_error.h"
@@ -239,6 +240,9 @@ int main(int argc, char** argv) {
   remover->add_flag("--yes", remove_yes,
                     "remove it (without: say what would be removed, and remove nothing)");
 
+  auto* checker = app.add_subcommand(
+      "check", "check the database and load every version of every entry as an import would");
+
   int thumbnail_size = 128;
   auto* thumbnails = app.add_subcommand(
       "thumbnails",
@@ -282,6 +286,10 @@ int main(int argc, char** argv) {
       const int made = catalog->FillMissingThumbnails(costume::catalog::RenderedThumbnails(),
                                                       thumbnail_size, std::cout);
       std::printf("made %d thumbnail(s)\n", made);
+    } else if (*checker) {
+      const auto problems = costume::catalog::CheckEntries(*catalog, std::cout);
+      std::printf("%zu problem(s)\n", problems.size());
+      if (!problems.empty()) return 1;
     } else if (*remover) {
       Remove(*catalog, remove_id, remove_kind, remove_yes);
     } else if (*exporter) {

@@ -579,6 +579,9 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_FALSE(Contains(output, "sheet")) << output;
   EXPECT_EQ(RunProgram(url + " remove skirt --kind garment --yes", output), 1);
   EXPECT_TRUE(Contains(output, "is built in")) << output;
+  ASSERT_EQ(RunProgram(url + " check", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "catalog garment 'skirt' version 1 (id ")) << output;
+  EXPECT_TRUE(Contains(output, "0 problem(s)")) << output;
 
   // A garment file names no avatar or clip file: a path stored with the garment would be
   // read wherever it is loaded, outside the import folder.
