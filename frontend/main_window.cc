@@ -24,6 +24,8 @@
 #include <QTimer>
 #include <QToolBar>
 #include <QVBoxLayout>
+#include <algorithm>
+#include <iterator>
 
 #include "sim_core/common/input_error.h"
 
@@ -236,6 +238,7 @@ void MainWindow::ShowImportResult(int code, const QString& output) {
   if (code == 0) {
     Log("catalogue: imported");
     RefreshCatalogue();
+    PickImported(output);
     return;
   }
   // The program's refusal ("error: 1 problem; nothing was imported:" and a line per bad file
@@ -257,6 +260,22 @@ void MainWindow::ShowImportResult(int code, const QString& output) {
   Warn(QString("catalogue: nothing was imported (costume-catalog import exited with code %1): %2")
            .arg(code)
            .arg(lines.isEmpty() ? QString() : lines.back()));
+}
+
+void MainWindow::PickImported(const QString& output) {
+  // The program's last lines: "stored garment 'scarf' as id 11", one per entry.
+  const QRegularExpression stored("^stored (avatar|animation|garment) '(.*)' as id \\d+$",
+                                  QRegularExpression::MultilineOption);
+  QRegularExpressionMatch last;
+  for (const QRegularExpressionMatch& match : stored.globalMatch(output)) last = match;
+  if (!last.hasMatch()) return;
+  const int k = static_cast<int>(std::find(std::begin(kImportKinds), std::end(kImportKinds),
+                                           last.captured(1).toStdString()) -
+                                 std::begin(kImportKinds));
+  const QList<QListWidgetItem*> found = lists_[k]->findItems(last.captured(2), Qt::MatchExactly);
+  if (found.isEmpty()) return;
+  lists_[k]->setCurrentItem(found.front());
+  lists_[k]->scrollToItem(found.front());
 }
 
 void MainWindow::MakeMissingThumbnails() {

@@ -159,6 +159,8 @@ class MainWindow : public QMainWindow {
   void RestartSimServer();
   /// Lists again and has the missing thumbnails rendered (after a saved version, on F5).
   void RefreshCatalogue();
+  /// Picks (and shows) in its list the last entry an import's `output` says it stored.
+  void PickImported(const QString& output);
   /// The context menu of a list's entry at `at`: remove it, after a confirmation.
   void OfferRemoval(EntryKind kind, const QPoint& at);
   /// After a child `costume-catalog import` (ImportFiles): the lists filled again, or its

@@ -818,6 +818,8 @@ TEST(MainWindowCatalogue, FilesImportedFromTheFileMenuAreListed) {
   ASSERT_TRUE(WaitFor([&] { return costumes->count() == listed + 1; }, 60000));
   const QList<QListWidgetItem*> found = costumes->findItems("scarf", Qt::MatchExactly);
   ASSERT_EQ(found.size(), 1);
+  ASSERT_NE(costumes->currentItem(), nullptr);
+  EXPECT_EQ(costumes->currentItem()->text(), "scarf");  // picked: Load takes it at once
   // Removed again (the context menu's action, after its confirmation); built-ins stay.
   EXPECT_TRUE(window.RemoveEntry(EntryKind::kCostume, "scarf"));
   EXPECT_EQ(costumes->count(), listed);
