@@ -97,6 +97,14 @@ class CatalogLinkTest : public ::testing::Test {
     c.utime = bus::NowUtime();
     publisher_.Publish(c);
   }
+  /// Sends SAVE_VERSION with `label` and runs the step that saves it.
+  void SaveVersion(const std::string& label) {
+    command save{};
+    save.kind = command::KIND_SAVE_VERSION;
+    save.name = label;
+    Send(save);
+    Step();
+  }
   void SendLoad(std::int8_t kind, std::int64_t id, const std::string& name = "") {
     command c{};
     c.kind = kind;
@@ -275,11 +283,7 @@ TEST_F(CatalogLinkTest, AMakeHumanSuitIsWornByItsBodyOnly) {
 
   // A saved edit (its model alone) is the same body's: refused on another avatar, its
   // thumbnail drawn on that body.
-  command save{};
-  save.kind = command::KIND_SAVE_VERSION;
-  save.name = "as worn";
-  Send(save);
-  Step();
+  SaveVersion("as worn");
   ASSERT_TRUE(Warned("version 2"));
   const sim::GarmentSpec saved = catalog::LoadGarment(*catalog_, suit_id, 2);
   ASSERT_NE(saved.model, nullptr);
@@ -357,11 +361,7 @@ TEST_F(CatalogLinkTest, SaveVersionStoresTheEditedRestLengthsAndLoadsBack) {
   const std::vector<double> edited = RestLengths(server_->simulation().model());
   ASSERT_NE(edited, built);
 
-  command save{};
-  save.kind = command::KIND_SAVE_VERSION;
-  save.name = "hem relaxed";
-  Send(save);
-  Step();
+  SaveVersion("hem relaxed");
   EXPECT_TRUE(Warned("version 2"));
   const std::int64_t skirt = Id(Kind::kGarment, "skirt");
   const auto versions = catalog_->Versions(skirt);
