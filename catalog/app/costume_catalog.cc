@@ -53,7 +53,13 @@ void Remove(Catalog& catalog, const std::string& what, const std::string& kind, 
     throw costume::sim::InputError("remove '" + what + "': a name needs --kind (avatar, "
                                    "animation or garment); or give the id ('list' shows it)");
   }
-  const EntryInfo entry = Resolve(catalog, what, by_id ? Kind::kGarment : costume::catalog::ParseKind(kind));
+  const EntryInfo entry =
+      Resolve(catalog, what, kind.empty() ? Kind::kGarment : costume::catalog::ParseKind(kind));
+  if (!kind.empty() && KindName(entry.kind) != kind) {
+    throw costume::sim::InputError("remove " + what + ": entry " + std::to_string(entry.id) +
+                                   " ('" + entry.name + "') is " + KindName(entry.kind) +
+                                   ", not " + kind + "; nothing removed");
+  }
   const std::string described = std::string(KindName(entry.kind)) + " '" + entry.name + "' (id " +
                                 std::to_string(entry.id) + ", " +
                                 std::to_string(entry.latest_version) + " version(s))";

@@ -444,7 +444,7 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsWornByItsBody) {
 }
 
 // Another avatar cannot wear it: moved out of a body it was not made for, its hems' slivers
-// need steps of under 2 ms. The scene is refused whichever was chosen first.
+// need steps of under 2 ms. (catalog_link_test: the server refuses either order of loads.)
 TEST_F(SharedDataImportTest, AMakeHumanGarmentIsRefusedOnAnotherAvatar) {
   const std::string suit = "makehuman/clothes/male_casualsuit02/male_casualsuit02.mhclo";
   if (!fs::exists(kSharedData / suit)) GTEST_SKIP() << "no " << suit;
@@ -466,6 +466,7 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsRefusedOnAnotherAvatar) {
     EXPECT_TRUE(Contains(message, "'built-in humanoid'")) << message;
   }
 }
+
 // What a MakeHuman garment needs besides itself is named when it is missing or points out
 // of the import folder; nothing is imported.
 TEST_F(SharedDataImportTest, AMakeHumanGarmentsMissingPartsAreNamed) {
@@ -573,6 +574,10 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_TRUE(Contains(output, "sheet")) << output;
   EXPECT_EQ(RunProgram(url + " remove sheet --yes", output), 1);  // a name needs its kind
   EXPECT_TRUE(Contains(output, "a name needs --kind")) << output;
+  const std::string sheet_id = std::to_string(Catalog::Open(
+      "sqlite:" + (dir_ / "program.sqlite").string())->Find(Kind::kGarment, "sheet")->id);
+  EXPECT_EQ(RunProgram(url + " remove " + sheet_id + " --kind animation --yes", output), 1);
+  EXPECT_TRUE(Contains(output, "is garment, not animation; nothing removed")) << output;
   ASSERT_EQ(RunProgram(url + " remove sheet --kind garment --yes", output), 0) << output;
   EXPECT_TRUE(Contains(output, "removed garment 'sheet'")) << output;
   ASSERT_EQ(RunProgram(url + " list --kind garment", output), 0);
