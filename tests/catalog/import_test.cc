@@ -584,6 +584,14 @@ TEST_F(ImportTest, TheProgramImportsListsAndRefuses) {
   EXPECT_FALSE(Contains(output, "sheet")) << output;
   EXPECT_EQ(RunProgram(url + " remove skirt --kind garment --yes", output), 1);
   EXPECT_TRUE(Contains(output, "is built in")) << output;
+  // Digits name an entry by id when one has that id, else by name (a costume of 1920).
+  const std::string period = Write("1920.toml", "[[garment]]\nname = \"1920\"\n[garment.panel]\n");
+  ASSERT_EQ(RunProgram(url + " import --kind garment --root " + root_.string() + " " + period,
+                       output),
+            0)
+      << output;
+  ASSERT_EQ(RunProgram(url + " versions 1920", output), 0) << output;
+  EXPECT_TRUE(Contains(output, "garment '1920' (id ")) << output;
   ASSERT_EQ(RunProgram(url + " check", output), 0) << output;
   EXPECT_TRUE(Contains(output, "catalog garment 'skirt' version 1 (id ")) << output;
   EXPECT_TRUE(Contains(output, "0 problem(s)")) << output;
