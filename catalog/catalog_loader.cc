@@ -360,13 +360,27 @@ sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id) {
   return MaterialFromFabric(entry.fabric.value_or(FabricParameters{}), entry.name + "_fabric");
 }
 
-void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
+bool AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene) {
   sim::GarmentSpec garment = LoadGarment(catalog, id, version);
   const sim::Material material = GarmentMaterial(catalog, id);
   std::erase_if(scene.materials, [&](const sim::Material& m) { return m.name == material.name; });
   scene.materials.push_back(material);
+  bool brought_body = false;
+  if (garment.made_for && scene.avatar && scene.avatar->avatar &&
+      !sim::SameRestSkin(*scene.avatar->avatar, *garment.made_for)) {
+    // The designer asked for the costume; it fits its own body only. As loading an avatar:
+    // the clip stays, a posture for another skeleton is dropped.
+    sim::Pose& posture = scene.avatar->motion.posture;
+    if (posture.rotations.size() !=
+        static_cast<std::size_t>(garment.made_for->skeleton().num_joints())) {
+      posture.rotations.clear();
+    }
+    scene.avatar->avatar = garment.made_for;
+    brought_body = true;
+  }
   scene.garments.push_back(std::move(garment));
+  return brought_body;
 }
 
 ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetData& data,

@@ -42,8 +42,10 @@ std::shared_ptr<const sim::Avatar> MadeForBody(Catalog& catalog, std::int64_t id
 sim::Material GarmentMaterial(Catalog& catalog, std::int64_t id);
 
 /// Appends version `version` of garment `id` and its material to `scene` (a material of the
-/// same name already there is replaced).
-void AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
+/// same name already there is replaced). A garment made for one body (a MakeHuman garment,
+/// GarmentSpec::made_for) brings that body as the scene's avatar when the avatar is another
+/// (the clip stays; a posture for another skeleton is dropped): returns true then.
+bool AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
                        sim::SceneDescription& scene);
 
 /// A "makehuman-garment" bundle holds, under their own file names, the .mhclo, the garment

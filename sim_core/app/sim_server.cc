@@ -385,6 +385,8 @@ void SimServer::Load(LoadKind kind, const costume_lcm::command& command) {
     ++ignored_.commands_refused;
     return;
   }
+  const std::shared_ptr<const sim::Avatar> avatar_before =
+      scene_.avatar ? scene_.avatar->avatar : nullptr;
   sim::SceneDescription scene = scene_;
   try {
     const std::string entry = catalog->Load(kind, command.database_id, command.name, scene);
@@ -392,6 +394,13 @@ void SimServer::Load(LoadKind kind, const costume_lcm::command& command) {
       Rebuild(scene);
     } catch (const sim::InputError& error) {
       throw sim::InputError(entry + " cannot be simulated: " + error.what());
+    }
+    // A costume made for one body (a MakeHuman garment) brings that body: say so, as the
+    // designer picked a costume, not an avatar.
+    if (kind == LoadKind::kCostume && avatar_before && scene_.avatar &&
+        scene_.avatar->avatar != avatar_before) {
+      Warn("loaded " + entry + " on the body it is made for: the avatar is now '" +
+           scene_.avatar->avatar->name() + "'");
     }
   } catch (const std::exception& error) {
     ++ignored_.commands_refused;

@@ -443,9 +443,10 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsWornByItsBody) {
   EXPECT_GT(x.col(1).minCoeff(), lowest_at_start - 0.012);
 }
 
-// Another avatar cannot wear it: moved out of a body it was not made for, its hems' slivers
-// need steps of under 2 ms. (catalog_link_test: the server refuses either order of loads.)
-TEST_F(SharedDataImportTest, AMakeHumanGarmentIsRefusedOnAnotherAvatar) {
+// Another avatar cannot wear it (moved out of a body it was not made for, its hems' slivers
+// need steps of under 2 ms): added to a scene of another avatar, it brings its own body, and
+// a scene that puts another avatar under it is refused. (catalog_link_test: the server.)
+TEST_F(SharedDataImportTest, AMakeHumanGarmentBringsItsBodyAndFitsNoOther) {
   const std::string suit = "makehuman/clothes/male_casualsuit02/male_casualsuit02.mhclo";
   if (!fs::exists(kSharedData / suit)) GTEST_SKIP() << "no " << suit;
   const std::int64_t id = ImportShared(Kind::kGarment, {suit}).at(0);
@@ -453,7 +454,17 @@ TEST_F(SharedDataImportTest, AMakeHumanGarmentIsRefusedOnAnotherAvatar) {
   scene.source = "import_test";
   scene.avatar.emplace();
   scene.avatar->avatar = sim::MakeHumanoid();
-  AddGarmentToScene(*catalog_, id, 0, scene);
+  scene.avatar->motion.posture.rotations.assign(
+      scene.avatar->avatar->skeleton().num_joints(), Eigen::Quaterniond::Identity());
+  EXPECT_TRUE(AddGarmentToScene(*catalog_, id, 0, scene));
+  ASSERT_NE(scene.garments[0].made_for, nullptr);
+  EXPECT_EQ(scene.avatar->avatar, scene.garments[0].made_for);
+  EXPECT_TRUE(scene.avatar->motion.posture.rotations.empty());  // the humanoid's, dropped
+  EXPECT_NO_THROW(sim::ValidateScene(scene));
+  sim::SceneDescription again = scene;
+  EXPECT_FALSE(AddGarmentToScene(*catalog_, id, 0, again));  // on its body already
+
+  scene.avatar->avatar = sim::MakeHumanoid();
   try {
     sim::ValidateScene(scene);
     ADD_FAILURE() << "the built-in humanoid was given MakeHuman's suit";
