@@ -588,10 +588,7 @@ int Catalog::FillMissingThumbnails(const ThumbnailMaker& maker, int size, std::o
       log << KindName(kind) << " '" << entry.name << "' (id " << entry.id << "): thumbnail... "
           << std::flush;  // draping a garment takes seconds: say what is being made
       try {
-        ThumbnailRequest request = CheckAssetData(
-            kind, entry.name, Data(entry.id), entry.fabric.value_or(FabricParameters{}),
-            entry.name, kCharacterFileLabel,
-            kind == Kind::kGarment ? MadeForBody(*this, entry.id) : nullptr);
+        ThumbnailRequest request = CheckStoredVersion(*this, entry, 0, entry.name);
         request.size = size;
         const std::vector<std::uint8_t> png = maker(request);
         if (png.empty()) {

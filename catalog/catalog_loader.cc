@@ -426,6 +426,16 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
   return request;
 }
 
+ThumbnailRequest CheckStoredVersion(Catalog& catalog, const EntryInfo& entry, int version,
+                                    const std::string& what) {
+  const AssetData data = catalog.Data(entry.id, version);
+  // Only a saved edit lacks the body it was made for; a garment's own data names it.
+  const std::shared_ptr<const sim::Avatar> made_for =
+      data.format == "edited-garment" ? MadeForBody(catalog, entry.id) : nullptr;
+  return CheckAssetData(entry.kind, entry.name, data, entry.fabric.value_or(FabricParameters{}),
+                        what, kCharacterFileLabel, made_for);
+}
+
 std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log) {
   std::vector<std::string> problems = catalog.CheckIntegrity();
   for (const std::string& problem : problems) log << problem << "\n";
@@ -435,9 +445,7 @@ std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log) {
         const std::string what = EntryWhat(entry, version) + " (id " + std::to_string(entry.id) + ")";
         log << what << ": " << std::flush;  // a garment's cloth takes a moment to build
         try {
-          CheckAssetData(kind, entry.name, catalog.Data(entry.id, version),
-                         entry.fabric.value_or(FabricParameters{}), what, kCharacterFileLabel,
-                         kind == Kind::kGarment ? MadeForBody(catalog, entry.id) : nullptr);
+          CheckStoredVersion(catalog, entry, version, what);
           log << "ok\n";
         } catch (const sim::InputError& error) {
           log << error.what() << "\n";

@@ -69,6 +69,11 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
                                 const std::string& character_what = kCharacterFileLabel,
                                 std::shared_ptr<const sim::Avatar> made_for = nullptr);
 
+/// CheckAssetData on version `version` (0: latest) of `entry` as stored, named `what`: a
+/// saved edit of a MakeHuman garment is checked on its body (MadeForBody).
+ThumbnailRequest CheckStoredVersion(Catalog& catalog, const EntryInfo& entry, int version,
+                                    const std::string& what);
+
 /// Checks the whole catalogue as imports check a new file: Catalog::CheckIntegrity, then
 /// every version of every entry loaded (CheckAssetData: an importer's refusal, a clip no
 /// avatar can play, a garment whose cloth cannot be built). Entries stored by older builds

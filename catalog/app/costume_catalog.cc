@@ -32,12 +32,14 @@ std::string FormatTime(std::int64_t utime) {
   return text;
 }
 
+bool IsDigits(const std::string& text) {
+  return !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+}
+
 /// An entry named by id or by name (for `versions`: a garment's name). Digits are an id
 /// when there is an entry of that id, else a name ("1920", a costume named by its period).
 EntryInfo Resolve(Catalog& catalog, const std::string& what, Kind kind_for_names) {
-  const bool digits = !what.empty() && what.size() < 19 &&
-                      what.find_first_not_of("0123456789") == std::string::npos;
-  if (digits) {
+  if (IsDigits(what) && what.size() < 19) {  // longer ones overflow an id
     try {
       return catalog.Get(std::stoll(what));
     } catch (const costume::sim::InputError&) {
@@ -55,8 +57,7 @@ EntryInfo Resolve(Catalog& catalog, const std::string& what, Kind kind_for_names
 /// `remove`: the entry named by id, or by name and kind; with `yes` it is removed, without
 /// only described (a removal cannot be undone, and a team may share the catalogue).
 void Remove(Catalog& catalog, const std::string& what, const std::string& kind, bool yes) {
-  const bool digits = !what.empty() && what.find_first_not_of("0123456789") == std::string::npos;
-  if (!digits && kind.empty()) {
+  if (!IsDigits(what) && kind.empty()) {
     throw costume::sim::InputError("remove '" + what + "': a name needs --kind (avatar, "
                                    "animation or garment); or give the id ('list' shows it)");
   }
