@@ -783,12 +783,27 @@ void ParsePosture(const TableView& table, const sim::Skeleton& skeleton, sim::Po
   }
 }
 
+/// `arm_spread`: "auto" (the default: the simulation chooses it, sim_core/scene/arm_spread.h)
+/// or degrees turning both of the clip's arms away from the body (0: as retargeted).
+void ParseArmSpread(const TableView& table, sim::AvatarSpec& avatar) {
+  const std::optional<Field> field = table.Find("arm_spread");
+  if (!field) return;
+  if (field->node->as_string()) {
+    ReadChoice(*field, {"auto"});
+    return;
+  }
+  const double degrees =
+      ReadNumber(*field, {0.0, sim::kMaxArmSpreadDegrees, false, false}, "degrees");
+  avatar.auto_arm_spread = false;
+  avatar.motion.arm_spread.fill(degrees * M_PI / 180.0);
+}
+
 /// [avatar]: the avatar (built-in or a file), the clip it plays, how cloth collides with it.
 sim::AvatarSpec ParseAvatar(const TableView& table, std::string& makehuman_body) {
   table.RefuseUnknownKeys({"model", "skeleton", "weights", "clip", "collision",
                            "superquadric_map_mb", "thickness", "friction", "max_skin_travel",
                            "max_steps_per_frame", "fit_time", "blend_time", "position",
-                           "heading", "posture"});
+                           "heading", "posture", "arm_spread"});
   sim::AvatarSpec avatar;
   avatar.source_line = table.line();
   avatar.avatar = ParseModel(table, makehuman_body);
@@ -818,6 +833,7 @@ sim::AvatarSpec ParseAvatar(const TableView& table, std::string& makehuman_body)
       NumberOr(table, "fit_time", avatar.motion.fit_time, {0.0, 60.0, false, false}, "s");
   avatar.motion.blend_time =
       NumberOr(table, "blend_time", avatar.motion.blend_time, {0.0, 60.0, false, false}, "s");
+  ParseArmSpread(table, avatar);
   avatar.motion.posture.root_translation =
       Vector3Or(table, "position", Eigen::Vector3d::Zero(), "m", kCoordinateRange);
   const double heading = NumberOr(table, "heading", 0.0, kPostureRange, "degrees");

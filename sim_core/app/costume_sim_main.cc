@@ -125,6 +125,9 @@ int Run(const Options& options) {
               scene.frame_rate, costume::sim::SolverMethodName(scene.solver.method),
               scene.solver.substeps, CollisionName(scene),
               scene.effects.self_collision ? "on" : "off");
+  if (scene.avatar && scene.avatar->clip) {
+    std::printf("%s\n", costume::sim::DescribeArmSpread(sim->arm_spread()).c_str());
+  }
   std::vector<double> frame_ms, collision_ms;
   int rolled_back = 0;
   for (int frame = 1; frame <= num_frames; ++frame) {

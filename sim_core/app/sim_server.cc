@@ -402,6 +402,12 @@ void SimServer::Load(LoadKind kind, const costume_lcm::command& command) {
       Warn("loaded " + entry + " on the body it is made for: the avatar is now '" +
            scene_.avatar->avatar->name() + "'");
     }
+    // The clip plays with its arms turned out (arm_spread.h): the designer sees a motion
+    // other than the file's, so say by how much and why.
+    const sim::ArmSpreadFit& spread = simulation_->arm_spread();
+    if (spread.measured && (spread.angle[0] > 0.0 || spread.angle[1] > 0.0)) {
+      Warn("loaded " + entry + ": " + sim::DescribeArmSpread(spread));
+    }
   } catch (const std::exception& error) {
     ++ignored_.commands_refused;
     Warn("command " + name + " refused, simulation unchanged: " + error.what());

@@ -64,6 +64,9 @@ int Run(const Options& options) {
   } else if (options.ack_priority > 0) {
     std::printf("grab acknowledger: SCHED_FIFO granted at priority %d\n", options.ack_priority);
   }
+  if (scene.avatar && scene.avatar->clip) {
+    std::printf("%s\n", costume::sim::DescribeArmSpread(server.simulation().arm_spread()).c_str());
+  }
   namespace ch = costume::bus;
   std::printf("%d particles at %.0f Hz on %s\n"
               "  publishes %s, %s, %s\n  listens to %s, %s, %s\n",

@@ -20,9 +20,19 @@ AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr
   }
   RequireNonNegative("avatar.fit_time", settings_.fit_time, "s");
   RequireNonNegative("avatar.blend_time", settings_.blend_time, "s");
+  for (std::size_t side = 0; side < 2; ++side) {
+    const double angle = settings_.arm_spread[side];
+    if (!(angle >= 0.0 && angle <= kMaxArmSpread)) {
+      throw InputError("avatar '" + avatar_->name() + "': arm spread (" +
+                       (side == 0 ? "left" : "right") + ") = " + std::to_string(angle) +
+                       " rad: allowed 0 to " + std::to_string(kMaxArmSpread) + " rad (" +
+                       std::to_string(static_cast<int>(kMaxArmSpreadDegrees)) + "°)");
+    }
+  }
   if (clip_) {
     ValidateClip(*clip_);
     retargeter_.emplace(clip_->skeleton, avatar_->shared_skeleton());
+    PrepareArmSpreads();
   }
   rest_ = RestPose(avatar_->skeleton());
   ComputeJointWorld(avatar_->skeleton(), settings_.posture, posture_world_);
@@ -58,13 +68,14 @@ void AvatarMotion::Evaluate(double t, double posture_blend) {
   } else {
     SampleClip(*clip_, clip_time, clip_pose_);
     retargeter_->Apply(clip_pose_, retargeted_);
+    SpreadArms(retargeted_);
+    retargeted_.root_translation = EasedTranslation(clip_time);
     // The clip's own placement is relative; the designer's placement stays.
     retargeted_.root_translation = settings_.posture.orientation * retargeted_.root_translation +
                                    settings_.posture.root_translation;
     retargeted_.orientation = settings_.posture.orientation * retargeted_.orientation;
-    const double blend =
-        settings_.blend_time > 0.0 ? std::min(1.0, clip_time / settings_.blend_time) : 1.0;
-    InterpolatePoses(settings_.posture, retargeted_, blend, pose_);
+    InterpolatePoses(settings_.posture, retargeted_, Smoothstep(BlendFraction(clip_time)),
+                     pose_);
   }
   if (has_previous_ && posture_blend < 1.0) {
     InterpolatePoses(previous_, pose_, std::max(0.0, posture_blend), blended_);
@@ -72,6 +83,80 @@ void AvatarMotion::Evaluate(double t, double posture_blend) {
   }
   ComputeJointWorld(avatar_->skeleton(), pose_, joint_world_);
   SkinVertices(*avatar_, joint_world_, skinning_, vertices_);
+}
+
+double AvatarMotion::BlendFraction(double clip_time) const {
+  return settings_.blend_time > 0.0 ? std::min(1.0, clip_time / settings_.blend_time) : 1.0;
+}
+
+Eigen::Vector3d AvatarMotion::ClipTranslation(double clip_time) {
+  SampleClip(*clip_, clip_time, translation_pose_);
+  return retargeter_->Translation(translation_pose_);
+}
+
+Eigen::Vector3d AvatarMotion::EasedTranslation(double clip_time) {
+  // The clip's translation on a clock that starts at rest and reaches the clip's own pace
+  // as the blend ends (its rate is the blend's weight): blended at the clip's own pace,
+  // from a body standing still to a clip already walking, the hips had to move at up to
+  // twice the clip's speed at the blend's end and then drop to it in one step (CesiumMan
+  // walking CMU's 02_02: 2.0 then 1.1 m/s, the skirt at 130 % strain). After the blend
+  // the clip's own motion follows, shifted to continue from where the clock left it.
+  const double length = settings_.blend_time;
+  const double s = BlendFraction(clip_time);
+  if (s < 1.0) {  // integral of Smoothstep over the blend so far
+    return ClipTranslation(length * s * s * s * (1.0 - 0.5 * s));
+  }
+  if (length > 0.0 && !has_translation_shift_) {
+    translation_shift_ = ClipTranslation(0.5 * length) - ClipTranslation(length);
+    has_translation_shift_ = true;
+  }
+  return ClipTranslation(clip_time) + (length > 0.0 ? translation_shift_ : Eigen::Vector3d::Zero());
+}
+
+void AvatarMotion::PrepareArmSpreads() {
+  const Skeleton& skeleton = avatar_->skeleton();
+  const int left = skeleton.Find(HAnimJoint::kLShoulder);
+  const int right = skeleton.Find(HAnimJoint::kRShoulder);
+  const int root = skeleton.Find(HAnimJoint::kHumanoidRoot);
+  if (left < 0 || right < 0 || root < 0) return;  // the Retargeter needs them: not reached
+  const std::vector<Eigen::Isometry3d>& rest = skeleton.rest_world();
+  // The trunk's axes in the rest pose: up from the root to between the shoulders, lateral
+  // from the right shoulder to the left. Spreading the left arm turns a hanging arm
+  // (−up) towards +lateral: about lateral × up; the right one about the opposite axis.
+  const Eigen::Vector3d l = rest[left].translation(), r = rest[right].translation();
+  const Eigen::Vector3d up = (0.5 * (l + r) - rest[root].translation()).normalized();
+  Eigen::Vector3d lateral = l - r;
+  lateral -= lateral.dot(up) * up;
+  if (!(lateral.norm() > 1e-9) || !up.allFinite()) return;
+  const Eigen::Vector3d axis = lateral.normalized().cross(up);
+  const int shoulders[2] = {left, right};
+  for (int side = 0; side < 2; ++side) {
+    if (settings_.arm_spread[side] == 0.0) continue;
+    ArmSpread spread;
+    spread.shoulder = shoulders[side];
+    spread.parent = skeleton.joint(spread.shoulder).parent;
+    const Eigen::Vector3d world_axis = side == 0 ? axis : Eigen::Vector3d(-axis);
+    spread.axis_in_parent =
+        spread.parent < 0 ? world_axis : Eigen::Vector3d(rest[spread.parent].linear().transpose() * world_axis);
+    spread.angle = settings_.arm_spread[side];
+    arm_spreads_.push_back(spread);
+  }
+}
+
+void AvatarMotion::SpreadArms(Pose& pose) {
+  if (arm_spreads_.empty()) return;
+  ComputeJointWorld(avatar_->skeleton(), pose, spread_world_);
+  for (const ArmSpread& spread : arm_spreads_) {
+    // The axis follows the trunk (the shoulder's parent); turning the arm about it at the
+    // shoulder is, in the shoulder's own frame, a rotation after the clip's.
+    const Eigen::Matrix3d parent = spread.parent < 0
+                                       ? Eigen::Matrix3d(Eigen::Matrix3d::Identity())
+                                       : Eigen::Matrix3d(spread_world_[spread.parent].linear());
+    const Eigen::Vector3d local =
+        spread_world_[spread.shoulder].linear().transpose() * (parent * spread.axis_in_parent);
+    Eigen::Quaterniond& q = pose.rotations[spread.shoulder];
+    q = (q * Eigen::Quaterniond(Eigen::AngleAxisd(spread.angle, local.normalized()))).normalized();
+  }
 }
 
 }  // namespace costume::sim

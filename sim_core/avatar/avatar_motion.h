@@ -5,6 +5,7 @@
 /// designer's posture and holds it for the second half while the garment settles; then the
 /// clip, retargeted onto it, blends in. Skinned every step.
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -24,7 +25,20 @@ struct AvatarMotionSettings {
   double fit_time = 0.5;
   /// Time over which the clip blends in from the posture [s] >= 0.
   double blend_time = 0.3;
+  /// Per arm (left, right): the angle by which the clip's arm is turned away from the body
+  /// about the trunk's forward axis at the shoulder [rad] in [0, kMaxArmSpread]; 0 plays
+  /// the clip as retargeted. A clip captured on a body narrower at the hips than the
+  /// avatar swings the forearms through the avatar's hips (the retargeting copies the
+  /// bones' directions), and cloth caught there is torn (arm_spread.h finds the angle).
+  std::array<double, 2> arm_spread{0.0, 0.0};
 };
+
+/// The largest arm spread a scene may ask for [degrees], and in radians.
+inline constexpr double kMaxArmSpreadDegrees = 30.0;
+inline constexpr double kMaxArmSpread = kMaxArmSpreadDegrees * 3.14159265358979323846 / 180.0;
+
+/// 3s² − 2s³: rises from 0 to 1 over s in [0, 1] with zero slope at both ends.
+inline double Smoothstep(double s) { return s * s * (3.0 - 2.0 * s); }
 
 class AvatarMotion {
  public:
@@ -68,7 +82,25 @@ class AvatarMotion {
   /// The pose when SetPosture was last called, and a scratch pose for the blend.
   Pose previous_, blended_;
   bool has_previous_ = false;
-  std::vector<Eigen::Isometry3d> joint_world_, posture_world_, skinning_;
+  /// Per arm with a spread: the shoulder joint, its parent, and the spread's axis in the
+  /// parent's frame (fixed to the trunk, so the arm is spread whatever the trunk does).
+  struct ArmSpread {
+    int shoulder = -1, parent = -1;
+    Eigen::Vector3d axis_in_parent = Eigen::Vector3d::UnitZ();
+    double angle = 0.0;
+  };
+  std::vector<ArmSpread> arm_spreads_;
+  /// Scratch pose for the clip's translation, and the shift of the clip's translation
+  /// after the blend (EasedTranslation).
+  Pose translation_pose_;
+  Eigen::Vector3d translation_shift_ = Eigen::Vector3d::Zero();
+  bool has_translation_shift_ = false;
+  double BlendFraction(double clip_time) const;
+  Eigen::Vector3d ClipTranslation(double clip_time);
+  Eigen::Vector3d EasedTranslation(double clip_time);
+  void PrepareArmSpreads();
+  void SpreadArms(Pose& pose);
+  std::vector<Eigen::Isometry3d> joint_world_, posture_world_, skinning_, spread_world_;
   Points vertices_;
 };
 

@@ -210,7 +210,7 @@ void Retargeter::Apply(const Pose& source_pose, Pose& target_pose) const {
     target_pose.rotations[j] =
         ((parent_world * rest_local).conjugate() * target_world_[j]).normalized();
   }
-  target_pose.root_translation = facing_ * source_pose.root_translation * translation_scale_;
+  target_pose.root_translation = Translation(source_pose);
   target_pose.orientation = (facing_ * source_pose.orientation * facing_.conjugate()).normalized();
 }
 

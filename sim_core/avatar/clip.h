@@ -67,6 +67,11 @@ class Retargeter {
   /// not be used from two threads at once).
   void Apply(const Pose& source_pose, Pose& target_pose) const;
 
+  /// The target's root translation for `source_pose` (Apply's, alone) [m].
+  Eigen::Vector3d Translation(const Pose& source_pose) const {
+    return facing_ * source_pose.root_translation * translation_scale_;
+  }
+
   const Skeleton& source() const { return *source_; }
   const Skeleton& target() const { return *target_; }
 

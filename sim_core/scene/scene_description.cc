@@ -254,6 +254,10 @@ void ValidateAvatar(const SceneDescription& scene, const Refuser& scene_refuser)
                          kMaxStepsPerFrame);
   refuser.RequireNumber("avatar.fit_time", avatar.motion.fit_time, 0.0, 60.0, false, false, "s");
   refuser.RequireNumber("avatar.blend_time", avatar.motion.blend_time, 0.0, 60.0, false, false, "s");
+  refuser.RequireNumber("avatar.arm_spread (left)", avatar.motion.arm_spread[0], 0.0,
+                        kMaxArmSpread, false, false, "rad");
+  refuser.RequireNumber("avatar.arm_spread (right)", avatar.motion.arm_spread[1], 0.0,
+                        kMaxArmSpread, false, false, "rad");
 }
 
 }  // namespace

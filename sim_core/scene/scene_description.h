@@ -125,8 +125,12 @@ struct AvatarSpec {
   std::shared_ptr<const Avatar> avatar;
   /// The clip it plays (any skeleton with H-Anim joints; retargeted); null to hold still.
   std::shared_ptr<const Clip> clip;
-  /// Posture, placement, fitting and blend times.
+  /// Posture, placement, fitting and blend times, and the arms' spread (used as given
+  /// only when auto_arm_spread is false).
   AvatarMotionSettings motion;
+  /// Whether the simulation chooses the arms' spread for the clip (FindArmSpread,
+  /// arm_spread.h) instead of taking motion.arm_spread.
+  bool auto_arm_spread = true;
   /// The mesh method by default: its worst frames stretch the cloth less (a typical frame
   /// alike), and it is faster on the first pass through a clip and on any motion that does
   /// not repeat (a posture being set); the superquadric one, update included, is 0.9–2.5× as

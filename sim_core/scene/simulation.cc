@@ -316,7 +316,15 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   }
   if (scene_.avatar) {
     const AvatarSpec& spec = *scene_.avatar;
-    avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+    AvatarMotionSettings motion = spec.motion;
+    if (spec.auto_arm_spread) {
+      arm_spread_ = FindArmSpread(spec.avatar, spec.clip, motion);
+      motion.arm_spread = arm_spread_.angle;
+    } else {
+      arm_spread_.angle = motion.arm_spread;
+      arm_spread_.why_not = "given by the scene";
+    }
+    avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, motion);
     body_ = MakeAvatarCollider(scene_, *avatar_, step());
     attachments_ = std::move(attachments);
   }

@@ -15,6 +15,7 @@
 #include "sim_core/collision/self_collision.h"
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
+#include "sim_core/scene/arm_spread.h"
 #include "sim_core/scene/grab.h"
 #include "sim_core/scene/scene_description.h"
 #include "sim_core/solver/implicit_stepper.h"
@@ -175,6 +176,9 @@ class Simulation {
   /// The avatar's collider (null when the scene has no avatar).
   const BodyCollider* body_collider() const { return body_.get(); }
   const std::vector<BodyAttachment>& attachments() const { return attachments_; }
+  /// The arms' spread the avatar plays its clip with, and what FindArmSpread measured
+  /// (`measured` false when the scene gave the spread or has no clip).
+  const ArmSpreadFit& arm_spread() const { return arm_spread_; }
   /// The pyramid the hierarchical and multigrid solvers use; null for the others.
   const QuincunxPyramid* pyramid() const { return pyramid_.get(); }
   /// Step length [s] of a frame that is not split for the skin's travel.
@@ -228,6 +232,7 @@ class Simulation {
   std::unique_ptr<AvatarMotion> avatar_;
   std::unique_ptr<BodyCollider> body_;
   std::vector<BodyAttachment> attachments_;
+  ArmSpreadFit arm_spread_;
   /// Built only when the scene switches self-collision on (off costs nothing).
   std::unique_ptr<SelfCollision> self_collision_;
   /// Positions at the start of the step, for self-collision's continuous tests.

@@ -485,6 +485,26 @@ TEST(ParseSceneText, ReadsTheSkinTravelPerStepAndRefusesItOutOfRange) {
   EXPECT_TRUE(Contains(steps, "64")) << steps;
 }
 
+TEST(ParseSceneText, ReadsTheArmSpreadAsAutoOrDegreesAndRefusesOthers) {
+  const std::string base = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n[avatar]\n";
+  const sim::AvatarSpec defaults = *ParseSceneText(base, "test.toml", "").avatar;
+  EXPECT_TRUE(defaults.auto_arm_spread);
+  EXPECT_TRUE(ParseSceneText(base + "arm_spread = \"auto\"\n", "test.toml", "")
+                  .avatar->auto_arm_spread);
+  const sim::AvatarSpec set =
+      *ParseSceneText(base + "arm_spread = 15\n", "test.toml", "").avatar;
+  EXPECT_FALSE(set.auto_arm_spread);
+  EXPECT_NEAR(set.motion.arm_spread[0], 15.0 * M_PI / 180.0, 1e-15);
+  EXPECT_NEAR(set.motion.arm_spread[1], 15.0 * M_PI / 180.0, 1e-15);
+  EXPECT_FALSE(ParseSceneText(base + "arm_spread = 0\n", "test.toml", "").avatar->auto_arm_spread);
+  const std::string wide = ErrorOf(base + "arm_spread = 31\n");
+  EXPECT_TRUE(Contains(wide, "avatar.arm_spread = 31")) << wide;
+  EXPECT_TRUE(Contains(wide, "30")) << wide;
+  const std::string word = ErrorOf(base + "arm_spread = \"wide\"\n");
+  EXPECT_TRUE(Contains(word, "avatar.arm_spread")) << word;
+  EXPECT_TRUE(Contains(word, "auto")) << word;
+}
+
 TEST(ParseSceneText, RefusesAPatternWithoutAvatarAndAnUnknownClip) {
   const std::string pattern = "[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   EXPECT_TRUE(Contains(ErrorOf(pattern), "test.toml:1: garment[0].pattern = \"skirt\": a pattern "

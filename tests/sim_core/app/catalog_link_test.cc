@@ -208,6 +208,39 @@ TEST_F(CatalogLinkTest, LoadAvatarByIdAndByNameRefitsThePatternGarment) {
   EXPECT_EQ(server_->simulation().avatar()->avatar().skeleton().num_joints(), humanoid_joints);
 }
 
+TEST_F(CatalogLinkTest, AClipThatSwingsTheForearmsThroughTheHipsIsSpreadAndSaysSo) {
+  const fs::path bvh = ::costume::test::kSharedData / "cmu-mocap-bvh/02_02.bvh";
+  if (!fs::exists(kCesiumMan) || !fs::exists(bvh)) GTEST_SKIP() << "needs CesiumMan and 02_02";
+  const auto add = [this](Kind kind, const std::string& name, const std::string& format,
+                          const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    catalog::NewEntry entry;
+    entry.kind = kind;
+    entry.name = name;
+    entry.data = {format, std::vector<std::uint8_t>(std::istreambuf_iterator<char>(in), {})};
+    if (kind == Kind::kAnimation) entry.category = "basic";
+    return catalog_->Add(entry);
+  };
+  const std::int64_t cesium = add(Kind::kAvatar, "CesiumMan", "glb", kCesiumMan);
+  const std::int64_t cmu = add(Kind::kAnimation, "CMU 02_02", "bvh", bvh);
+  Start(SkirtScene());
+  SendLoad(command::KIND_LOAD_AVATAR, cesium);
+  Step();
+  EXPECT_FALSE(Warned("arms spread"));  // the built-in walk keeps his forearms off his hips
+  EXPECT_EQ(server_->simulation().arm_spread().angle[0], 0.0);
+  SendLoad(command::KIND_LOAD_ANIMATION, cmu);
+  Step();
+  ASSERT_EQ(server_->ignored().commands_refused, 0);
+  const sim::ArmSpreadFit& spread = server_->simulation().arm_spread();
+  EXPECT_GT(spread.angle[0], 0.0);
+  EXPECT_GT(spread.angle[1], 0.0);
+  const auto names_both = [](const std::string& w) {
+    return w.find("CMU 02_02") != std::string::npos && w.find("arms spread") != std::string::npos;
+  };
+  EXPECT_TRUE(std::any_of(warnings_.begin(), warnings_.end(), names_both))
+      << "a warning names the entry and the spread";
+}
+
 TEST_F(CatalogLinkTest, RefusalsKeepTheOldSimulationAndNameTheEntry) {
   Start(SkirtScene());
   const int particles = Particles();

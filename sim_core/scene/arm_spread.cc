@@ -1,0 +1,290 @@
+#include "sim_core/scene/arm_spread.h"
+
+#include <algorithm>
+#include <Eigen/Geometry>
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/surface_geometry.h"
+#include "sim_core/common/input_error.h"
+
+namespace costume::sim {
+namespace {
+
+constexpr double kSampleRate = 30.0;  // clip frames sampled per second [Hz]
+constexpr double kAngleStep = 3.0 * M_PI / 180.0;
+
+/// Per arm, the skin vertices of its forearm and hand.
+std::array<std::vector<int>, 2> ArmVertices(const Avatar& avatar) {
+  std::array<std::vector<int>, 2> arms;
+  const std::vector<std::optional<HAnimJoint>>& segments = avatar.vertex_segments();
+  for (int v = 0; v < avatar.num_vertices(); ++v) {
+    if (segments[v] == HAnimJoint::kLElbow || segments[v] == HAnimJoint::kLRadiocarpal) {
+      arms[0].push_back(v);
+    }
+    if (segments[v] == HAnimJoint::kRElbow || segments[v] == HAnimJoint::kRRadiocarpal) {
+      arms[1].push_back(v);
+    }
+  }
+  return arms;
+}
+
+/// Samples a clip on an avatar with a given spread and tells which arm vertices lie within
+/// the clearance of the rest of the body.
+class NearnessProbe {
+ public:
+  NearnessProbe(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
+                AvatarMotionSettings settings, MeshDistance& body,
+                const std::array<std::vector<int>, 2>& arms)
+      : avatar_(std::move(avatar)), clip_(std::move(clip)), settings_(std::move(settings)),
+        body_(body), incident_(avatar_->num_vertices()) {
+    std::vector<char> tested(avatar_->num_vertices(), 0);
+    for (const std::vector<int>& arm : arms) {
+      for (int v : arm) tested[v] = 1;
+    }
+    const std::vector<Eigen::Vector3i>& triangles = avatar_->triangles();
+    for (int t = 0; t < static_cast<int>(triangles.size()); ++t) {
+      for (int k = 0; k < 3; ++k) {
+        if (tested[triangles[t][k]]) incident_[triangles[t][k]].push_back(t);
+      }
+    }
+  }
+
+  /// Plays the clip with `spread` from now on.
+  void Spread(const std::array<double, 2>& spread) {
+    settings_.arm_spread = spread;
+    motion_.emplace(avatar_, clip_, settings_);
+  }
+
+  /// Poses the avatar at scene time t; then Near() reads that pose.
+  void PoseAt(double t) {
+    motion_->Evaluate(t);
+    const Points& x = motion_->vertices();
+    const std::vector<std::optional<HAnimJoint>>& segments = avatar_->vertex_segments();
+    for (Eigen::AlignedBox3d& box : boxes_) box.setEmpty();
+    for (int v = 0; v < x.rows(); ++v) {
+      boxes_[segments[v] ? static_cast<int>(*segments[v]) : kNumHAnimJoints].extend(
+          x.row(v).transpose());
+    }
+    body_current_ = false;
+  }
+
+  /// Whether skin vertex v of arm `side` (0 left, 1 right), pushed kArmClearance out along
+  /// its normal, is inside the body. Only a point within the box of another segment's skin
+  /// can be: the body's tree is refitted to the pose, and the point's winding counted, for
+  /// those alone.
+  bool Near(int v, int side) {
+    const Points& x = motion_->vertices();
+    Eigen::Vector3d n = Eigen::Vector3d::Zero();
+    for (int t : incident_[v]) {
+      // Unnormalised: each triangle weighs by its area.
+      const Eigen::Vector3i& c = avatar_->triangles()[t];
+      n += (x.row(c[1]) - x.row(c[0])).cross(x.row(c[2]) - x.row(c[0])).transpose();
+    }
+    const double length = n.norm();
+    if (!(length > 0.0)) return false;
+    const Eigen::Vector3d p = x.row(v).transpose() + (kArmClearance / length) * n;
+    if (!InOtherBox(p, side)) return false;
+    if (!body_current_) body_.Update(x);
+    body_current_ = true;
+    return body_.Inside(p);
+  }
+
+ private:
+  bool InOtherBox(const Eigen::Vector3d& p, int side) const {
+    const std::array<HAnimJoint, 3> own =
+        side == 0 ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
+                  : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
+    for (int s = 0; s <= kNumHAnimJoints; ++s) {
+      if (s < kNumHAnimJoints && std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end()) {
+        continue;
+      }
+      if (boxes_[s].contains(p)) return true;
+    }
+    return false;
+  }
+
+  std::shared_ptr<const Avatar> avatar_;
+  std::shared_ptr<const Clip> clip_;
+  AvatarMotionSettings settings_;
+  MeshDistance& body_;
+  bool body_current_ = false;
+  std::optional<AvatarMotion> motion_;
+  /// Per tested vertex its triangles, for its normal.
+  std::vector<std::vector<int>> incident_;
+  /// Per H-Anim segment the box of its skin in the pose; the last for skin of none.
+  std::array<Eigen::AlignedBox3d, kNumHAnimJoints + 1> boxes_;
+};
+
+/// Per arm and sampled frame (scene times `times`), whether the arm comes near the body.
+/// The search over one clip: per arm and sampled frame, which of the arm's vertices count
+/// and whether the arm comes near the body.
+class SpreadSearch {
+ public:
+  SpreadSearch(NearnessProbe& probe, std::vector<double> times,
+               std::array<std::vector<int>, 2> arms)
+      : probe_(probe), times_(std::move(times)), arms_(std::move(arms)) {
+    for (int side = 0; side < 2; ++side) {
+      near_[side].assign(times_.size(), 1);
+      fixable_[side].assign(times_.size(), std::vector<char>(arms_[side].size(), 1));
+    }
+  }
+
+  /// Skin the arm's own shape holds near the body, whatever the spread, does not count: a
+  /// forearm folded against the upper arm at a bent elbow turns with the whole arm.
+  /// Vertices near the body with the arms turned out as far as the search goes are such;
+  /// only frames found near so far need the test.
+  void DropUnfixable() {
+    probe_.Spread({kMaxAutoArmSpread, kMaxAutoArmSpread});
+    for (std::size_t i = 0; i < times_.size(); ++i) {
+      if (!near_[0][i] && !near_[1][i]) continue;
+      probe_.PoseAt(times_[i]);
+      for (int side = 0; side < 2; ++side) {
+        for (std::size_t k = 0; k < arms_[side].size(); ++k) {
+          fixable_[side][i][k] = !probe_.Near(arms_[side][k], side);
+        }
+      }
+    }
+  }
+
+  /// Tests, with `spread`, the frames still near for each arm `searching`, and marks those
+  /// now clear. A frame found clear is not tested again (an arm turned farther from the
+  /// body does not come nearer it): the search costs a pass over the clip, then passes
+  /// over the frames still near.
+  void MarkNear(const std::array<double, 2>& spread, const std::array<bool, 2>& searching) {
+    probe_.Spread(spread);
+    for (std::size_t i = 0; i < times_.size(); ++i) {
+      if (!(searching[0] && near_[0][i]) && !(searching[1] && near_[1][i])) continue;
+      probe_.PoseAt(times_[i]);
+      for (int side = 0; side < 2; ++side) {
+        if (searching[side] && near_[side][i]) near_[side][i] = ArmNear(side, i);
+      }
+    }
+  }
+
+  int FramesNear(int side) const {
+    return static_cast<int>(std::count(near_[side].begin(), near_[side].end(), 1));
+  }
+
+ private:
+  bool ArmNear(int side, std::size_t frame) {
+    for (std::size_t k = 0; k < arms_[side].size(); ++k) {
+      if (fixable_[side][frame][k] && probe_.Near(arms_[side][k], side)) return true;
+    }
+    return false;
+  }
+
+  NearnessProbe& probe_;
+  std::vector<double> times_;
+  std::array<std::vector<int>, 2> arms_;
+  std::array<std::vector<char>, 2> near_;
+  std::array<std::vector<std::vector<char>>, 2> fixable_;
+};
+
+/// The scene times at which the clip is sampled: after the fit and the blend, over one
+/// playing of the clip.
+std::vector<double> SampleTimes(const Clip& clip, const AvatarMotionSettings& settings) {
+  const double start = settings.fit_time + settings.blend_time;
+  const double length = std::max(clip.duration(), clip.frame_time);
+  const int count = std::clamp(static_cast<int>(std::ceil(length * kSampleRate)), 1,
+                               kMaxArmSpreadSamples);
+  std::vector<double> times(count);
+  for (int i = 0; i < count; ++i) times[i] = start + length * i / count;
+  return times;
+}
+
+}  // namespace
+
+ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
+                           const std::shared_ptr<const Clip>& clip,
+                           const AvatarMotionSettings& settings) {
+  ArmSpreadFit fit;
+  if (!clip) {
+    fit.why_not = "no clip";
+    return fit;
+  }
+  if (SurfacePseudonormals(avatar->num_vertices(), avatar->triangles()).num_open_edges() > 0) {
+    fit.why_not = "the avatar's mesh is not closed";
+    return fit;
+  }
+  std::array<std::vector<int>, 2> arms = ArmVertices(*avatar);
+  try {
+    MeshDistance body("avatar '" + avatar->name() + "'", avatar->rest_vertices(),
+                      avatar->triangles());
+    AvatarMotionSettings played = settings;
+    played.arm_spread = {0.0, 0.0};
+    NearnessProbe probe(avatar, clip, played, body, arms);
+    // Vertices near the body in the posture (a hand resting on a thigh) are the avatar's
+    // own shape, which no spread of the clip should be asked to change.
+    probe.Spread({0.0, 0.0});
+    probe.PoseAt(settings.fit_time);
+    for (int side = 0; side < 2; ++side) {
+      std::erase_if(arms[side], [&](int v) { return probe.Near(v, side); });
+    }
+    const std::vector<double> times = SampleTimes(*clip, settings);
+    fit.frames_sampled = static_cast<int>(times.size());
+    SpreadSearch search(probe, times, std::move(arms));
+    std::array<double, 2> spread{0.0, 0.0}, best{0.0, 0.0};
+    search.MarkNear(spread, {true, true});
+    if (search.FramesNear(0) + search.FramesNear(1) > 0) {
+      search.DropUnfixable();
+      search.MarkNear(spread, {true, true});  // the frames near, now without that skin
+    }
+    std::array<int, 2> fewest{search.FramesNear(0), search.FramesNear(1)};
+    fit.frames_near_before = fewest;
+    // Both arms are tried together, each turned on until it is clear.
+    for (;;) {
+      std::array<bool, 2> searching{};
+      for (int side = 0; side < 2; ++side) {
+        searching[side] = fewest[side] > 0 && spread[side] + kAngleStep <= kMaxAutoArmSpread + 1e-12;
+        if (searching[side]) spread[side] = std::min(spread[side] + kAngleStep, kMaxAutoArmSpread);
+      }
+      if (!searching[0] && !searching[1]) break;
+      search.MarkNear(spread, searching);
+      for (int side = 0; side < 2; ++side) {
+        if (!searching[side] || search.FramesNear(side) >= fewest[side]) continue;
+        fewest[side] = search.FramesNear(side);
+        best[side] = spread[side];
+      }
+    }
+    fit.angle = best;
+    fit.frames_near_after = fewest;
+    fit.measured = true;
+  } catch (const InputError& error) {
+    fit.why_not = error.what();
+    fit.angle = {0.0, 0.0};
+  }
+  return fit;
+}
+
+std::string DescribeArmSpread(const ArmSpreadFit& fit) {
+  const auto degrees = [](double radians) {
+    return std::to_string(static_cast<int>(std::lround(radians * 180.0 / M_PI))) + "°";
+  };
+  const bool spread = fit.angle[0] > 0.0 || fit.angle[1] > 0.0;
+  std::string line = spread ? "arms spread " + degrees(fit.angle[0]) + " (left) and " +
+                                  degrees(fit.angle[1]) + " (right)"
+                            : std::string("arms as retargeted");
+  if (!fit.measured) return line + " (" + fit.why_not + ")";
+  const auto frames = [](const std::array<int, 2>& n) {
+    return std::to_string(n[0]) + " / " + std::to_string(n[1]);
+  };
+  const std::string clearance =
+      std::to_string(static_cast<int>(std::lround(kArmClearance * 1000.0))) + " mm";
+  if (!spread && fit.frames_near_before == std::array<int, 2>{0, 0}) {
+    return line + ": the forearms and hands stay " + clearance + " off the body in all " +
+           std::to_string(fit.frames_sampled) + " sampled frames of the clip";
+  }
+  return line + ": the left / right forearm or hand came within " + clearance +
+         " of the body in " + frames(fit.frames_near_before) + " of " +
+         std::to_string(fit.frames_sampled) + " sampled frames as retargeted, " +
+         frames(fit.frames_near_after) +
+         (spread ? " with the spread"
+                 : " with any spread up to " +
+                       std::to_string(static_cast<int>(std::lround(kMaxAutoArmSpread * 180.0 / M_PI))) +
+                       "°");
+}
+
+}  // namespace costume::sim

@@ -1,0 +1,68 @@
+#pragma once
+/// @file
+/// Keeping a clip's forearms out of the avatar's hips (AvatarMotionSettings::arm_spread).
+/// Retargeting copies each bone's direction from the clip's performer, so a clip captured
+/// on a body narrower at the hips than the avatar swings the avatar's forearms through its
+/// own hips: Khronos' CesiumMan walking CMU's 02_02 had up to 41 forearm and hand vertices
+/// inside its hips in a frame, and the built-in skirt's waistband, caught between them,
+/// reached 620 % strain. Animators answer this with an "arm spread": each arm turned a few
+/// degrees away from the body for the whole clip. FindArmSpread chooses the least such
+/// angle per arm that keeps the forearm and hand a clearance off the rest of the body.
+
+#include <array>
+#include <memory>
+#include <string>
+
+#include "sim_core/avatar/avatar.h"
+#include "sim_core/avatar/avatar_motion.h"
+#include "sim_core/avatar/clip.h"
+
+namespace costume::sim {
+
+/// How far the forearm and hand are kept off the rest of the body [m]: room for cloth of
+/// the usual thickness (a few mm) on both of them.
+inline constexpr double kArmClearance = 0.01;
+
+/// What FindArmSpread measured. Index 0 is the left arm, 1 the right.
+struct ArmSpreadFit {
+  /// False when nothing could be measured: no clip, or the avatar's mesh is not closed
+  /// (inside is undefined); `angle` is then 0 and `why_not` says which.
+  bool measured = false;
+  std::string why_not;
+  /// The spread per arm [rad] in [0, kMaxArmSpread].
+  std::array<double, 2> angle{0.0, 0.0};
+  /// Frames of the clip sampled (30 per second, at most kMaxArmSpreadSamples).
+  int frames_sampled = 0;
+  /// Sampled frames in which the arm's forearm or hand came nearer the rest of the body
+  /// than kArmClearance (vertices already that near in the posture are not counted),
+  /// as retargeted and with the spread.
+  std::array<int, 2> frames_near_before{0, 0};
+  std::array<int, 2> frames_near_after{0, 0};
+};
+
+/// The most clip frames FindArmSpread samples (a long clip is sampled more sparsely).
+inline constexpr int kMaxArmSpreadSamples = 600;
+
+/// The most FindArmSpread turns an arm [rad] (15°): more changes the motion visibly, and
+/// a scene may still ask for up to kMaxArmSpread.
+inline constexpr double kMaxAutoArmSpread = 15.0 * 3.14159265358979323846 / 180.0;
+
+/// The least spread per arm, in steps of 3° up to kMaxAutoArmSpread, with which no sampled
+/// frame of `clip` (played as `settings` say, its own arm_spread ignored) brings that arm's
+/// forearm or hand within kArmClearance of the rest of `avatar`'s body; where no angle
+/// does, the one with the fewest such frames (the smallest of equals). A vertex is near
+/// when the point kArmClearance outside it along its normal is inside the skinned body
+/// (winding number, MeshDistance::Inside). Vertices near in the posture do not count, nor,
+/// in a frame, those still near with the arm turned kMaxAutoArmSpread out (the arm's own
+/// folds). Costs a skinning per sampled frame, and for frames found near a refit of the
+/// body's tree per angle tried: 0.03–0.3 s on the built-in clips (none near), 0.1–0.8 s on
+/// CMU's clips (docs/assets.md). Never throws.
+ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
+                           const std::shared_ptr<const Clip>& clip,
+                           const AvatarMotionSettings& settings);
+
+/// One line for logs: the spread per arm and why ("arms spread 9° (left) and 12° (right):
+/// ...", "arms as retargeted: ...").
+std::string DescribeArmSpread(const ArmSpreadFit& fit);
+
+}  // namespace costume::sim
