@@ -74,8 +74,14 @@ void AvatarMotion::Evaluate(double t, double posture_blend) {
     retargeted_.root_translation = settings_.posture.orientation * retargeted_.root_translation +
                                    settings_.posture.root_translation;
     retargeted_.orientation = settings_.posture.orientation * retargeted_.orientation;
-    InterpolatePoses(settings_.posture, retargeted_, Smoothstep(BlendFraction(clip_time)),
-                     pose_);
+    // Joint angles blend linearly; the translation's weight is eased as its clock is, so the
+    // hips' speed rises from rest without a step (EasedTranslation). Easing the angles too
+    // made the tight MakeHuman suit's worst frames worse in the benchmark (docs/assets.md).
+    const double s = BlendFraction(clip_time);
+    InterpolatePoses(settings_.posture, retargeted_, s, pose_);
+    const double w = Smoothstep(s);
+    pose_.root_translation =
+        (1.0 - w) * settings_.posture.root_translation + w * retargeted_.root_translation;
   }
   if (has_previous_ && posture_blend < 1.0) {
     InterpolatePoses(previous_, pose_, std::max(0.0, posture_blend), blended_);
@@ -96,11 +102,12 @@ Eigen::Vector3d AvatarMotion::ClipTranslation(double clip_time) {
 
 Eigen::Vector3d AvatarMotion::EasedTranslation(double clip_time) {
   // The clip's translation on a clock that starts at rest and reaches the clip's own pace
-  // as the blend ends (its rate is the blend's weight): blended at the clip's own pace,
-  // from a body standing still to a clip already walking, the hips had to move at up to
-  // twice the clip's speed at the blend's end and then drop to it in one step (CesiumMan
-  // walking CMU's 02_02: 2.0 then 1.1 m/s, the skirt at 130 % strain). After the blend
-  // the clip's own motion follows, shifted to continue from where the clock left it.
+  // as the blend ends (its rate is the translation's blend weight, Smoothstep): blended
+  // linearly at the clip's own pace, from a body standing still to a clip already walking,
+  // the hips moved at up to twice the clip's speed at the blend's end and then dropped to
+  // it in one step (CesiumMan walking CMU's 02_02: 2.0 then 1.1 m/s; the skirt's waistband
+  // then stretched 134 %). After the blend the clip's own motion follows, shifted to go on
+  // from where the clock left it.
   const double length = settings_.blend_time;
   const double s = BlendFraction(clip_time);
   if (s < 1.0) {  // integral of Smoothstep over the blend so far
