@@ -212,7 +212,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   std::map<std::string, int> strain_near;
   // Where the deepest penetration was: the measured frame, the particle and the joint
   // nearest it, for finding what let it in.
-  int deepest_frame = -1, deepest_particle = -1, deepest_joint = -1;
+  int deepest_frame = -1, deepest_particle = -1, deepest_joint = -1, max_strain_frame = -1;
   int rolled_back = 0, unconverged = 0, steps = 0, most_steps = 0;
   const int fit_frames = static_cast<int>(scene.avatar->motion.fit_time * scene.frame_rate);
   sim::Points cloth;
@@ -270,6 +270,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     max_depth = std::max(max_depth, deepest);
     const sim::StrainStats strain = sim::StructuralStrain(simulation->model(), x);
     frame_max_strain.push_back(strain.max);
+    if (strain.max > max_strain) max_strain_frame = static_cast<int>(total_ms.size()) - 1;
     max_strain = std::max(max_strain, strain.max);
     if (strain.max_spring >= 0) {
       const sim::Spring& spring = simulation->model().springs()[strain.max_spring];
@@ -315,6 +316,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"penetration_max_mm", 1e3 * std::max(0.0, max_depth)},
           {"penetration_p99_mm", 1e3 * Percentile(frame_max_depth, 0.99)},
           {"penetration_max_frame", deepest_frame},
+          {"max_strain_frame", max_strain_frame},
           {"penetration_max_particle", deepest_particle},
           {"penetration_max_near",
            deepest_joint < 0 ? "" : motion.avatar().skeleton().joint(deepest_joint).name},

@@ -5,6 +5,12 @@
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
+namespace {
+
+/// 3s² − 2s³: rises from 0 to 1 over s in [0, 1] with zero slope at both ends.
+double Smoothstep(double s) { return s * s * (3.0 - 2.0 * s); }
+
+}  // namespace
 
 AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
                            AvatarMotionSettings settings)
@@ -74,14 +80,11 @@ void AvatarMotion::Evaluate(double t, double posture_blend) {
     retargeted_.root_translation = settings_.posture.orientation * retargeted_.root_translation +
                                    settings_.posture.root_translation;
     retargeted_.orientation = settings_.posture.orientation * retargeted_.orientation;
-    // Joint angles blend linearly; the translation's weight is eased as its clock is, so the
-    // hips' speed rises from rest without a step (EasedTranslation). Easing the angles too
-    // made the tight MakeHuman suit's worst frames worse in the benchmark (docs/assets.md).
-    const double s = BlendFraction(clip_time);
-    InterpolatePoses(settings_.posture, retargeted_, s, pose_);
-    const double w = Smoothstep(s);
-    pose_.root_translation =
-        (1.0 - w) * settings_.posture.root_translation + w * retargeted_.root_translation;
+    // Joint angles blend linearly (easing them made the tight MakeHuman suit's worst frames
+    // worse in the benchmark: docs/assets.md); the translation starts from the posture's
+    // already (EasedTranslation).
+    InterpolatePoses(settings_.posture, retargeted_, BlendFraction(clip_time), pose_);
+    pose_.root_translation = retargeted_.root_translation;
   }
   if (has_previous_ && posture_blend < 1.0) {
     InterpolatePoses(previous_, pose_, std::max(0.0, posture_blend), blended_);
@@ -101,23 +104,19 @@ Eigen::Vector3d AvatarMotion::ClipTranslation(double clip_time) {
 }
 
 Eigen::Vector3d AvatarMotion::EasedTranslation(double clip_time) {
-  // The clip's translation on a clock that starts at rest and reaches the clip's own pace
-  // as the blend ends (its rate is the translation's blend weight, Smoothstep): blended
-  // linearly at the clip's own pace, from a body standing still to a clip already walking,
-  // the hips moved at up to twice the clip's speed at the blend's end and then dropped to
-  // it in one step (CesiumMan walking CMU's 02_02: 2.0 then 1.1 m/s; the skirt's waistband
-  // then stretched 134 %). After the blend the clip's own motion follows, shifted to go on
-  // from where the clock left it.
-  const double length = settings_.blend_time;
+  // Blended linearly at the clip's own pace, from a body standing still to a clip already
+  // walking, the hips moved at up to twice the clip's speed at the blend's end and then
+  // dropped to it in one step (CesiumMan walking CMU's 02_02: 2.0 then 1.1 m/s; the
+  // skirt's waistband then stretched 134 %). Over the blend the clip's translation runs on
+  // a clock τ = T (6s³ − 8s⁴ + 3s⁵) instead, s the fraction of the blend T elapsed: it
+  // starts at rest without a jolt, speeds up to at most 1.51 times the clip's pace (at most
+  // 4 v / T, where v is the clip's speed) and meets the clip's own time, pace and
+  // acceleration at the blend's end, so the motion after the blend is the clip's exactly.
+  // The clip's own offset at its start is blended in meanwhile.
   const double s = BlendFraction(clip_time);
-  if (s < 1.0) {  // integral of Smoothstep over the blend so far
-    return ClipTranslation(length * s * s * s * (1.0 - 0.5 * s));
-  }
-  if (length > 0.0 && !has_translation_shift_) {
-    translation_shift_ = ClipTranslation(0.5 * length) - ClipTranslation(length);
-    has_translation_shift_ = true;
-  }
-  return ClipTranslation(clip_time) + (length > 0.0 ? translation_shift_ : Eigen::Vector3d::Zero());
+  if (s >= 1.0) return ClipTranslation(clip_time);
+  const double clock = settings_.blend_time * s * s * s * (6.0 - 8.0 * s + 3.0 * s * s);
+  return ClipTranslation(clock) - (1.0 - Smoothstep(s)) * ClipTranslation(0.0);
 }
 
 void AvatarMotion::PrepareArmSpreads() {

