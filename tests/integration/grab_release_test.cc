@@ -485,9 +485,12 @@ TEST(GrabRelease, KilledSimulationFadesTheForceWithinFiftyMillisecondsAndRestart
   const double held = strongest_since(feedback.back().utime - 500'000);
   kill(sim, SIGKILL);
   Wait(sim);
-  const int64_t last_patch = last_patch_utime;
   const std::size_t killed_at = feedback.size();
   listen(2.0);
+  // The killed server's last patch, read once the listener has taken in what was on its way
+  // at the kill: read at the kill, under load it was a patch or more older (the listener
+  // 17 ms behind), and the fade seemed to end 67 ms after it.
+  const int64_t last_patch = last_patch_utime;
   // The first zero force after the kill, measured from the last patch that arrived.
   int64_t zero_at = -1;
   for (std::size_t i = killed_at; i < feedback.size(); ++i) {
