@@ -143,7 +143,8 @@ void AvatarMotion::PrepareArmSpreads() {
     spread.parent = skeleton.joint(spread.shoulder).parent;
     const Eigen::Vector3d world_axis = side == 0 ? axis : Eigen::Vector3d(-axis);
     spread.axis_in_parent =
-        spread.parent < 0 ? world_axis : Eigen::Vector3d(rest[spread.parent].linear().transpose() * world_axis);
+        spread.parent < 0 ? world_axis
+                          : Eigen::Vector3d(rest[spread.parent].linear().transpose() * world_axis);
     spread.angle = settings_.arm_spread[side];
     arm_spreads_.push_back(spread);
   }

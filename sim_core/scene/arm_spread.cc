@@ -1,7 +1,7 @@
 #include "sim_core/scene/arm_spread.h"
 
-#include <algorithm>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <vector>
@@ -38,8 +38,11 @@ class NearnessProbe {
   NearnessProbe(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
                 AvatarMotionSettings settings, MeshDistance& body,
                 const std::array<std::vector<int>, 2>& arms)
-      : avatar_(std::move(avatar)), clip_(std::move(clip)), settings_(std::move(settings)),
-        body_(body), incident_(avatar_->num_vertices()) {
+      : avatar_(std::move(avatar)),
+        clip_(std::move(clip)),
+        settings_(std::move(settings)),
+        body_(body),
+        incident_(avatar_->num_vertices()) {
     std::vector<char> tested(avatar_->num_vertices(), 0);
     for (const std::vector<int>& arm : arms) {
       for (int v : arm) tested[v] = 1;
@@ -95,10 +98,12 @@ class NearnessProbe {
  private:
   bool InOtherBox(const Eigen::Vector3d& p, int side) const {
     const std::array<HAnimJoint, 3> own =
-        side == 0 ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
-                  : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
+        side == 0
+            ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
+            : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
     for (int s = 0; s <= kNumHAnimJoints; ++s) {
-      if (s < kNumHAnimJoints && std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end()) {
+      if (s < kNumHAnimJoints &&
+          std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end()) {
         continue;
       }
       if (boxes_[s].contains(p)) return true;
@@ -118,7 +123,6 @@ class NearnessProbe {
   std::array<Eigen::AlignedBox3d, kNumHAnimJoints + 1> boxes_;
 };
 
-/// Per arm and sampled frame (scene times `times`), whether the arm comes near the body.
 /// The search over one clip: per arm and sampled frame, which of the arm's vertices count
 /// and whether the arm comes near the body.
 class SpreadSearch {
@@ -188,8 +192,8 @@ class SpreadSearch {
 std::vector<double> SampleTimes(const Clip& clip, const AvatarMotionSettings& settings) {
   const double start = settings.fit_time + settings.blend_time;
   const double length = std::max(clip.duration(), clip.frame_time);
-  const int count = std::clamp(static_cast<int>(std::ceil(length * kSampleRate)), 1,
-                               kMaxArmSpreadSamples);
+  const int count =
+      std::clamp(static_cast<int>(std::ceil(length * kSampleRate)), 1, kMaxArmSpreadSamples);
   std::vector<double> times(count);
   for (int i = 0; i < count; ++i) times[i] = start + length * i / count;
   return times;
@@ -238,7 +242,8 @@ ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
     for (;;) {
       std::array<bool, 2> searching{};
       for (int side = 0; side < 2; ++side) {
-        searching[side] = fewest[side] > 0 && spread[side] + kAngleStep <= kMaxAutoArmSpread + 1e-12;
+        searching[side] =
+            fewest[side] > 0 && spread[side] + kAngleStep <= kMaxAutoArmSpread + 1e-12;
         if (searching[side]) spread[side] = std::min(spread[side] + kAngleStep, kMaxAutoArmSpread);
       }
       if (!searching[0] && !searching[1]) break;
@@ -277,14 +282,10 @@ std::string DescribeArmSpread(const ArmSpreadFit& fit) {
     return line + ": the forearms and hands stay " + clearance + " off the body in all " +
            std::to_string(fit.frames_sampled) + " sampled frames of the clip";
   }
-  return line + ": the left / right forearm or hand came within " + clearance +
-         " of the body in " + frames(fit.frames_near_before) + " of " +
-         std::to_string(fit.frames_sampled) + " sampled frames as retargeted, " +
-         frames(fit.frames_near_after) +
-         (spread ? " with the spread"
-                 : " with any spread up to " +
-                       std::to_string(static_cast<int>(std::lround(kMaxAutoArmSpread * 180.0 / M_PI))) +
-                       "°");
+  return line + ": the left / right forearm or hand came within " + clearance + " of the body in " +
+         frames(fit.frames_near_before) + " of " + std::to_string(fit.frames_sampled) +
+         " sampled frames as retargeted, " + frames(fit.frames_near_after) +
+         (spread ? " with the spread" : " with any spread up to " + degrees(kMaxAutoArmSpread));
 }
 
 }  // namespace costume::sim

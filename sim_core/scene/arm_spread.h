@@ -5,7 +5,7 @@
 /// on a body narrower at the hips than the avatar swings the avatar's forearms through its
 /// own hips: Khronos' CesiumMan walking CMU's 02_02 had up to 41 forearm and hand vertices
 /// inside its hips in a frame, and the built-in skirt's waistband, caught between them,
-/// reached 620 % strain. Animators answer this with an "arm spread": each arm turned a few
+/// reached 656 % strain. Animators answer this with an "arm spread": each arm turned a few
 /// degrees away from the body for the whole clip. FindArmSpread chooses the least such
 /// angle per arm that keeps the forearm and hand a clearance off the rest of the body.
 
@@ -34,8 +34,8 @@ struct ArmSpreadFit {
   /// Frames of the clip sampled (30 per second, at most kMaxArmSpreadSamples).
   int frames_sampled = 0;
   /// Sampled frames in which the arm's forearm or hand came nearer the rest of the body
-  /// than kArmClearance (vertices already that near in the posture are not counted),
-  /// as retargeted and with the spread.
+  /// than kArmClearance, as retargeted and with the spread (skin that near in the posture,
+  /// or still that near turned out kMaxAutoArmSpread, is not counted: FindArmSpread).
   std::array<int, 2> frames_near_before{0, 0};
   std::array<int, 2> frames_near_after{0, 0};
 };

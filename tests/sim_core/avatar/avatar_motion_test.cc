@@ -71,8 +71,8 @@ TEST(AvatarMotionArmSpread, TurnsTheArmAboutTheTrunksForwardAxisByItsAngle) {
 }
 
 TEST(AvatarMotionArmSpread, RefusesAnAngleOutsideZeroToThirtyDegrees) {
-  for (const double angle : {-1.0 * kDegree, 31.0 * kDegree,
-                             std::numeric_limits<double>::quiet_NaN()}) {
+  for (const double angle :
+       {-1.0 * kDegree, 31.0 * kDegree, std::numeric_limits<double>::quiet_NaN()}) {
     AvatarMotionSettings settings;
     settings.arm_spread = {0.0, angle};
     try {

@@ -64,8 +64,8 @@ std::vector<char> LeftArmWithin(double clearance, const std::shared_ptr<const Cl
   for (int v = 0; v < x.rows(); ++v) {
     const auto segment = Humanoid()->vertex_segments()[v];
     if (segment != HAnimJoint::kLElbow && segment != HAnimJoint::kLRadiocarpal) continue;
-    within[v] = body.Inside(x.row(v).transpose() +
-                            clearance * normals.row(v).normalized().transpose());
+    within[v] =
+        body.Inside(x.row(v).transpose() + clearance * normals.row(v).normalized().transpose());
   }
   return within;
 }
@@ -81,7 +81,8 @@ int NewlyWithin(double clearance, const std::shared_ptr<const Clip>& clip, doubl
 
 TEST(FindArmSpread, LeavesAClipThatKeepsTheArmsOffTheBodyAlone) {
   AvatarMotionSettings settings;
-  const auto walk = std::make_shared<const Clip>(MakeBuiltInClip("walk", Humanoid()->shared_skeleton()));
+  const auto walk =
+      std::make_shared<const Clip>(MakeBuiltInClip("walk", Humanoid()->shared_skeleton()));
   const ArmSpreadFit fit = FindArmSpread(Humanoid(), walk, settings);
   ASSERT_TRUE(fit.measured) << fit.why_not;
   EXPECT_EQ(fit.angle[0], 0.0);
@@ -159,7 +160,8 @@ TEST(FindArmSpread, CesiumManWalkingACmuClipKeepsTheSkirtWhole) {
                            std::filesystem::absolute(bvh).string() +
                            "\"\n[[garment]]\nname = \"skirt\"\npattern = \"skirt\"\n";
   SceneDescription scene = assets::ParseSceneText(text, "cesiumman.toml", "");
-  const ArmSpreadFit fit = FindArmSpread(scene.avatar->avatar, scene.avatar->clip, scene.avatar->motion);
+  const ArmSpreadFit fit =
+      FindArmSpread(scene.avatar->avatar, scene.avatar->clip, scene.avatar->motion);
   ASSERT_TRUE(fit.measured) << fit.why_not;
   EXPECT_GT(fit.angle[0], 0.0);
   EXPECT_GT(fit.angle[1], 0.0);
