@@ -10,18 +10,15 @@
 #include <limits>
 #include <numbers>
 
-#include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
+#include "tests/support/humanoid.h"
 
 namespace costume::sim {
 namespace {
 
 constexpr double kDegree = std::numbers::pi / 180.0;
 
-const std::shared_ptr<const Avatar>& Humanoid() {
-  static const std::shared_ptr<const Avatar> avatar = MakeHumanoid();
-  return avatar;
-}
+using test::Humanoid;
 
 /// A clip of the humanoid's own skeleton holding its rest pose.
 std::shared_ptr<const Clip> StillClip() {

@@ -13,10 +13,10 @@
 
 #include "assets/scene_file.h"
 #include "sim_core/avatar/procedural_clips.h"
-#include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
+#include "tests/support/humanoid.h"
 #include "tests/support/shared_data.h"
 
 namespace costume::sim {
@@ -24,10 +24,7 @@ namespace {
 
 constexpr double kDegree = std::numbers::pi / 180.0;
 
-const std::shared_ptr<const Avatar>& Humanoid() {
-  static const std::shared_ptr<const Avatar> avatar = MakeHumanoid();
-  return avatar;
-}
+using test::Humanoid;
 
 /// A clip of the humanoid's own skeleton holding the left arm `degrees` in towards the
 /// body from its rest (20° out: procedural_humanoid.h), i.e. about −z at the shoulder.
