@@ -43,7 +43,8 @@ std::shared_ptr<const Clip> ArmInClip(double degrees) {
 
 /// Per vertex of the humanoid, whether it is a vertex of the left forearm or hand which,
 /// pushed `clearance` out along its normal, lies inside the body when `clip` plays with
-/// the left arm spread by `spread` (scene time 2 s; 0.25 s: the rest pose, still fitting).
+/// the left arm spread by `spread`, at scene time `t` (2 s: the clip playing; 0: the rest
+/// pose).
 std::vector<char> LeftArmWithin(double clearance, const std::shared_ptr<const Clip>& clip,
                                 double spread, double t = 2.0) {
   AvatarMotionSettings settings;
