@@ -4,8 +4,8 @@
 /// Retargeting copies each bone's direction from the clip's performer, so a clip captured
 /// on a body narrower at the hips than the avatar swings the avatar's forearms through its
 /// own hips: Khronos' CesiumMan walking CMU's 02_02 had up to 41 forearm and hand vertices
-/// inside its hips in a frame, and the built-in skirt's waistband, caught between them,
-/// reached 656 % strain. Animators answer this with an "arm spread": each arm turned a few
+/// inside or within 2 mm of the rest of his body in a frame, and the built-in skirt's
+/// waistband, caught there, reached 656 % strain. Animators answer this with an "arm spread": each arm turned a few
 /// degrees away from the body for the whole clip. FindArmSpread chooses the least such
 /// angle per arm that keeps the forearm and hand a clearance off the rest of the body.
 
