@@ -75,7 +75,8 @@ void AvatarMotion::Evaluate(double t, double posture_blend) {
     SampleClip(*clip_, clip_time, clip_pose_);
     retargeter_->Apply(clip_pose_, retargeted_);
     SpreadArms(retargeted_);
-    retargeted_.root_translation = EasedTranslation(clip_time);
+    // After the blend the clip's own translation, which Apply gave.
+    if (BlendFraction(clip_time) < 1.0) retargeted_.root_translation = EasedTranslation(clip_time);
     // The clip's own placement is relative; the designer's placement stays.
     retargeted_.root_translation = settings_.posture.orientation * retargeted_.root_translation +
                                    settings_.posture.root_translation;
@@ -112,9 +113,9 @@ Eigen::Vector3d AvatarMotion::EasedTranslation(double clip_time) {
   // starts at rest without a jolt, speeds up to at most 1.51 times the clip's pace (at most
   // 4 v / T, where v is the clip's speed) and meets the clip's own time, pace and
   // acceleration at the blend's end, so the motion after the blend is the clip's exactly.
-  // The clip's own offset at its start is blended in meanwhile.
+  // The clip's own offset at its start is blended in meanwhile. Called during the blend
+  // only (s < 1).
   const double s = BlendFraction(clip_time);
-  if (s >= 1.0) return ClipTranslation(clip_time);
   const double clock = settings_.blend_time * s * s * s * (6.0 - 8.0 * s + 3.0 * s * s);
   return ClipTranslation(clock) - (1.0 - Smoothstep(s)) * ClipTranslation(0.0);
 }

@@ -35,25 +35,14 @@ std::array<std::vector<int>, 2> ArmVertices(const Avatar& avatar) {
 /// the clearance of the rest of the body.
 class NearnessProbe {
  public:
+  /// `surface`: the avatar's triangles' topology, for the vertices' normals.
   NearnessProbe(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
-                AvatarMotionSettings settings, MeshDistance& body,
-                const std::array<std::vector<int>, 2>& arms)
+                AvatarMotionSettings settings, MeshDistance& body, SurfacePseudonormals& surface)
       : avatar_(std::move(avatar)),
         clip_(std::move(clip)),
         settings_(std::move(settings)),
         body_(body),
-        incident_(avatar_->num_vertices()) {
-    std::vector<char> tested(avatar_->num_vertices(), 0);
-    for (const std::vector<int>& arm : arms) {
-      for (int v : arm) tested[v] = 1;
-    }
-    const std::vector<Eigen::Vector3i>& triangles = avatar_->triangles();
-    for (int t = 0; t < static_cast<int>(triangles.size()); ++t) {
-      for (int k = 0; k < 3; ++k) {
-        if (tested[triangles[t][k]]) incident_[triangles[t][k]].push_back(t);
-      }
-    }
-  }
+        surface_(surface) {}
 
   /// Plays the clip with `spread` from now on.
   void Spread(const std::array<double, 2>& spread) {
@@ -71,6 +60,7 @@ class NearnessProbe {
       boxes_[segments[v] ? static_cast<int>(*segments[v]) : kNumHAnimJoints].extend(
           x.row(v).transpose());
     }
+    surface_.Update(x, /*vertex_normals=*/false);  // the few needed come from VertexNormal
     body_current_ = false;
   }
 
@@ -80,15 +70,8 @@ class NearnessProbe {
   /// those alone.
   bool Near(int v, int side) {
     const Points& x = motion_->vertices();
-    Eigen::Vector3d n = Eigen::Vector3d::Zero();
-    for (int t : incident_[v]) {
-      // Unnormalised: each triangle weighs by its area.
-      const Eigen::Vector3i& c = avatar_->triangles()[t];
-      n += (x.row(c[1]) - x.row(c[0])).cross(x.row(c[2]) - x.row(c[0])).transpose();
-    }
-    const double length = n.norm();
-    if (!(length > 0.0)) return false;
-    const Eigen::Vector3d p = x.row(v).transpose() + (kArmClearance / length) * n;
+    const Eigen::Vector3d p =
+        x.row(v).transpose() + kArmClearance * surface_.VertexNormal(v, x);
     if (!InOtherBox(p, side)) return false;
     if (!body_current_) body_.Update(x);
     body_current_ = true;
@@ -116,9 +99,8 @@ class NearnessProbe {
   AvatarMotionSettings settings_;
   MeshDistance& body_;
   bool body_current_ = false;
+  SurfacePseudonormals& surface_;
   std::optional<AvatarMotion> motion_;
-  /// Per tested vertex its triangles, for its normal.
-  std::vector<std::vector<int>> incident_;
   /// Per H-Anim segment the box of its skin in the pose; the last for skin of none.
   std::array<Eigen::AlignedBox3d, kNumHAnimJoints + 1> boxes_;
 };
@@ -209,7 +191,8 @@ ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
     fit.why_not = "no clip";
     return fit;
   }
-  if (SurfacePseudonormals(avatar->num_vertices(), avatar->triangles()).num_open_edges() > 0) {
+  SurfacePseudonormals surface(avatar->num_vertices(), avatar->triangles());
+  if (surface.num_open_edges() > 0) {
     fit.why_not = "the avatar's mesh is not closed";
     return fit;
   }
@@ -219,7 +202,7 @@ ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
                       avatar->triangles());
     AvatarMotionSettings played = settings;
     played.arm_spread = {0.0, 0.0};
-    NearnessProbe probe(avatar, clip, played, body, arms);
+    NearnessProbe probe(avatar, clip, played, body, surface);
     // Vertices near the body in the posture (a hand resting on a thigh) are the avatar's
     // own shape, which no spread of the clip should be asked to change.
     probe.Spread({0.0, 0.0});
