@@ -1,5 +1,7 @@
 #include "frontend/command_sender.h"
 
+#include <cmath>
+
 #include "bus/channels.h"
 #include "bus/receive_filter.h"
 #include "bus/settings_codec.h"
@@ -118,7 +120,8 @@ bool CommandSender::SaveVersion(const std::string& label) {
   return Send(message);
 }
 
-bool CommandSender::SetPosture(const std::vector<JointAngles>& joints, double heading_degrees) {
+bool CommandSender::SetPosture(const std::vector<JointAngles>& joints, double heading_degrees,
+                               const sim::ArmSpreadRequest& arm_spread) {
   Command message = Blank(Command::KIND_SET_POSTURE);
   message.num_joints = static_cast<std::int16_t>(joints.size());
   for (const JointAngles& joint : joints) {
@@ -126,6 +129,14 @@ bool CommandSender::SetPosture(const std::vector<JointAngles>& joints, double he
     message.joint_angles.push_back({joint.degrees.x(), joint.degrees.y(), joint.degrees.z()});
   }
   message.heading_degrees = heading_degrees;
+  using Kind = sim::ArmSpreadRequest::Kind;
+  message.arm_spread_mode = arm_spread.kind == Kind::kAuto    ? Command::ARM_SPREAD_AUTO
+                            : arm_spread.kind == Kind::kGiven ? Command::ARM_SPREAD_GIVEN
+                                                              : Command::ARM_SPREAD_KEEP;
+  for (int side = 0; side < 2; ++side) {
+    message.arm_spread_degrees[side] =
+        arm_spread.kind == Kind::kGiven ? arm_spread.angle[side] * 180.0 / M_PI : 0.0;
+  }
   return Send(message);
 }
 

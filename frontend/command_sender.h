@@ -19,6 +19,7 @@
 #include "lcm_types/costume_lcm/command.hpp"
 #include "lcm_types/costume_lcm/pointer_sample.hpp"
 #include "sim_core/cloth/material.h"
+#include "sim_core/scene/arm_spread.h"
 #include "sim_core/scene/scene_description.h"
 
 namespace costume::frontend {
@@ -61,8 +62,10 @@ class CommandSender {
   bool Redo();
   /// SAVE_VERSION with `label` as the version's label.
   bool SaveVersion(const std::string& label);
-  /// SET_POSTURE: the listed joints' rotations and the avatar's heading about +y [degrees].
-  bool SetPosture(const std::vector<JointAngles>& joints, double heading_degrees);
+  /// SET_POSTURE: the listed joints' rotations and the avatar's heading about +y [degrees],
+  /// and the arms' spread as `arm_spread` asks (kKeep: unchanged).
+  bool SetPosture(const std::vector<JointAngles>& joints, double heading_degrees,
+                  const sim::ArmSpreadRequest& arm_spread = {});
   /// SET_SELECTION_RADIUS: the haptic server's grab sphere [m] from its next grab.
   bool SetSelectionRadius(double radius);
 

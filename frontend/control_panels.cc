@@ -303,10 +303,43 @@ PosturePanel::PosturePanel(QWidget* parent) : QGroupBox("Avatar posture", parent
   heading_ = Field({-180.0, 180.0}, 1, "°", "The avatar's turn about the vertical axis");
   grid->addWidget(new QLabel("heading"), row, 0);
   grid->addWidget(heading_, row, 1);
+  ++row;
+  // The clip's arms turned out from the body, so that forearms swinging through the hips
+  // (a clip captured on a narrower body) do not tear the cloth caught there.
+  auto_spread = new QCheckBox("auto");
+  auto_spread->setChecked(true);
+  auto_spread->setToolTip("The simulation turns each arm out as far as keeps the clip's "
+                          "forearms and hands 1 cm off the body (up to 15°)");
+  grid->addWidget(new QLabel("arm spread"), row, 0);
+  grid->addWidget(auto_spread, row, 1);
+  const QString sides[2] = {"left", "right"};
+  for (int side = 0; side < 2; ++side) {
+    spread[side] = Field({0.0, sim::kMaxArmSpreadDegrees}, 1, "°",
+                         "The " + sides[side] + " arm turned out from the body");
+    spread[side]->setPrefix(sides[side] + " ");
+    spread[side]->setEnabled(false);
+    grid->addWidget(spread[side], row, side + 2);
+  }
+  connect(auto_spread, &QCheckBox::toggled, this, [this](bool automatic) {
+    for (QDoubleSpinBox* box : spread) box->setEnabled(!automatic);
+  });
   apply = new QPushButton("Apply posture");
   grid->addWidget(apply, row + 1, 0, 1, 4);
   connect(apply, &QPushButton::clicked, this,
-          [this] { emit postureRequested(joints(), heading()); });
+          [this] { emit postureRequested(joints(), heading(), arm_spread()); });
+}
+
+sim::ArmSpreadRequest PosturePanel::arm_spread() const {
+  sim::ArmSpreadRequest request;
+  request.kind = auto_spread->isChecked() ? sim::ArmSpreadRequest::Kind::kAuto
+                                          : sim::ArmSpreadRequest::Kind::kGiven;
+  for (int side = 0; side < 2; ++side) request.angle[side] = spread[side]->value() * M_PI / 180.0;
+  return request;
+}
+
+void PosturePanel::SetArmSpread(bool automatic, const std::array<double, 2>& angle) {
+  auto_spread->setChecked(automatic);
+  for (int side = 0; side < 2; ++side) spread[side]->setValue(angle[side] * 180.0 / M_PI);
 }
 
 std::vector<JointAngles> PosturePanel::joints() const {

@@ -142,11 +142,18 @@ class PosturePanel : public QGroupBox {
   /// The spin box of `joint`'s rotation about rest axis `axis` (0 x, 1 y, 2 z).
   QDoubleSpinBox* angle(const std::string& joint, int axis) const;
   QDoubleSpinBox* heading_box() const { return heading_; }
+  /// The arms' spread asked for: kAuto while `auto_spread` is checked, else the two
+  /// angles, left and right [rad] (sim_core/scene/arm_spread.h).
+  sim::ArmSpreadRequest arm_spread() const;
+  /// Shows a scene's arms' spread: chosen by the simulation, or the angles it gives [rad].
+  void SetArmSpread(bool automatic, const std::array<double, 2>& angle);
   QPushButton* apply = nullptr;
+  QCheckBox* auto_spread = nullptr;
+  std::array<QDoubleSpinBox*, 2> spread{};
 
  signals:
   void postureRequested(const std::vector<costume::frontend::JointAngles>& joints,
-                        double heading_degrees);
+                        double heading_degrees, const costume::sim::ArmSpreadRequest& arm_spread);
 
  private:
   std::vector<std::array<QDoubleSpinBox*, 3>> angles_;

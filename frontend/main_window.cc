@@ -416,6 +416,12 @@ bool MainWindow::AdoptPendingMirror(const ClothFrame& frame) {
 void MainWindow::SyncSettingsPanels() {
   solver_->SetSettings(mirror_->scene().solver);
   collision_->SetSettings(sim::CollisionSettingsOf(mirror_->scene()));
+  if (mirror_->scene().avatar) {
+    const sim::AvatarSpec& avatar = *mirror_->scene().avatar;
+    posture_->SetArmSpread(avatar.auto_arm_spread,
+                           avatar.auto_arm_spread ? mirror_->arm_spread().angle
+                                                  : avatar.motion.arm_spread);
+  }
 }
 
 void MainWindow::ForEachMirror(const std::function<void(SceneMirror&)>& change) {
@@ -611,9 +617,13 @@ void MainWindow::ConnectSignals() {
                 "friction builds a new collider: superquadrics take about a second)");
           });
   connect(posture_, &PosturePanel::postureRequested, this,
-          [this](const std::vector<JointAngles>& joints, double heading) {
-            sender_->SetPosture(joints, heading);
-            ForEachMirror([&](SceneMirror& mirror) { mirror.SetPosture(joints, heading); });
+          [this](const std::vector<JointAngles>& joints, double heading,
+                 const sim::ArmSpreadRequest& spread) {
+            sender_->SetPosture(joints, heading, spread);
+            ForEachMirror(
+                [&](SceneMirror& mirror) { mirror.SetPosture(joints, heading, spread); });
+            Log("posture sent; " + QString::fromStdString(
+                                       sim::DescribeArmSpread(mirror_->arm_spread())));
             view_->update();
           });
   connect(play_, &QAction::triggered, this, [this] { sender_->Play(); });

@@ -5,6 +5,7 @@
 
 #include "assets/scene_file.h"
 #include "sim_core/avatar/hanim.h"
+#include "sim_core/common/input_error.h"
 #include "sim_core/scene/simulation.h"
 
 namespace costume::frontend {
@@ -53,11 +54,18 @@ SceneMirror::SceneMirror(sim::SceneDescription scene) : scene_(std::move(scene))
   rest_positions_ = ToFloat(model->rest_positions());
   if (scene_.avatar) {
     const sim::AvatarSpec& spec = *scene_.avatar;
-    motion_ = std::make_unique<sim::AvatarMotion>(spec.avatar, spec.clip, spec.motion);
+    MakeMotion();
     avatar_indices_ = Flatten(spec.avatar->triangles());
     PoseAvatar();
     floor_height_ = FloorUnder(spec);
   }
+}
+
+void SceneMirror::MakeMotion() {
+  const sim::AvatarSpec& spec = *scene_.avatar;
+  motion_ = std::make_unique<sim::AvatarMotion>(
+      spec.avatar, spec.clip, sim::PlayedMotion(spec, arm_spreads_, arm_spread_));
+  posture_blending_ = false;
 }
 
 void SceneMirror::PoseAvatar() {
@@ -75,6 +83,9 @@ void SceneMirror::PoseAvatar() {
 void SceneMirror::Follow(const ClothFrame& frame) {
   // A lower frame number is a rebuilt scene (STOP, SET_SOLVER): the clock starts again.
   if (!has_frame_ || frame.frame < last_frame_) {
+    // The server built its simulation anew, the posture last set included: its avatar
+    // starts again from the rest pose, and its arms' spread is chosen for that posture.
+    if (has_frame_ && motion_) MakeMotion();
     avatar_time_ = frame.editing ? 0.0 : frame.sim_time;
   } else if (!frame.editing) {
     avatar_time_ += frame.sim_time - last_sim_time_;
@@ -86,7 +97,8 @@ void SceneMirror::Follow(const ClothFrame& frame) {
 }
 
 std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>& joints,
-                                                 double heading_degrees) {
+                                                 double heading_degrees,
+                                                 const sim::ArmSpreadRequest& arm_spread) {
   std::vector<std::string> unknown;
   if (!motion_ || !scene_.avatar) return unknown;
   // As the server's SET_POSTURE: the listed joints rotated, every other joint at rest, the
@@ -105,8 +117,19 @@ std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>&
     posture.rotations[index] = sim::PostureRotation(joint.degrees);
   }
   posture.orientation = sim::PostureRotation({0.0, heading_degrees, 0.0});
-  motion_->SetPosture(posture);
-  scene_.avatar->motion.posture = posture;  // as the server's scene: a rebuild keeps it
+  const sim::AvatarSpec posed = sim::WithPosture(*scene_.avatar, posture, arm_spread);
+  std::array<double, 2> angle = motion_->settings().arm_spread;
+  sim::ArmSpreadFit fit = arm_spread_;
+  if (arm_spread.kind != sim::ArmSpreadRequest::Kind::kKeep) {
+    angle = sim::PlayedMotion(posed, arm_spreads_, fit).arm_spread;
+  }
+  try {
+    motion_->SetPosture(posture, angle);
+  } catch (const sim::InputError&) {
+    return unknown;  // the server refuses it too (a spread out of range): nothing changes
+  }
+  *scene_.avatar = posed;  // as the server's scene: a rebuild keeps it
+  arm_spread_ = fit;
   posture_start_ = last_sim_time_;
   posture_blending_ = true;
   PoseAvatar();

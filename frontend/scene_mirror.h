@@ -6,6 +6,8 @@
 /// the garment model gives the triangles, sim::AvatarMotion poses the avatar at the frame's
 /// avatar time. The avatar's clock is reconstructed from the frames: it advances with
 /// sim_time in mode A and stands still in mode B (the server freezes it, docs/processes.md).
+/// The avatar plays the motion the server plays (sim::PlayedMotion: the arms' spread the
+/// clip needs included), chosen again when the server rebuilds its scene.
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -17,6 +19,7 @@
 #include "frontend/cloth_frame_assembler.h"
 #include "frontend/command_sender.h"
 #include "sim_core/avatar/avatar_motion.h"
+#include "sim_core/scene/arm_spread.h"
 #include "sim_core/scene/scene_description.h"
 
 namespace costume::frontend {
@@ -40,12 +43,16 @@ class SceneMirror {
   /// The cloth as built (before the first frame arrives) [m].
   const std::vector<Eigen::Vector3f>& rest_positions() const { return rest_positions_; }
 
-  /// Advances the avatar's clock to `frame` and poses the avatar there.
+  /// Advances the avatar's clock to `frame` and poses the avatar there. A frame numbered
+  /// below the last is a rebuilt scene: the avatar's motion is made again from the scene,
+  /// in the posture last set, as the server's.
   void Follow(const ClothFrame& frame);
   /// The avatar's clock after the last Follow [s].
   double avatar_time() const { return avatar_time_; }
 
   bool has_avatar() const { return motion_ != nullptr; }
+  /// The arms' spread the avatar plays its clip with, as the server chooses it.
+  const sim::ArmSpreadFit& arm_spread() const { return arm_spread_; }
   /// The skinned avatar at avatar_time() [m]; empty without an avatar.
   const std::vector<Eigen::Vector3f>& avatar_vertices() const { return avatar_vertices_; }
   const std::vector<std::uint32_t>& avatar_indices() const { return avatar_indices_; }
@@ -53,8 +60,10 @@ class SceneMirror {
   /// Applies a posture as the server's KIND_SET_POSTURE does: the listed joints' rotations,
   /// every other joint at rest (unknown names ignored and returned), the heading about +y
   /// [degrees]; the body moves there over kPostureTransition of the frames' simulated time.
+  /// The arms' spread changes as `arm_spread` asks, as the server's does.
   std::vector<std::string> SetPosture(const std::vector<JointAngles>& joints,
-                                      double heading_degrees);
+                                      double heading_degrees,
+                                      const sim::ArmSpreadRequest& arm_spread = {});
 
   /// Applies solver or collision settings to the scene as the server's KIND_SET_SOLVER and
   /// KIND_SET_COLLISION do (in place; without an avatar only self_collision counts), so a
@@ -72,12 +81,16 @@ class SceneMirror {
   float floor_height() const { return floor_height_; }
 
  private:
+  /// A fresh motion of the scene's avatar, as the server's simulation builds it.
+  void MakeMotion();
   void PoseAvatar();
 
   sim::SceneDescription scene_;
   int num_particles_ = 0;
   std::vector<std::uint32_t> cloth_indices_;
   std::vector<Eigen::Vector3f> rest_positions_;
+  sim::ArmSpreadMemo arm_spreads_;
+  sim::ArmSpreadFit arm_spread_;
   std::unique_ptr<sim::AvatarMotion> motion_;
   std::vector<Eigen::Vector3f> avatar_vertices_;
   std::vector<std::uint32_t> avatar_indices_;

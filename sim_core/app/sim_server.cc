@@ -210,7 +210,7 @@ std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_fram
 }
 
 void SimServer::Rebuild(const sim::SceneDescription& scene) {
-  auto rebuilt = sim::Simulation::Build(scene);  // throws before anything changes
+  auto rebuilt = sim::Simulation::Build(scene, &arm_spreads_);  // throws before anything changes
   if (grabbing()) ReleaseGrab();
   simulation_ = std::move(rebuilt);
   simulation_->SetAvatarFrozen(mode_ == Mode::kEditing);
@@ -517,6 +517,33 @@ sim::Pose PostureOf(const costume_lcm::command& command, const sim::Skeleton& sk
   return pose;
 }
 
+/// The arms' spread a SET_POSTURE command asks for. Throws sim::InputError naming the field
+/// for an unknown mode or an angle outside [0, kMaxArmSpreadDegrees].
+sim::ArmSpreadRequest ArmSpreadRequestOf(const costume_lcm::command& command) {
+  using C = costume_lcm::command;
+  sim::ArmSpreadRequest request;
+  switch (command.arm_spread_mode) {
+    case C::ARM_SPREAD_KEEP: return request;
+    case C::ARM_SPREAD_AUTO: request.kind = sim::ArmSpreadRequest::Kind::kAuto; return request;
+    case C::ARM_SPREAD_GIVEN: break;
+    default:
+      throw sim::InputError("command SET_POSTURE: arm_spread_mode = " +
+                            std::to_string(command.arm_spread_mode) +
+                            ": must be 0 (keep), 1 (auto) or 2 (given)");
+  }
+  request.kind = sim::ArmSpreadRequest::Kind::kGiven;
+  for (int side = 0; side < 2; ++side) {
+    const double degrees = command.arm_spread_degrees[side];
+    if (!(degrees >= 0.0 && degrees <= sim::kMaxArmSpreadDegrees)) {
+      throw sim::InputError("command SET_POSTURE: arm_spread_degrees[" + std::to_string(side) +
+                            "] = " + std::to_string(degrees) + ": must be within [0, " +
+                            sim::FormatValue(sim::kMaxArmSpreadDegrees) + "]");
+    }
+    request.angle[side] = degrees * M_PI / 180.0;
+  }
+  return request;
+}
+
 }  // namespace
 
 // The cloth keeps its state: only the body moves, gradually (posture_transition), and the
@@ -532,8 +559,14 @@ void SimServer::SetPosture(const costume_lcm::command& command) {
   try {
     const sim::Pose posture = PostureOf(command, avatar->avatar().skeleton(),
                                         avatar->settings().posture.root_translation);
-    simulation_->SetPosture(posture, options_.posture_transition);
-    scene_.avatar->motion.posture = posture;
+    const sim::ArmSpreadRequest spread = ArmSpreadRequestOf(command);
+    simulation_->SetPosture(posture, options_.posture_transition, spread, &arm_spreads_);
+    *scene_.avatar = sim::WithPosture(*scene_.avatar, posture, spread);
+    const sim::ArmSpreadFit& chosen = simulation_->arm_spread();
+    if (spread.kind == sim::ArmSpreadRequest::Kind::kAuto && chosen.measured &&
+        (chosen.angle[0] > 0.0 || chosen.angle[1] > 0.0)) {
+      Warn("posture set: " + sim::DescribeArmSpread(chosen));
+    }
   } catch (const sim::InputError& error) {
     ++ignored_.commands_refused;
     Warn(std::string(error.what()) + "; posture unchanged");

@@ -216,6 +216,8 @@ class SimServer {
   sim::SceneDescription scene_;
   SimServerOptions options_;
   std::unique_ptr<SceneCatalog> catalog_;  ///< opened lazily (OpenCatalog)
+  /// The arms' spread chosen for the scene's clip, kept across rebuilds (STOP, a fabric).
+  sim::ArmSpreadMemo arm_spreads_;
   std::unique_ptr<sim::Simulation> simulation_;
 
   bus::Publisher<costume_lcm::cloth_frame> frame_publisher_;

@@ -10,6 +10,18 @@ namespace {
 /// 3s² − 2s³: rises from 0 to 1 over s in [0, 1] with zero slope at both ends.
 double Smoothstep(double s) { return s * s * (3.0 - 2.0 * s); }
 
+void RequireArmSpread(const Avatar& avatar, const std::array<double, 2>& arm_spread) {
+  for (std::size_t side = 0; side < 2; ++side) {
+    const double angle = arm_spread[side];
+    if (!(angle >= 0.0 && angle <= kMaxArmSpread)) {
+      throw InputError("avatar '" + avatar.name() + "': arm spread (" +
+                       (side == 0 ? "left" : "right") + ") = " + std::to_string(angle) +
+                       " rad: allowed 0 to " + std::to_string(kMaxArmSpread) + " rad (" +
+                       std::to_string(static_cast<int>(kMaxArmSpreadDegrees)) + "°)");
+    }
+  }
+}
+
 }  // namespace
 
 AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
@@ -26,15 +38,7 @@ AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr
   }
   RequireNonNegative("avatar.fit_time", settings_.fit_time, "s");
   RequireNonNegative("avatar.blend_time", settings_.blend_time, "s");
-  for (std::size_t side = 0; side < 2; ++side) {
-    const double angle = settings_.arm_spread[side];
-    if (!(angle >= 0.0 && angle <= kMaxArmSpread)) {
-      throw InputError("avatar '" + avatar_->name() + "': arm spread (" +
-                       (side == 0 ? "left" : "right") + ") = " + std::to_string(angle) +
-                       " rad: allowed 0 to " + std::to_string(kMaxArmSpread) + " rad (" +
-                       std::to_string(static_cast<int>(kMaxArmSpreadDegrees)) + "°)");
-    }
-  }
+  RequireArmSpread(*avatar_, settings_.arm_spread);
   if (clip_) {
     ValidateClip(*clip_);
     retargeter_.emplace(clip_->skeleton, avatar_->shared_skeleton());
@@ -62,6 +66,14 @@ void AvatarMotion::SetPosture(const Pose& posture) {
   has_previous_ = true;
   settings_.posture = posture;
   ComputeJointWorld(avatar_->skeleton(), settings_.posture, posture_world_);
+}
+
+void AvatarMotion::SetPosture(const Pose& posture, const std::array<double, 2>& arm_spread) {
+  RequireArmSpread(*avatar_, arm_spread);
+  SetPosture(posture);  // throws before anything changes
+  settings_.arm_spread = arm_spread;
+  arm_spreads_.clear();
+  if (clip_) PrepareArmSpreads();
 }
 
 void AvatarMotion::Evaluate(double t, double posture_blend) {

@@ -58,6 +58,10 @@ class AvatarMotion {
   /// over. Throws InputError when `posture` does not have one rotation per joint or holds a
   /// non-finite value.
   void SetPosture(const Pose& posture);
+  /// As SetPosture(posture), and the arms' spread becomes `arm_spread` (per arm [rad] in
+  /// [0, kMaxArmSpread]; AvatarMotionSettings::arm_spread), reached over the same
+  /// transition. Throws InputError, changing nothing, for a spread out of range as well.
+  void SetPosture(const Pose& posture, const std::array<double, 2>& arm_spread);
 
   const Avatar& avatar() const { return *avatar_; }
   const std::shared_ptr<const Avatar>& shared_avatar() const { return avatar_; }

@@ -247,6 +247,67 @@ ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
   return fit;
 }
 
+namespace {
+
+bool SamePose(const Pose& a, const Pose& b) {
+  if (a.rotations.size() != b.rotations.size()) return false;
+  for (std::size_t j = 0; j < a.rotations.size(); ++j) {
+    if (a.rotations[j].coeffs() != b.rotations[j].coeffs()) return false;
+  }
+  return a.root_translation == b.root_translation &&
+         a.orientation.coeffs() == b.orientation.coeffs();
+}
+
+/// Whether FindArmSpread would answer `a` as `b`: it ignores their own arm_spread.
+bool SameSearch(const AvatarMotionSettings& a, const AvatarMotionSettings& b) {
+  return SamePose(a.posture, b.posture) && a.fit_time == b.fit_time &&
+         a.blend_time == b.blend_time;
+}
+
+}  // namespace
+
+const ArmSpreadFit& ArmSpreadMemo::Find(const std::shared_ptr<const Avatar>& avatar,
+                                        const std::shared_ptr<const Clip>& clip,
+                                        const AvatarMotionSettings& settings) {
+  // A weak pointer that has expired locks to null, so a freed avatar or clip never matches.
+  const bool same = has_fit_ && avatar_.lock() == avatar && clip_.lock() == clip &&
+                    SameSearch(settings_, settings);
+  if (same) return fit_;
+  fit_ = FindArmSpread(avatar, clip, settings);
+  avatar_ = avatar;
+  clip_ = clip;
+  settings_ = settings;
+  has_fit_ = true;
+  ++num_searches_;
+  return fit_;
+}
+
+AvatarMotionSettings PlayedMotion(const AvatarSpec& spec, ArmSpreadMemo& memo,
+                                  ArmSpreadFit& fit) {
+  AvatarMotionSettings motion = spec.motion;
+  if (spec.auto_arm_spread) {
+    fit = memo.Find(spec.avatar, spec.clip, motion);
+    motion.arm_spread = fit.angle;
+  } else {
+    fit = ArmSpreadFit{};
+    fit.angle = motion.arm_spread;
+    fit.why_not = "given by the scene";
+  }
+  return motion;
+}
+
+AvatarSpec WithPosture(const AvatarSpec& spec, const Pose& posture,
+                       const ArmSpreadRequest& request) {
+  AvatarSpec posed = spec;
+  posed.motion.posture = posture;
+  if (request.kind == ArmSpreadRequest::Kind::kAuto) posed.auto_arm_spread = true;
+  if (request.kind == ArmSpreadRequest::Kind::kGiven) {
+    posed.auto_arm_spread = false;
+    posed.motion.arm_spread = request.angle;
+  }
+  return posed;
+}
+
 std::string DescribeArmSpread(const ArmSpreadFit& fit) {
   const auto degrees = [](double radians) {
     return std::to_string(static_cast<int>(std::lround(radians * 180.0 / M_PI))) + "°";

@@ -16,6 +16,7 @@
 #include "sim_core/avatar/avatar.h"
 #include "sim_core/avatar/avatar_motion.h"
 #include "sim_core/avatar/clip.h"
+#include "sim_core/scene/scene_description.h"
 
 namespace costume::sim {
 
@@ -60,6 +61,54 @@ inline constexpr double kMaxAutoArmSpread = 15.0 * 3.14159265358979323846 / 180.
 ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
                            const std::shared_ptr<const Clip>& clip,
                            const AvatarMotionSettings& settings);
+
+/// The last spread FindArmSpread chose, kept for the next scene with the same avatar, clip
+/// and motion: a STOP or a new fabric rebuilds the simulation from its scene, and the
+/// search took 0.03–1.3 s each time. Holds the avatar and clip weakly (a freed one never
+/// matches a new one at its address).
+class ArmSpreadMemo {
+ public:
+  /// FindArmSpread(avatar, clip, settings), or the answer of the last search when the
+  /// avatar, clip and settings (all but their own arm_spread) are those it was made for.
+  /// Never throws.
+  const ArmSpreadFit& Find(const std::shared_ptr<const Avatar>& avatar,
+                           const std::shared_ptr<const Clip>& clip,
+                           const AvatarMotionSettings& settings);
+  /// Searches run since construction [-].
+  int num_searches() const { return num_searches_; }
+
+ private:
+  bool has_fit_ = false;
+  std::weak_ptr<const Avatar> avatar_;
+  std::weak_ptr<const Clip> clip_;
+  AvatarMotionSettings settings_;
+  ArmSpreadFit fit_;
+  int num_searches_ = 0;
+};
+
+/// A change of the arms' spread asked for with a new posture (Simulation::SetPosture).
+struct ArmSpreadRequest {
+  enum class Kind {
+    kKeep,   ///< the spread stays as it is
+    kAuto,   ///< chosen for the clip in the new posture (FindArmSpread)
+    kGiven,  ///< `angle`
+  };
+  Kind kind = Kind::kKeep;
+  /// Per arm (left, right), for kGiven [rad] in [0, kMaxArmSpread].
+  std::array<double, 2> angle{0.0, 0.0};
+};
+
+/// `spec` with the posture and arms' spread `request` asks for: what a rebuild of the
+/// scene then plays. Never throws (the ranges are AvatarMotion's to check).
+AvatarSpec WithPosture(const AvatarSpec& spec, const Pose& posture,
+                       const ArmSpreadRequest& request);
+
+/// The motion `spec`'s avatar plays: spec.motion with the arms' spread that `memo` finds,
+/// when spec.auto_arm_spread, or as the scene gives it. `fit` gets what was measured (for
+/// a spread the scene gives: not measured, "given by the scene"). The simulation and the
+/// GUI's copy of its scene both play this, so they show the same body. Never throws.
+AvatarMotionSettings PlayedMotion(const AvatarSpec& spec, ArmSpreadMemo& memo,
+                                  ArmSpreadFit& fit);
 
 /// One line for logs: the spread per arm and why ("arms spread 9° (left) and 12° (right):
 /// ...", "arms as retargeted: ...").

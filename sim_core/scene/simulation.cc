@@ -288,20 +288,23 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene) {
   return settings;
 }
 
-std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene) {
+std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene,
+                                              ArmSpreadMemo* arm_spreads) {
   ValidateScene(scene);
   std::vector<GarmentRange> garments;
   std::vector<BodyAttachment> attachments;
   auto model = BuildSceneModel(scene, &garments, &attachments);
   RequireStableStep(*model, 1.0 / (scene.frame_rate * scene.solver.substeps), scene.source);
+  ArmSpreadMemo once;
   return std::unique_ptr<Simulation>(new Simulation(scene, std::move(model), std::move(garments),
                                                     std::move(attachments),
-                                                    StepperSettingsOf(scene)));
+                                                    StepperSettingsOf(scene),
+                                                    arm_spreads ? *arm_spreads : once));
 }
 
 Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
                        std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
-                       const StepperSettings& settings)
+                       const StepperSettings& settings, ArmSpreadMemo& arm_spreads)
     : scene_(std::move(scene)),
       model_(std::move(model)),
       garments_(std::move(garments)),
@@ -316,14 +319,7 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   }
   if (scene_.avatar) {
     const AvatarSpec& spec = *scene_.avatar;
-    AvatarMotionSettings motion = spec.motion;
-    if (spec.auto_arm_spread) {
-      arm_spread_ = FindArmSpread(spec.avatar, spec.clip, motion);
-      motion.arm_spread = arm_spread_.angle;
-    } else {
-      arm_spread_.angle = motion.arm_spread;
-      arm_spread_.why_not = "given by the scene";
-    }
+    const AvatarMotionSettings motion = PlayedMotion(spec, arm_spreads, arm_spread_);
     avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, motion);
     body_ = MakeAvatarCollider(scene_, *avatar_, step());
     attachments_ = std::move(attachments);
@@ -646,14 +642,23 @@ void Simulation::SetCollision(const CollisionSettings& settings) {
   scene_ = std::move(scene);
 }
 
-bool Simulation::SetPosture(const Pose& posture, double transition_time) {
+bool Simulation::SetPosture(const Pose& posture, double transition_time,
+                            const ArmSpreadRequest& spread, ArmSpreadMemo* arm_spreads) {
   if (!avatar_) return false;
   if (!(transition_time >= 0.0) || !std::isfinite(transition_time)) {
     throw InputError(scene_.source + ": posture transition_time = " +
                      std::to_string(transition_time) + " s: must be finite and >= 0");
   }
-  avatar_->SetPosture(posture);  // throws before anything changes
-  scene_.avatar->motion.posture = posture;
+  AvatarSpec posed = WithPosture(*scene_.avatar, posture, spread);
+  ArmSpreadFit fit = arm_spread_;
+  std::array<double, 2> angle = avatar_->settings().arm_spread;
+  if (spread.kind != ArmSpreadRequest::Kind::kKeep) {
+    ArmSpreadMemo once;
+    angle = PlayedMotion(posed, arm_spreads ? *arm_spreads : once, fit).arm_spread;
+  }
+  avatar_->SetPosture(posture, angle);  // throws before anything changes
+  *scene_.avatar = std::move(posed);
+  arm_spread_ = fit;
   posture_start_ = state_.time;
   posture_duration_ = transition_time;
   return true;

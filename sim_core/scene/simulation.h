@@ -87,8 +87,11 @@ struct FrameReport {
 class Simulation {
  public:
   /// Builds the engine for `scene` (validated first). Throws InputError naming the scene
-  /// source, the field, the value and the allowed range.
-  static std::unique_ptr<Simulation> Build(const SceneDescription& scene);
+  /// source, the field, the value and the allowed range. `arm_spreads` (when not null)
+  /// remembers the arms' spread chosen for the avatar's clip, so that rebuilding the same
+  /// scene does not search again (a server's STOP, a new fabric).
+  static std::unique_ptr<Simulation> Build(const SceneDescription& scene,
+                                           ArmSpreadMemo* arm_spreads = nullptr);
 
   /// Advances one frame (1/frame_rate s, in solver.substeps steps, or more where the avatar's
   /// skin near the cloth moves farther than AvatarSpec::max_skin_travel within a step;
@@ -161,9 +164,13 @@ class Simulation {
   /// moves from its current pose to `posture` (rotations per joint, placement) over
   /// `transition_time` [s] >= 0 of simulated time, frozen avatar clock or not, and the cloth
   /// follows it through contacts and attachments. The scene's posture becomes `posture` (a
-  /// later rebuild uses it). Returns false and changes nothing without an avatar. Throws
-  /// InputError for a posture of the wrong size, non-finite values or a negative time.
-  bool SetPosture(const Pose& posture, double transition_time);
+  /// later rebuild uses it). The arms' spread changes as `spread` asks, over the same
+  /// transition; kAuto searches for it in the new posture (FindArmSpread, 0.03–1.3 s),
+  /// unless `arm_spreads` (when not null) remembers the answer. Returns false and changes
+  /// nothing without an avatar. Throws InputError for a posture of the wrong size,
+  /// non-finite values, a spread out of range or a negative time.
+  bool SetPosture(const Pose& posture, double transition_time,
+                  const ArmSpreadRequest& spread = {}, ArmSpreadMemo* arm_spreads = nullptr);
 
   const SceneDescription& scene() const { return scene_; }
   const ClothModel& model() const { return stepper_->model(); }
@@ -189,7 +196,7 @@ class Simulation {
  private:
   Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
              std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
-             const StepperSettings& settings);
+             const StepperSettings& settings, ArmSpreadMemo& arm_spreads);
   /// Steps for the coming frame: solver.substeps, or as many as keep the skin near the
   /// cloth within AvatarSpec::max_skin_travel a step. Measuring poses the avatar at the
   /// frame's end (`posed_at_end`); a split frame's first step poses it again.

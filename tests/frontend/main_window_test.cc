@@ -304,6 +304,18 @@ TEST_F(MainWindowTest, PostureControlsSendSetPosture) {
                                          : std::vector<double>{0, 0, 0};
     EXPECT_EQ(c.joint_angles[i], expected) << c.joint_names[i];
   }
+  // The arms' spread: the simulation's choice by default, or the angles typed.
+  EXPECT_EQ(c.arm_spread_mode, Command::ARM_SPREAD_AUTO);
+  EXPECT_FALSE(panel->spread[0]->isEnabled());
+  panel->auto_spread->setChecked(false);
+  ASSERT_TRUE(panel->spread[0]->isEnabled());
+  panel->spread[0]->setValue(12.0);
+  panel->spread[1]->setValue(40.0);  // beyond the 30° a scene may ask for: held at it
+  panel->apply->click();
+  const Command given = One();
+  EXPECT_EQ(given.arm_spread_mode, Command::ARM_SPREAD_GIVEN);
+  EXPECT_NEAR(given.arm_spread_degrees[0], 12.0, 1e-9);
+  EXPECT_NEAR(given.arm_spread_degrees[1], 30.0, 1e-9);
 }
 
 TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {

@@ -4,7 +4,9 @@
 
 #include "frontend/catalog_source.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/scene/arm_spread.h"
 #include "sim_core/scene/simulation.h"
+#include "tests/support/humanoid.h"
 
 namespace costume::frontend {
 namespace {
@@ -17,9 +19,13 @@ ClothFrame Frame(std::int64_t number, bool editing) {
   return frame;
 }
 
-/// The avatar's vertices as an AvatarMotion of the same scene poses them at `t` [s].
-std::vector<Eigen::Vector3f> PosedAt(const sim::SceneDescription& scene, double t) {
-  sim::AvatarMotion motion(scene.avatar->avatar, scene.avatar->clip, scene.avatar->motion);
+/// The avatar's vertices as an AvatarMotion of the same scene poses them at `t` [s], with
+/// the arms spread by `spread` [rad].
+std::vector<Eigen::Vector3f> PosedAt(const sim::SceneDescription& scene, double t,
+                                     std::array<double, 2> spread = {0.0, 0.0}) {
+  sim::AvatarMotionSettings settings = scene.avatar->motion;
+  settings.arm_spread = spread;
+  sim::AvatarMotion motion(scene.avatar->avatar, scene.avatar->clip, settings);
   motion.Evaluate(t);
   std::vector<Eigen::Vector3f> out;
   for (Eigen::Index i = 0; i < motion.vertices().rows(); ++i) {
@@ -83,6 +89,43 @@ TEST_F(SceneMirrorTest, TheAvatarWalksInModeAAndStandsInModeB) {
   EXPECT_LT(MaxDistance(m.avatar_vertices(), PosedAt(m.scene(), 2.0)), 1e-5f);
   m.Follow(Frame(0, false));  // STOP: the server rebuilt the scene
   EXPECT_NEAR(m.avatar_time(), 0.0, 1e-9);
+}
+
+// The server turns out an arm its clip holds into the hip (sim::FindArmSpread): the view
+// shows the arm where the cloth meets it, not where the clip has it, and chooses again when
+// the server rebuilds in a posture set since.
+TEST(SceneMirrorArms, AreSpreadAsTheServersAndChosenAgainAfterARebuild) {
+  sim::SceneDescription scene = LoadScene("garment", "");
+  scene.avatar->clip = test::ArmInClip(24.0);
+  SceneMirror m(scene);
+  const sim::ArmSpreadFit fit =
+      sim::FindArmSpread(scene.avatar->avatar, scene.avatar->clip, scene.avatar->motion);
+  ASSERT_GT(fit.angle[0], 0.0);
+  EXPECT_EQ(m.arm_spread().angle, fit.angle);
+  for (int f = 0; f <= 90; ++f) m.Follow(Frame(f, false));
+  EXPECT_LT(MaxDistance(m.avatar_vertices(), PosedAt(scene, 1.5, fit.angle)), 1e-5f);
+  EXPECT_GT(MaxDistance(m.avatar_vertices(), PosedAt(scene, 1.5)), 0.02f);  // the clip's arm
+
+  m.SetPosture({{"r_elbow", Eigen::Vector3d(60.0, 0.0, 0.0)}}, 0.0);
+  for (int f = 91; f <= 150; ++f) m.Follow(Frame(f, false));
+  for (int f = 0; f <= 90; ++f) m.Follow(Frame(f, false));  // STOP: rebuilt in the posture
+  const sim::SceneDescription& posed = m.scene();
+  const sim::ArmSpreadFit refit =
+      sim::FindArmSpread(posed.avatar->avatar, posed.avatar->clip, posed.avatar->motion);
+  EXPECT_EQ(m.arm_spread().angle, refit.angle);
+  EXPECT_LT(MaxDistance(m.avatar_vertices(), PosedAt(posed, 1.5, refit.angle)), 1e-5f);
+
+  // A spread the designer gives: reached over the posture's transition, kept by a rebuild.
+  sim::ArmSpreadRequest given;
+  given.kind = sim::ArmSpreadRequest::Kind::kGiven;
+  given.angle = {0.1, 0.2};
+  m.SetPosture({}, 0.0, given);
+  for (int f = 91; f <= 150; ++f) m.Follow(Frame(f, false));
+  EXPECT_FALSE(m.scene().avatar->auto_arm_spread);
+  EXPECT_EQ(m.arm_spread().angle, given.angle);
+  EXPECT_LT(MaxDistance(m.avatar_vertices(), PosedAt(m.scene(), 2.5, given.angle)), 1e-5f);
+  for (int f = 0; f <= 90; ++f) m.Follow(Frame(f, false));
+  EXPECT_LT(MaxDistance(m.avatar_vertices(), PosedAt(m.scene(), 1.5, given.angle)), 1e-5f);
 }
 
 TEST_F(SceneMirrorTest, BuiltInLoadsChangeTheMirroredScene) {

@@ -810,6 +810,60 @@ TEST_F(PostureTest, UnknownJointsAndAnglesBeyondATurnAreRefusedNamingTheField) {
   EXPECT_EQ(server_->simulation().avatar()->pose().orientation.coeffs(), before.coeffs());
 }
 
+// SET_POSTURE's arms' spread (sim_core/scene/arm_spread.h): given angles become the
+// avatar's, in place and for a STOP's rebuild; "auto" hands the choice back to the
+// simulation (none for the built-in walk, which keeps its forearms off the body: FindArmSpread
+// tests); a mode or an angle out of range is refused, naming the field, the spread unchanged.
+TEST_F(PostureTest, SetPostureSetsTheArmsSpreadGivenOrChosenAndRefusesBadOnes) {
+  Step(5);
+  const double degree = std::acos(-1.0) / 180.0;
+  command c = Posture({}, {}, 0.0);
+  c.arm_spread_mode = command::ARM_SPREAD_GIVEN;
+  c.arm_spread_degrees[0] = 12.0;
+  c.arm_spread_degrees[1] = 6.0;
+  SendCommand(c);
+  Step();
+  EXPECT_TRUE(server_->pending_warnings().empty());
+  const auto spread = [&] { return server_->simulation().avatar()->settings().arm_spread; };
+  EXPECT_NEAR(spread()[0], 12.0 * degree, 1e-12);
+  EXPECT_NEAR(spread()[1], 6.0 * degree, 1e-12);
+  EXPECT_FALSE(server_->scene().avatar->auto_arm_spread);
+  SendCommand([] { command stop{}; stop.kind = command::KIND_STOP; return stop; }());
+  Step();
+  EXPECT_NEAR(spread()[0], 12.0 * degree, 1e-12);
+  EXPECT_EQ(server_->simulation().arm_spread().why_not, "given by the scene");
+
+  const std::array<double, 2> given = spread();
+  received_.statuses.clear();
+  c.arm_spread_mode = 5;
+  SendCommand(c);
+  c.arm_spread_mode = command::ARM_SPREAD_GIVEN;
+  c.arm_spread_degrees[0] = 31.0;
+  SendCommand(c);
+  c.arm_spread_degrees[0] = 0.0;
+  c.arm_spread_degrees[1] = std::nan("");
+  SendCommand(c);
+  Step();
+  Step();
+  ASSERT_FALSE(received_.statuses.empty());
+  const std::vector<std::string>& w = received_.statuses.back().warnings;
+  ASSERT_EQ(w.size(), 3u);
+  EXPECT_NE(w[0].find("arm_spread_mode = 5: must be 0 (keep), 1 (auto) or 2 (given)"),
+            std::string::npos) << w[0];
+  EXPECT_NE(w[1].find("arm_spread_degrees[0] = 31.0"), std::string::npos) << w[1];
+  EXPECT_NE(w[1].find("within [0, 30]"), std::string::npos) << w[1];
+  EXPECT_NE(w[2].find("arm_spread_degrees[1] = nan"), std::string::npos) << w[2];
+  EXPECT_EQ(server_->ignored().commands_refused, 3);
+  EXPECT_EQ(spread(), given);
+
+  c.arm_spread_mode = command::ARM_SPREAD_AUTO;
+  SendCommand(c);
+  Step();
+  EXPECT_TRUE(server_->scene().avatar->auto_arm_spread);
+  EXPECT_TRUE(server_->simulation().arm_spread().measured);
+  EXPECT_EQ(spread(), (std::array<double, 2>{0.0, 0.0}));
+}
+
 // SET_COLLISION on the garment scene: the method changes in place (the frames carry on, the
 // server's scene follows for a later rebuild); a thickness out of range is refused with a
 // warning naming the field, and the collider stays.

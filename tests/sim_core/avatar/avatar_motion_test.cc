@@ -82,6 +82,31 @@ TEST(AvatarMotionArmSpread, RefusesAnAngleOutsideZeroToThirtyDegrees) {
   }
 }
 
+// The designer sets the spread with a posture: over the transition the wrist moves from the
+// old spread's place to the new one's, and once it is over the body is where a motion made
+// with the new spread puts it; a spread out of range changes nothing.
+TEST(AvatarMotionArmSpread, ASpreadSetWithAPostureIsReachedOverItsTransition) {
+  AvatarMotionSettings plain;
+  plain.fit_time = 0.0;
+  plain.blend_time = 0.0;
+  plain.posture = RestPose(Humanoid()->skeleton());
+  AvatarMotionSettings spread = plain;
+  spread.arm_spread = {12.0 * kDegree, 6.0 * kDegree};
+  AvatarMotion motion(Humanoid(), StillClip(), plain);
+  motion.Evaluate(2.0);
+  EXPECT_THROW(motion.SetPosture(plain.posture, {31.0 * kDegree, 0.0}), InputError);
+  EXPECT_EQ(motion.settings().arm_spread, plain.arm_spread);
+  const int wrist = Humanoid()->skeleton().Find(HAnimJoint::kLRadiocarpal);
+  const Eigen::Vector3d before = motion.joint_world()[wrist].translation();
+  motion.SetPosture(plain.posture, spread.arm_spread);
+  motion.Evaluate(2.0, 0.0);  // the transition's start: still the pose before
+  EXPECT_LT((motion.joint_world()[wrist].translation() - before).norm(), 1e-12);
+  motion.Evaluate(2.0, 1.0);
+  const Eigen::Vector3d after = JointAt(HAnimJoint::kLRadiocarpal, StillClip(), spread);
+  EXPECT_LT((motion.joint_world()[wrist].translation() - after).norm(), 1e-12);
+  EXPECT_GT((after - before).norm(), 0.05);  // 12° at the end of an arm half a metre long
+}
+
 TEST(AvatarMotionBlend, TheBodyReachesAMovingClipsSpeedWithoutAJump) {
   // A clip walking at 1 m/s along +z blends in over 0.3 s from the standing posture. Blended
   // at the clip's own pace with a weight linear in time, the hips would move at

@@ -24,22 +24,8 @@ namespace {
 
 constexpr double kDegree = std::numbers::pi / 180.0;
 
+using test::ArmInClip;
 using test::Humanoid;
-
-/// A clip of the humanoid's own skeleton holding the left arm `degrees` in towards the
-/// body from its rest (20° out: procedural_humanoid.h), i.e. about −z at the shoulder.
-std::shared_ptr<const Clip> ArmInClip(double degrees) {
-  auto clip = std::make_shared<Clip>();
-  clip->name = "arm in";
-  clip->skeleton = Humanoid()->shared_skeleton();
-  clip->frame_time = 0.5;
-  clip->frames = {RestPose(*clip->skeleton), RestPose(*clip->skeleton)};
-  const int shoulder = clip->skeleton->Find(HAnimJoint::kLShoulder);
-  for (Pose& pose : clip->frames) {
-    pose.rotations[shoulder] = Eigen::AngleAxisd(-degrees * kDegree, Eigen::Vector3d::UnitZ());
-  }
-  return clip;
-}
 
 /// Per vertex of the humanoid, whether it is a vertex of the left forearm or hand which,
 /// pushed `clearance` out along its normal, lies inside the body when `clip` plays with
@@ -128,6 +114,69 @@ TEST(FindArmSpread, AnAvatarWithAnOpenMeshIsNotMeasured) {
   EXPECT_FALSE(fit.measured);
   EXPECT_EQ(fit.angle[0], 0.0);
   EXPECT_NE(fit.why_not.find("not closed"), std::string::npos) << fit.why_not;
+}
+
+/// The humanoid in its rest posture with the right elbow bent `degrees` about its x axis.
+AvatarMotionSettings ElbowBent(double degrees) {
+  AvatarMotionSettings settings;
+  settings.posture = RestPose(Humanoid()->skeleton());
+  settings.posture.rotations[Humanoid()->skeleton().Find(HAnimJoint::kRElbow)] =
+      Eigen::AngleAxisd(degrees * kDegree, Eigen::Vector3d::UnitX());
+  return settings;
+}
+
+TEST(ArmSpreadMemo, SearchesAgainOnlyForAnotherAvatarClipOrMotion) {
+  ArmSpreadMemo memo;
+  const auto clip = ArmInClip(24.0);
+  const ArmSpreadFit first = memo.Find(Humanoid(), clip, ElbowBent(0.0));
+  ASSERT_TRUE(first.measured) << first.why_not;
+  ASSERT_GT(first.angle[0], 0.0);
+  AvatarMotionSettings spread_asked = ElbowBent(0.0);
+  spread_asked.arm_spread = {0.2, 0.3};  // the search ignores the settings' own spread
+  EXPECT_EQ(memo.Find(Humanoid(), clip, spread_asked).angle, first.angle);
+  EXPECT_EQ(memo.num_searches(), 1);
+  // Another posture, fit time or clip (even one equal to it) is searched again.
+  memo.Find(Humanoid(), clip, ElbowBent(40.0));
+  EXPECT_EQ(memo.num_searches(), 2);
+  AvatarMotionSettings longer_fit = ElbowBent(40.0);
+  longer_fit.fit_time = 1.0;
+  memo.Find(Humanoid(), clip, longer_fit);
+  EXPECT_EQ(memo.num_searches(), 3);
+  const ArmSpreadFit again = memo.Find(Humanoid(), ArmInClip(24.0), longer_fit);
+  EXPECT_EQ(memo.num_searches(), 4);
+  EXPECT_EQ(again.angle, FindArmSpread(Humanoid(), ArmInClip(24.0), longer_fit).angle);
+}
+
+TEST(PlayedMotion, TakesTheSpreadTheSceneGivesOrTheOneFoundForItsClip) {
+  AvatarSpec spec;
+  spec.avatar = Humanoid();
+  spec.clip = ArmInClip(24.0);
+  ArmSpreadMemo memo;
+  ArmSpreadFit fit;
+  const AvatarMotionSettings found = PlayedMotion(spec, memo, fit);
+  EXPECT_TRUE(fit.measured);
+  EXPECT_EQ(found.arm_spread, FindArmSpread(spec.avatar, spec.clip, spec.motion).angle);
+  EXPECT_GT(found.arm_spread[0], 0.0);
+  spec.auto_arm_spread = false;
+  spec.motion.arm_spread = {0.1, 0.2};
+  const AvatarMotionSettings given = PlayedMotion(spec, memo, fit);
+  EXPECT_EQ(given.arm_spread, spec.motion.arm_spread);
+  EXPECT_EQ(fit.angle, spec.motion.arm_spread);
+  EXPECT_FALSE(fit.measured);
+  EXPECT_EQ(fit.why_not, "given by the scene");
+  EXPECT_EQ(memo.num_searches(), 1);
+}
+
+TEST(ArmSpreadMemo, ARebuiltSimulationPlaysTheSameSpreadWithoutSearching) {
+  SceneDescription scene = assets::LoadBuiltInScene("garment");
+  scene.avatar->clip = ArmInClip(24.0);
+  ArmSpreadMemo memo;
+  const auto built = Simulation::Build(scene, &memo);
+  const auto rebuilt = Simulation::Build(scene, &memo);
+  EXPECT_EQ(memo.num_searches(), 1);
+  EXPECT_GT(built->arm_spread().angle[0], 0.0);
+  EXPECT_EQ(rebuilt->arm_spread().angle, built->arm_spread().angle);
+  EXPECT_EQ(rebuilt->avatar()->settings().arm_spread, built->arm_spread().angle);
 }
 
 /// The 90th percentile over the run's frames of each frame's largest structural strain [-]:
