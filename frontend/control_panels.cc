@@ -4,6 +4,9 @@
 #include <QGridLayout>
 #include <QLabel>
 #include <cmath>
+#include <optional>
+
+#include "sim_core/avatar/hanim.h"
 
 namespace costume::frontend {
 namespace {
@@ -327,6 +330,21 @@ PosturePanel::PosturePanel(QWidget* parent) : QGroupBox("Avatar posture", parent
   grid->addWidget(apply, row + 1, 0, 1, 4);
   connect(apply, &QPushButton::clicked, this,
           [this] { emit postureRequested(joints(), heading(), arm_spread()); });
+}
+
+void PosturePanel::SetPosture(const sim::Pose& posture, const sim::Skeleton& skeleton) {
+  for (std::size_t i = 0; i < angles_.size(); ++i) {
+    const std::optional<sim::HAnimJoint> joint = sim::ParseHAnimName(PostureJoints()[i]);
+    const int index = joint ? skeleton.Find(*joint) : -1;
+    const Eigen::Vector3d degrees =
+        index >= 0 && index < static_cast<int>(posture.rotations.size())
+            ? sim::PostureDegrees(posture.rotations[index])
+            : Eigen::Vector3d::Zero();
+    for (int axis = 0; axis < 3; ++axis) angles_[i][axis]->setValue(degrees[axis]);
+  }
+  // The placement's turn about +y (PostureRotation({0, heading, 0})): where it takes +z.
+  const Eigen::Vector3d forward = posture.orientation.normalized() * Eigen::Vector3d::UnitZ();
+  heading_->setValue(std::atan2(forward.x(), forward.z()) * 180.0 / M_PI);
 }
 
 sim::ArmSpreadRequest PosturePanel::arm_spread() const {

@@ -145,6 +145,10 @@ class PosturePanel : public QGroupBox {
   /// The arms' spread asked for: kAuto while `auto_spread` is checked, else the two
   /// angles, left and right [rad] (sim_core/scene/arm_spread.h).
   sim::ArmSpreadRequest arm_spread() const;
+  /// Shows a scene's posture: each offered joint's angles (PostureDegrees; a joint the
+  /// skeleton lacks at 0) and the heading about +y, so that Apply keeps what it does not
+  /// change. Joints the panel does not offer are not shown (Apply returns them to rest).
+  void SetPosture(const sim::Pose& posture, const sim::Skeleton& skeleton);
   /// Shows a scene's arms' spread: chosen by the simulation, or the angles it gives [rad].
   void SetArmSpread(bool automatic, const std::array<double, 2>& angle);
   QPushButton* apply = nullptr;

@@ -418,6 +418,7 @@ void MainWindow::SyncSettingsPanels() {
   collision_->SetSettings(sim::CollisionSettingsOf(mirror_->scene()));
   if (mirror_->scene().avatar) {
     const sim::AvatarSpec& avatar = *mirror_->scene().avatar;
+    posture_->SetPosture(avatar.motion.posture, avatar.avatar->skeleton());
     posture_->SetArmSpread(avatar.auto_arm_spread,
                            avatar.auto_arm_spread ? mirror_->arm_spread().angle
                                                   : avatar.motion.arm_spread);

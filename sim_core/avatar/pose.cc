@@ -1,5 +1,7 @@
 #include "sim_core/avatar/pose.h"
 
+#include <algorithm>
+#include <cmath>
 #include <numbers>
 
 namespace costume::sim {
@@ -15,6 +17,22 @@ Eigen::Quaterniond PostureRotation(const Eigen::Vector3d& degrees) {
   return Eigen::AngleAxisd(radians.x(), Eigen::Vector3d::UnitX()) *
          Eigen::AngleAxisd(radians.y(), Eigen::Vector3d::UnitY()) *
          Eigen::AngleAxisd(radians.z(), Eigen::Vector3d::UnitZ());
+}
+
+Eigen::Vector3d PostureDegrees(const Eigen::Quaterniond& rotation) {
+  // R = Rx(a) Ry(b) Rz(c): its first row is (cos b cos c, −cos b sin c, sin b) and its last
+  // column (sin b, −sin a cos b, cos a cos b).
+  const Eigen::Matrix3d r = rotation.normalized().toRotationMatrix();
+  const double b = std::asin(std::clamp(r(0, 2), -1.0, 1.0));
+  double a = 0.0, c = 0.0;
+  if (std::abs(r(0, 2)) < 1.0 - 1e-12) {
+    a = std::atan2(-r(1, 2), r(2, 2));
+    c = std::atan2(-r(0, 1), r(0, 0));
+  } else {
+    // cos b = 0: R's lower left block is the turn about x by a ± c; all of it goes to x.
+    a = std::atan2(r(2, 1), r(1, 1));
+  }
+  return Eigen::Vector3d(a, b, c) * (180.0 / std::numbers::pi);
 }
 
 void ComputeJointWorld(const Skeleton& skeleton, const Pose& pose,

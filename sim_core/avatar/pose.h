@@ -40,6 +40,11 @@ inline constexpr double kMaxPostureDegrees = 360.0;
 /// SET_POSTURE, the GUI's posture panel).
 Eigen::Quaterniond PostureRotation(const Eigen::Vector3d& degrees);
 
+/// The angles PostureRotation takes to give `rotation` [degrees]: about y within
+/// [−90, 90], about x and z within [−180, 180] (at ±90 about y, where only x + z or x − z is
+/// determined, all of it about x). For a panel showing a posture it did not set.
+Eigen::Vector3d PostureDegrees(const Eigen::Quaterniond& rotation);
+
 /// Spherical interpolation between two poses of one skeleton (t in [0, 1]).
 void InterpolatePoses(const Pose& a, const Pose& b, double t, Pose& out);
 

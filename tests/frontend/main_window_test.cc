@@ -18,6 +18,7 @@
 #include "catalog/catalog.h"
 #endif
 #include "render/camera.h"
+#include "tests/support/humanoid.h"
 #include "tests/support/qt_app.h"
 #include "tests/support/shared_data.h"
 
@@ -316,6 +317,34 @@ TEST_F(MainWindowTest, PostureControlsSendSetPosture) {
   EXPECT_EQ(given.arm_spread_mode, Command::ARM_SPREAD_GIVEN);
   EXPECT_NEAR(given.arm_spread_degrees[0], 12.0, 1e-9);
   EXPECT_NEAR(given.arm_spread_degrees[1], 30.0, 1e-9);
+}
+
+// A posture the scene brings (a scene file's [avatar.posture]) shows in the panel, so
+// that Apply, say for a new heading, keeps it: the angles shown turn each joint as the
+// scene's rotation does (PostureRotation's convention, pose_test), the heading is the turn
+// about +y.
+TEST(PosturePanelShows, TheScenesPostureSoThatApplyKeepsIt) {
+  costume::testing::TestApp();
+  PosturePanel panel;
+  const sim::Skeleton& skeleton = test::Humanoid()->skeleton();
+  sim::Pose posture = sim::RestPose(skeleton);
+  const int shoulder = skeleton.Find(sim::HAnimJoint::kLShoulder);
+  const int knee = skeleton.Find(sim::HAnimJoint::kRKnee);
+  posture.rotations[shoulder] = sim::PostureRotation({0.0, 0.0, -60.0});
+  posture.rotations[knee] =
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 0.2, 0).normalized()));
+  posture.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(-2.0, Eigen::Vector3d::UnitY()));
+  panel.SetPosture(posture, skeleton);
+  EXPECT_DOUBLE_EQ(panel.angle("l_shoulder", 2)->value(), -60.0);
+  EXPECT_DOUBLE_EQ(panel.angle("l_shoulder", 0)->value(), 0.0);
+  EXPECT_NEAR(panel.heading(), -2.0 * 180.0 / M_PI, 0.05);  // shown to 0.1°
+  for (const JointAngles& joint : panel.joints()) {
+    const int index = skeleton.Find(*sim::ParseHAnimName(joint.joint));
+    // Shown to 0.1° per axis: within 0.15° of the scene's rotation.
+    EXPECT_LT(sim::PostureRotation(joint.degrees).angularDistance(posture.rotations[index]),
+              0.0026)
+        << joint.joint;
+  }
 }
 
 TEST_F(MainWindowTest, StatusMessagesUpdateTheStatusBar) {

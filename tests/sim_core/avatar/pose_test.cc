@@ -128,5 +128,25 @@ TEST(PostureRotation, TurnsAboutTheRestAxesInTheOrderXYZ) {
   EXPECT_TRUE(near(PostureRotation({0, 360, 0}) * x, x));
 }
 
+// PostureDegrees undoes PostureRotation: angles within its ranges come back as they were,
+// and any rotation, the gimbal's included, is rebuilt from the angles it gives.
+TEST(PostureDegrees, GivesTheAnglesPostureRotationTurnsBy) {
+  for (const Eigen::Vector3d& degrees :
+       {Eigen::Vector3d(0, 0, -60), Eigen::Vector3d(45, 0, 0), Eigen::Vector3d(-30, 20, 170),
+        Eigen::Vector3d(179, -89, -179), Eigen::Vector3d(0, 0, 0)}) {
+    EXPECT_LT((PostureDegrees(PostureRotation(degrees)) - degrees).norm(), 1e-9)
+        << degrees.transpose();
+  }
+  for (const Eigen::Vector3d& degrees :
+       {Eigen::Vector3d(30, 90, 40), Eigen::Vector3d(30, -90, 40), Eigen::Vector3d(200, 100, 0),
+        Eigen::Vector3d(-250, 15, 300)}) {
+    const Eigen::Quaterniond q = PostureRotation(degrees);
+    const Eigen::Vector3d back = PostureDegrees(q);
+    EXPECT_LT(PostureRotation(back).angularDistance(q), 1e-9) << degrees.transpose();
+    EXPECT_LE(std::abs(back.y()), 90.0 + 1e-9);
+    EXPECT_LE(back.cwiseAbs().maxCoeff(), 180.0 + 1e-9);
+  }
+}
+
 }  // namespace
 }  // namespace costume::sim
