@@ -117,19 +117,15 @@ std::vector<std::string> SceneMirror::SetPosture(const std::vector<JointAngles>&
     posture.rotations[index] = sim::PostureRotation(joint.degrees);
   }
   posture.orientation = sim::PostureRotation({0.0, heading_degrees, 0.0});
-  const sim::AvatarSpec posed = sim::WithPosture(*scene_.avatar, posture, arm_spread);
-  std::array<double, 2> angle = motion_->settings().arm_spread;
-  sim::ArmSpreadFit fit = arm_spread_;
-  if (arm_spread.kind != sim::ArmSpreadRequest::Kind::kKeep) {
-    angle = sim::PlayedMotion(posed, arm_spreads_, fit).arm_spread;
-  }
+  sim::AvatarSpec posed = sim::WithPosture(*scene_.avatar, posture, arm_spread);
+  sim::ArmSpreadFit fit = sim::SpreadForPosture(posed, arm_spread, arm_spread_, arm_spreads_);
   try {
-    motion_->SetPosture(posture, angle);
+    motion_->SetPosture(posture, fit.angle);
   } catch (const sim::InputError&) {
     return unknown;  // the server refuses it too (a spread out of range): nothing changes
   }
-  *scene_.avatar = posed;  // as the server's scene: a rebuild keeps it
-  arm_spread_ = fit;
+  *scene_.avatar = std::move(posed);  // as the server's scene: a rebuild keeps it
+  arm_spread_ = std::move(fit);
   posture_start_ = last_sim_time_;
   posture_blending_ = true;
   PoseAvatar();

@@ -291,7 +291,7 @@ AvatarMotionSettings PlayedMotion(const AvatarSpec& spec, ArmSpreadMemo& memo,
   } else {
     fit = ArmSpreadFit{};
     fit.angle = motion.arm_spread;
-    fit.why_not = "given by the scene";
+    fit.why_not = "as given, not chosen";
   }
   return motion;
 }
@@ -306,6 +306,14 @@ AvatarSpec WithPosture(const AvatarSpec& spec, const Pose& posture,
     posed.motion.arm_spread = request.angle;
   }
   return posed;
+}
+
+ArmSpreadFit SpreadForPosture(const AvatarSpec& posed, const ArmSpreadRequest& request,
+                              const ArmSpreadFit& current, ArmSpreadMemo& memo) {
+  if (request.kind == ArmSpreadRequest::Kind::kKeep) return current;
+  ArmSpreadFit fit;
+  PlayedMotion(posed, memo, fit);
+  return fit;
 }
 
 std::string DescribeArmSpread(const ArmSpreadFit& fit) {

@@ -103,9 +103,15 @@ struct ArmSpreadRequest {
 AvatarSpec WithPosture(const AvatarSpec& spec, const Pose& posture,
                        const ArmSpreadRequest& request);
 
+/// The arms' spread once `request` is applied, as PlayedMotion chooses it for `posed` (the
+/// scene's avatar in its new posture, WithPosture); `current` (what was chosen before) for
+/// kKeep. Never throws.
+ArmSpreadFit SpreadForPosture(const AvatarSpec& posed, const ArmSpreadRequest& request,
+                              const ArmSpreadFit& current, ArmSpreadMemo& memo);
+
 /// The motion `spec`'s avatar plays: spec.motion with the arms' spread that `memo` finds,
 /// when spec.auto_arm_spread, or as the scene gives it. `fit` gets what was measured (for
-/// a spread the scene gives: not measured, "given by the scene"). The simulation and the
+/// a spread the scene gives: not measured, "as given, not chosen"). The simulation and the
 /// GUI's copy of its scene both play this, so they show the same body. Never throws.
 AvatarMotionSettings PlayedMotion(const AvatarSpec& spec, ArmSpreadMemo& memo,
                                   ArmSpreadFit& fit);

@@ -650,15 +650,12 @@ bool Simulation::SetPosture(const Pose& posture, double transition_time,
                      std::to_string(transition_time) + " s: must be finite and >= 0");
   }
   AvatarSpec posed = WithPosture(*scene_.avatar, posture, spread);
-  ArmSpreadFit fit = arm_spread_;
-  std::array<double, 2> angle = avatar_->settings().arm_spread;
-  if (spread.kind != ArmSpreadRequest::Kind::kKeep) {
-    ArmSpreadMemo once;
-    angle = PlayedMotion(posed, arm_spreads ? *arm_spreads : once, fit).arm_spread;
-  }
-  avatar_->SetPosture(posture, angle);  // throws before anything changes
+  ArmSpreadMemo once;
+  ArmSpreadFit fit =
+      SpreadForPosture(posed, spread, arm_spread_, arm_spreads ? *arm_spreads : once);
+  avatar_->SetPosture(posture, fit.angle);  // throws before anything changes
   *scene_.avatar = std::move(posed);
-  arm_spread_ = fit;
+  arm_spread_ = std::move(fit);
   posture_start_ = state_.time;
   posture_duration_ = transition_time;
   return true;

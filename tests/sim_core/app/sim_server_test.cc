@@ -831,7 +831,7 @@ TEST_F(PostureTest, SetPostureSetsTheArmsSpreadGivenOrChosenAndRefusesBadOnes) {
   SendCommand([] { command stop{}; stop.kind = command::KIND_STOP; return stop; }());
   Step();
   EXPECT_NEAR(spread()[0], 12.0 * degree, 1e-12);
-  EXPECT_EQ(server_->simulation().arm_spread().why_not, "given by the scene");
+  EXPECT_EQ(server_->simulation().arm_spread().why_not, "as given, not chosen");
 
   const std::array<double, 2> given = spread();
   received_.statuses.clear();

@@ -163,7 +163,7 @@ TEST(PlayedMotion, TakesTheSpreadTheSceneGivesOrTheOneFoundForItsClip) {
   EXPECT_EQ(given.arm_spread, spec.motion.arm_spread);
   EXPECT_EQ(fit.angle, spec.motion.arm_spread);
   EXPECT_FALSE(fit.measured);
-  EXPECT_EQ(fit.why_not, "given by the scene");
+  EXPECT_EQ(fit.why_not, "as given, not chosen");
   EXPECT_EQ(memo.num_searches(), 1);
 }
 
