@@ -325,11 +325,18 @@ PosturePanel::PosturePanel(QWidget* parent) : QGroupBox("Avatar posture", parent
   }
   connect(auto_spread, &QCheckBox::toggled, this, [this](bool automatic) {
     for (QDoubleSpinBox* box : spread) box->setEnabled(!automatic);
+    spread_edited_ = true;
   });
+  for (QDoubleSpinBox* box : spread) {
+    connect(box, &QDoubleSpinBox::valueChanged, this, [this] { spread_edited_ = true; });
+  }
   apply = new QPushButton("Apply posture");
   grid->addWidget(apply, row + 1, 0, 1, 4);
-  connect(apply, &QPushButton::clicked, this,
-          [this] { emit postureRequested(joints(), heading(), arm_spread()); });
+  connect(apply, &QPushButton::clicked, this, [this] {
+    const sim::ArmSpreadRequest request = arm_spread();
+    spread_edited_ = false;
+    emit postureRequested(joints(), heading(), request);
+  });
 }
 
 void PosturePanel::SetPosture(const sim::Pose& posture, const sim::Skeleton& skeleton) {
@@ -349,6 +356,7 @@ void PosturePanel::SetPosture(const sim::Pose& posture, const sim::Skeleton& ske
 
 sim::ArmSpreadRequest PosturePanel::arm_spread() const {
   sim::ArmSpreadRequest request;
+  if (!spread_edited_) return request;
   request.kind = auto_spread->isChecked() ? sim::ArmSpreadRequest::Kind::kAuto
                                           : sim::ArmSpreadRequest::Kind::kGiven;
   for (int side = 0; side < 2; ++side) request.angle[side] = spread[side]->value() * M_PI / 180.0;
@@ -358,6 +366,7 @@ sim::ArmSpreadRequest PosturePanel::arm_spread() const {
 void PosturePanel::SetArmSpread(bool automatic, const std::array<double, 2>& angle) {
   auto_spread->setChecked(automatic);
   for (int side = 0; side < 2; ++side) spread[side]->setValue(angle[side] * 180.0 / M_PI);
+  spread_edited_ = false;
 }
 
 std::vector<JointAngles> PosturePanel::joints() const {

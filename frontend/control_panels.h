@@ -142,8 +142,10 @@ class PosturePanel : public QGroupBox {
   /// The spin box of `joint`'s rotation about rest axis `axis` (0 x, 1 y, 2 z).
   QDoubleSpinBox* angle(const std::string& joint, int axis) const;
   QDoubleSpinBox* heading_box() const { return heading_; }
-  /// The arms' spread asked for: kAuto while `auto_spread` is checked, else the two
-  /// angles, left and right [rad] (sim_core/scene/arm_spread.h).
+  /// The arms' spread asked for: kKeep until the designer changes the row (an automatic
+  /// spread is not searched for again at each Apply: 0.03–1.3 s), then kAuto while
+  /// `auto_spread` is checked, else the two angles, left and right [rad]
+  /// (sim_core/scene/arm_spread.h).
   sim::ArmSpreadRequest arm_spread() const;
   /// Shows a scene's posture: each offered joint's angles (PostureDegrees; a joint the
   /// skeleton lacks at 0) and the heading about +y, so that Apply keeps what it does not
@@ -162,6 +164,8 @@ class PosturePanel : public QGroupBox {
  private:
   std::vector<std::array<QDoubleSpinBox*, 3>> angles_;
   QDoubleSpinBox* heading_ = nullptr;
+  /// The spread row changed since it was last shown or applied.
+  bool spread_edited_ = false;
 };
 
 }  // namespace costume::frontend

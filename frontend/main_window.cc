@@ -623,6 +623,10 @@ void MainWindow::ConnectSignals() {
             sender_->SetPosture(joints, heading, spread);
             ForEachMirror(
                 [&](SceneMirror& mirror) { mirror.SetPosture(joints, heading, spread); });
+            // The greyed angles show what "auto" chose.
+            if (spread.kind == sim::ArmSpreadRequest::Kind::kAuto) {
+              posture_->SetArmSpread(true, mirror_->arm_spread().angle);
+            }
             Log("posture sent; " + QString::fromStdString(
                                        sim::DescribeArmSpread(mirror_->arm_spread())));
             view_->update();

@@ -305,8 +305,10 @@ TEST_F(MainWindowTest, PostureControlsSendSetPosture) {
                                          : std::vector<double>{0, 0, 0};
     EXPECT_EQ(c.joint_angles[i], expected) << c.joint_names[i];
   }
-  // The arms' spread: the simulation's choice by default, or the angles typed.
-  EXPECT_EQ(c.arm_spread_mode, Command::ARM_SPREAD_AUTO);
+  // The arms' spread: kept as the scene has it (the simulation's choice by default) until
+  // the designer changes the row, then the angles typed, or the simulation's choice again.
+  EXPECT_EQ(c.arm_spread_mode, Command::ARM_SPREAD_KEEP);
+  EXPECT_TRUE(panel->auto_spread->isChecked());
   EXPECT_FALSE(panel->spread[0]->isEnabled());
   panel->auto_spread->setChecked(false);
   ASSERT_TRUE(panel->spread[0]->isEnabled());
@@ -317,6 +319,11 @@ TEST_F(MainWindowTest, PostureControlsSendSetPosture) {
   EXPECT_EQ(given.arm_spread_mode, Command::ARM_SPREAD_GIVEN);
   EXPECT_NEAR(given.arm_spread_degrees[0], 12.0, 1e-9);
   EXPECT_NEAR(given.arm_spread_degrees[1], 30.0, 1e-9);
+  panel->apply->click();
+  EXPECT_EQ(One().arm_spread_mode, Command::ARM_SPREAD_KEEP);
+  panel->auto_spread->setChecked(true);
+  panel->apply->click();
+  EXPECT_EQ(One().arm_spread_mode, Command::ARM_SPREAD_AUTO);
 }
 
 // A posture the scene brings (a scene file's [avatar.posture]) shows in the panel, so
