@@ -42,6 +42,7 @@ AvatarMotion::AvatarMotion(std::shared_ptr<const Avatar> avatar, std::shared_ptr
   if (clip_) {
     ValidateClip(*clip_);
     retargeter_.emplace(clip_->skeleton, avatar_->shared_skeleton());
+    start_translation_ = ClipTranslation(0.0);
     PrepareArmSpreads();
   }
   rest_ = RestPose(avatar_->skeleton());
@@ -129,7 +130,7 @@ Eigen::Vector3d AvatarMotion::EasedTranslation(double clip_time) {
   // only (s < 1).
   const double s = BlendFraction(clip_time);
   const double clock = settings_.blend_time * s * s * s * (6.0 - 8.0 * s + 3.0 * s * s);
-  return ClipTranslation(clock) - (1.0 - Smoothstep(s)) * ClipTranslation(0.0);
+  return ClipTranslation(clock) - (1.0 - Smoothstep(s)) * start_translation_;
 }
 
 void AvatarMotion::PrepareArmSpreads() {

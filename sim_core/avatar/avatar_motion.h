@@ -91,8 +91,10 @@ class AvatarMotion {
     double angle = 0.0;
   };
   std::vector<ArmSpread> arm_spreads_;
-  /// Scratch pose for the clip's translation (EasedTranslation).
+  /// Scratch pose for the clip's translation (EasedTranslation), and that translation at
+  /// the clip's start, found once.
   Pose translation_pose_;
+  Eigen::Vector3d start_translation_ = Eigen::Vector3d::Zero();
   double BlendFraction(double clip_time) const;
   Eigen::Vector3d ClipTranslation(double clip_time);
   Eigen::Vector3d EasedTranslation(double clip_time);
