@@ -365,6 +365,9 @@ int BodyVertex(const std::string& where, const std::string& word, const ObjMesh&
   return static_cast<int>(value);
 }
 
+/// How far a .mhclo row's three weights may sum from 1 (MakeHuman's files: 1e-5).
+constexpr double kMhcloWeightSumTolerance = 1e-3;
+
 /// What a .mhclo file says about fitting its garment.
 struct MhcloFit {
   std::string obj_file;
@@ -382,15 +385,38 @@ Eigen::Vector3d FitRow(const std::string& where, const std::vector<std::string>&
     throw InputError(where + ": a vertex row has " + std::to_string(words.size()) +
                      " numbers (allowed: 1, or 3 body vertices, 3 weights, 3 offsets)");
   }
+  // An affine combination: MakeHuman's weights reach -1.04 and 2.73 but sum to 1 within
+  // its 5 decimals. Weights summing elsewhere scale the vertex away from the body.
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  double sum = 0.0;
   for (int k = 0; k < 3; ++k) {
-    position += ParseNumber(where, words[3 + k]) *
-                body.vertices.row(BodyVertex(where, words[k], body)).transpose();
+    const double weight = ParseNumber(where, words[3 + k]);
+    sum += weight;
+    position += weight * body.vertices.row(BodyVertex(where, words[k], body)).transpose();
+  }
+  if (!(std::abs(sum - 1.0) <= kMhcloWeightSumTolerance)) {
+    throw InputError(where + ": the weights " + words[3] + ", " + words[4] + ", " + words[5] +
+                     " sum to " + sim::FormatValue(sum) + " (allowed: 1 ± " +
+                     sim::FormatValue(kMhcloWeightSumTolerance) + ")");
   }
   for (int axis = 0; axis < 3; ++axis) {
     position[axis] += axis_scale[axis] * ParseNumber(where, words[6 + axis]);
   }
   return position;
+}
+
+/// Refuses a fitted vertex (file units) farther from the body's box than the box's diagonal:
+/// clothes lie within centimetres of the body, so such a row (a huge offset, or weights that
+/// sum to 1 but reach far outside the body) is a damaged file, as is a non-finite one.
+void RequireNearTheBody(const std::string& where, const Eigen::Vector3d& position,
+                        const Eigen::AlignedBox3d& body_box) {
+  const double distance = body_box.exteriorDistance(position);
+  const double allowed = body_box.diagonal().norm();
+  if (!(distance <= allowed)) {
+    throw InputError(where + ": the row puts its vertex " + sim::FormatValue(distance) +
+                     " file units from the body's bounding box (allowed: within its diagonal, " +
+                     sim::FormatValue(allowed) + ")");
+  }
 }
 
 /// The word after "obj_file" on a .mhclo line; empty for other lines.
@@ -404,6 +430,8 @@ std::string ObjFileOf(const std::string& line) {
 MhcloFit ReadMhclo(const std::string& path, const ObjMesh& body) {
   std::istringstream stream(ReadWholeFile(path, "MakeHuman clothes file"));
   MhcloFit fit;
+  const Eigen::AlignedBox3d body_box(body.vertices.colwise().minCoeff().transpose(),
+                                     body.vertices.colwise().maxCoeff().transpose());
   bool in_verts = false;
   std::string line;
   for (int number = 1; std::getline(stream, line); ++number) {
@@ -418,6 +446,7 @@ MhcloFit ReadMhclo(const std::string& path, const ObjMesh& body) {
         throw InputError(where + ": vertex rows before the x_scale, y_scale and z_scale lines");
       }
       fit.positions.push_back(FitRow(where, words, body, fit.axis_scale));
+      RequireNearTheBody(where, fit.positions.back(), body_box);
       continue;
     }
     in_verts = words[0] == "verts";

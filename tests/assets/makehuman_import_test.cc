@@ -180,6 +180,47 @@ TEST(MakeHumanImport, DamagedMhcloThrowsNamingTheFile) {
   }
 }
 
+// Found by mutating the real file: a weight of 1e308 gave the garment a vertex at infinity,
+// which the loader returned.
+TEST(MakeHumanImport, MhcloRowsOffTheBodyAreRefusedNamingTheLine) {
+  SKIP_WITHOUT("makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo");
+  const fs::path suit = kData / "makehuman/clothes/female_casualsuit02";
+  const ObjMesh base = ReadObj((kBody / "base.obj").string());
+  ScratchDir dir;
+  fs::copy_file(suit / "female_casualsuit02.obj", dir.path() / "female_casualsuit02.obj");
+  const std::string head =
+      "obj_file female_casualsuit02.obj\nx_scale 5399 11998 1.3980\nz_scale 962 5320 1.8461\n"
+      "y_scale 791 881 2.2048\nverts 0\n";
+  const auto refusal = [&](const std::string& name, const std::string& row) {
+    try {
+      LoadMakeHumanGarment(dir.Write(name, head + row), base);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  // MakeHuman's weights need not lie in [0, 1] (its own reach -1.04 and 2.73), only sum to 1.
+  EXPECT_NE(refusal("affine.mhclo", "1 2 3 2.5 -0.9 -0.6 0 0 0\n").find("vertex rows"),
+            std::string::npos)
+      << "an affine row passes the row checks and fails only on the count";
+  EXPECT_NE(refusal("weight.mhclo", "1 2 3 1e308 0.1 0.2 0 0 0\n")
+                .find("weight.mhclo:6: the weights"),
+            std::string::npos);
+  const std::string sum = refusal("sum.mhclo", "1 2 3 0.5 0.1 0.2 0 0 0\n");
+  EXPECT_NE(sum.find("sum to 0.8 (allowed: 1 ± 0.001)"), std::string::npos) << sum;
+  // Finite but far: an offset of 1e308, weights of ±5e4 that sum to 1, and an offset of 40
+  // units (4 m; the body with its helpers is 16.9 units tall, its box's diagonal 20.1).
+  for (const std::string row :
+       {"1 2 3 0.5 0.3 0.2 1e308 0 0", "1 2 3 5e4 -5e4 1 0 0 0", "1 2 3 0.5 0.3 0.2 0 40 0"}) {
+    const std::string far = refusal("far.mhclo", row + "\n");
+    EXPECT_NE(far.find("far.mhclo:6: the row puts its vertex"), std::string::npos)
+        << row << ": " << far;
+  }
+  EXPECT_NE(refusal("near.mhclo", "1 2 3 0.5 0.3 0.2 0 10 0\n").find("vertex rows"),
+            std::string::npos)
+      << "10 units (1 m) off is within the body's diagonal";
+}
+
 TEST(MakeHumanImport, ObjReaderKeepsOrderAndRefusesBadIndices) {
   ScratchDir dir;
   const ObjMesh mesh = ReadObj(dir.Write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\ng a\nf 1/1 2/2 3/3 -1\n"));
