@@ -5,11 +5,13 @@
 #include <assimp/Importer.hpp>
 #include <assimp/scene.h>
 #include <cctype>
+#include <cmath>
 #include <exception>
 #include <filesystem>
 #include <unordered_set>
 
 #include "assets/import_units.h"
+#include "process/limited_child.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::assets {
@@ -62,17 +64,73 @@ void MarkJointNodes(const aiNode* node, const std::unordered_set<std::string>& n
   for (unsigned c = 0; c < node->mNumChildren; ++c) MarkJointNodes(node->mChildren[c], names, marked);
 }
 
+/// Throws for a mesh vertex assimp read as nan or as a number beyond a float's range.
+void RefuseNonFiniteVertices(const aiScene& scene, const std::string& path) {
+  for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
+    const aiMesh& mesh = *scene.mMeshes[m];
+    for (unsigned v = 0; mesh.mVertices != nullptr && v < mesh.mNumVertices; ++v) {
+      const aiVector3D& p = mesh.mVertices[v];
+      if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) continue;
+      throw sim::InputError(path + ": mesh " + std::to_string(m) + " '" +
+                            mesh.mName.C_Str() + "' vertex " + std::to_string(v) + " at " +
+                            sim::FormatValues({p.x, p.y, p.z}) +
+                            " is not a finite point (allowed: finite coordinates)");
+    }
+  }
+}
+
+/// assimp's read with `steps`, null when assimp refuses the file. The steps run after the
+/// vertices are checked: JoinIdenticalVertices would merge a vertex read as nan into another
+/// one without a word (nan compares equal to everything in its sort).
+const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, unsigned steps,
+                           const std::string& what) {
+  const auto guarded = [&](const auto& call) {
+    try {
+      return call();
+    } catch (const std::exception& e) {
+      throw sim::InputError(path + ": cannot read the " + what + ": " + e.what());
+    }
+  };
+  const aiScene* scene = guarded([&] { return importer.ReadFile(path, 0); });
+  if (scene == nullptr) return nullptr;
+  RefuseNonFiniteVertices(*scene, path);
+  return guarded([&] { return importer.ApplyPostProcessing(steps); });
+}
+
+/// Reads the file once in a child process under kAssimpReadLimits before this process does:
+/// assimp 5.2 crashes on some files (a glTF skin without inverse bind matrices, which glTF
+/// allows: SIGSEGV) and allocates without end on others (a Collada index list holding
+/// "nan"), which would take the calling program (the simulation server, the GUI) down with
+/// it. A file assimp reads or refuses is read again here, for its scene or its own message.
+/// Inside a limited child already (the catalogue's import check) no second child is needed.
+void ReadInChildFirst(Assimp::Importer& importer, const std::string& path, unsigned steps,
+                      const std::string& what) {
+  if (process::InLimitedChild()) return;
+  const process::ChildResult trial = process::RunLimited(
+      [&] {
+        ReadChecked(importer, path, steps, what);
+        return std::string();
+      },
+      kAssimpReadLimits);
+  using process::ChildEnding;
+  if (trial.ending == ChildEnding::kReturned || trial.ending == ChildEnding::kThrew ||
+      trial.ending == ChildEnding::kNotStarted) {
+    return;
+  }
+  throw sim::InputError(path + ": cannot read the " + what + ": assimp " +
+                        process::DescribeEnding(trial, kAssimpReadLimits,
+                                                "the limit for reading one file",
+                                                "the limit for reading one file") +
+                        " reading it: the file is damaged or uses what this assimp cannot read");
+}
+
 }  // namespace
 
 const aiScene* ReadAssimpScene(Assimp::Importer& importer, const std::string& path,
                                unsigned steps, const std::string& what) {
   RequireReadableFile(path, what);
-  const aiScene* scene = nullptr;
-  try {
-    scene = importer.ReadFile(path, steps);
-  } catch (const std::exception& e) {
-    throw sim::InputError(path + ": cannot read the " + what + ": " + e.what());
-  }
+  ReadInChildFirst(importer, path, steps, what);
+  const aiScene* scene = ReadChecked(importer, path, steps, what);
   if (scene == nullptr) {
     throw sim::InputError(path + ": cannot read the " + what + ": " + importer.GetErrorString());
   }

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "assets/assimp_skeleton.h"
 #include "assets/import_units.h"
 #include "sim_core/common/input_error.h"
 
@@ -43,16 +44,7 @@ void ValidateOptions(const std::string& path, const MeshImportOptions& options) 
 
 const aiScene* ReadScene(Assimp::Importer& importer, const std::string& path) {
   importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, kDroppedComponents);
-  const aiScene* scene = nullptr;
-  try {
-    scene = importer.ReadFile(path, kPostProcessSteps);
-  } catch (const std::exception& e) {
-    // assimp normally reports through GetErrorString; this catches anything that escapes.
-    throw InputError(path + ": cannot read the mesh file: " + e.what());
-  }
-  if (scene == nullptr) {
-    throw InputError(path + ": cannot read the mesh file: " + importer.GetErrorString());
-  }
+  const aiScene* scene = ReadAssimpScene(importer, path, kPostProcessSteps, "mesh file");
   if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) {
     throw InputError(path + ": cannot read the mesh file: assimp read it only partly");
   }
@@ -95,10 +87,12 @@ Eigen::Matrix4d ToEigen(const aiMatrix4x4& m) {
 /// Gathers the faces of all meshes into one vertex list, joining equal positions.
 class MeshCollector {
  public:
-  explicit MeshCollector(const MeshImportOptions& options) : options_(options) {}
+  MeshCollector(const std::string& path, const MeshImportOptions& options)
+      : path_(path), options_(options) {}
 
-  /// Adds `mesh` placed by `node_to_file` (its node's global transform, in file units).
-  void AddMesh(const aiMesh& mesh, const Eigen::Matrix4d& node_to_file) {
+  /// Adds `mesh` (named `label` in messages) placed by `node_to_file` (its node's global
+  /// transform, in file units). Throws InputError for a vertex placed at no finite point.
+  void AddMesh(const aiMesh& mesh, const std::string& label, const Eigen::Matrix4d& node_to_file) {
     const bool mirrored = node_to_file.topLeftCorner<3, 3>().determinant() < 0;
     std::vector<int> index(mesh.mNumVertices, -1);
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
@@ -106,7 +100,7 @@ class MeshCollector {
       std::vector<int> polygon;
       for (unsigned k = 0; k < face.mNumIndices; ++k) {
         const unsigned v = face.mIndices[k];
-        if (index[v] < 0) index[v] = VertexIndex(ToScene(mesh.mVertices[v], node_to_file));
+        if (index[v] < 0) index[v] = VertexIndex(Placed(mesh.mVertices[v], v, label, node_to_file));
         polygon.push_back(index[v]);
       }
       if (mirrored) std::reverse(polygon.begin(), polygon.end());
@@ -129,9 +123,19 @@ class MeshCollector {
   }
 
  private:
-  Eigen::Vector3d ToScene(const aiVector3D& p, const Eigen::Matrix4d& node_to_file) const {
+  /// Vertex `v` in the scene frame. ReadAssimpScene refused non-finite file coordinates;
+  /// this catches a node transform or a scale that takes a finite one beyond a double.
+  Eigen::Vector3d Placed(const aiVector3D& p, unsigned v, const std::string& label,
+                         const Eigen::Matrix4d& node_to_file) const {
     const Eigen::Vector4d file = node_to_file * Eigen::Vector4d(p.x, p.y, p.z, 1.0);
-    return options_.scale * file.head<3>() + options_.offset;
+    const Eigen::Vector3d placed = options_.scale * file.head<3>() + options_.offset;
+    if (!placed.allFinite()) {
+      throw InputError(path_ + ": " + label + " vertex " + std::to_string(v) + " at " +
+                       sim::FormatValues({p.x, p.y, p.z}) +
+                       " (file units) is not a finite point once placed and scaled"
+                       " (allowed: finite coordinates)");
+    }
+    return placed;
   }
 
   int VertexIndex(const Eigen::Vector3d& p) {
@@ -153,6 +157,7 @@ class MeshCollector {
     }
   }
 
+  const std::string& path_;
   const MeshImportOptions& options_;
   std::map<std::array<double, 3>, int> index_of_;
   std::vector<Eigen::Vector3d> vertices_;
@@ -167,7 +172,8 @@ void CollectNodes(const aiScene& scene, MeshCollector& collector) {
     const auto [node, node_to_file] = pending.back();
     pending.pop_back();
     for (unsigned m = 0; m < node->mNumMeshes; ++m) {
-      collector.AddMesh(*scene.mMeshes[node->mMeshes[m]], node_to_file);
+      collector.AddMesh(*scene.mMeshes[node->mMeshes[m]], MeshLabel(scene, node->mMeshes[m]),
+                        node_to_file);
     }
     for (unsigned c = 0; c < node->mNumChildren; ++c) {
       const aiNode* child = node->mChildren[c];
@@ -180,12 +186,10 @@ void CollectNodes(const aiScene& scene, MeshCollector& collector) {
 
 sim::SurfaceMesh ImportSurfaceMesh(const std::string& path, const MeshImportOptions& options) {
   ValidateOptions(path, options);
-  // Before assimp, whose messages for missing and unreadable files are vague.
-  RequireReadableFile(path, "mesh file");
   Assimp::Importer importer;
   const aiScene* scene = ReadScene(importer, path);
   ValidateMeshes(path, *scene);
-  MeshCollector collector(options);
+  MeshCollector collector(path, options);
   if (scene->mRootNode != nullptr) CollectNodes(*scene, collector);
   if (!collector.has_faces()) {
     throw InputError(path + ": mesh has no faces (no node of the scene uses a mesh)");

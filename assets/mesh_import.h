@@ -34,7 +34,8 @@ struct MeshImportOptions {
 /// Throws sim::InputError naming `path` for: scale not finite and > 0 (field "scale"), a
 /// non-finite offset, a file that does not exist or cannot be read, a file assimp refuses
 /// (quoting assimp's error), a scene with no meshes, a mesh with no faces or only points and
-/// lines, a face of fewer than 3 vertices. The mesh is not otherwise checked here:
+/// lines, a face of fewer than 3 vertices, a vertex at no finite point (a "nan" or a number
+/// beyond a float's range). The mesh is not otherwise checked here:
 /// sim::BuildMeshCloth refuses degenerate faces and vertices in no face.
 sim::SurfaceMesh ImportSurfaceMesh(const std::string& path, const MeshImportOptions& options);
 

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <random>
 
 #include "assets/avatar_import.h"
@@ -12,6 +13,7 @@
 #include "assets/makehuman_import.h"
 #include "assets/scene_file.h"
 #include "catalog/bundle.h"
+#include "process/limited_child.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
@@ -326,6 +328,60 @@ void RequirePlayable(const sim::Clip& clip, const sim::Avatar& avatar, const std
   }
 }
 
+/// The body a garment's first version names (a MakeHuman garment's), or null.
+std::shared_ptr<const sim::Avatar> FirstVersionBody(const EntryInfo& entry,
+                                                    const AssetData& first) {
+  if (first.format != "makehuman-garment") return nullptr;
+  return MakeHumanBundle(first, EntryWhat(entry, 1)).LoadBody();
+}
+
+/// A version's stored bytes and, for a saved edit, the garment's first version (whose body
+/// the edit was made on): read from the database before anything parses them, so that the
+/// parsing can run in a child process (which must not use this process's connection).
+struct StoredVersion {
+  AssetData data;
+  std::optional<AssetData> first;
+};
+
+StoredVersion ReadStoredVersion(Catalog& catalog, const EntryInfo& entry, int version) {
+  StoredVersion stored{catalog.Data(entry.id, version), std::nullopt};
+  // Only a saved edit lacks the body it was made for; a garment's own data names it.
+  if (stored.data.format == "edited-garment") stored.first = catalog.Data(entry.id, 1);
+  return stored;
+}
+
+ThumbnailRequest CheckStored(const EntryInfo& entry, const StoredVersion& stored,
+                             const std::string& what) {
+  const std::shared_ptr<const sim::Avatar> made_for =
+      stored.first ? FirstVersionBody(entry, *stored.first) : nullptr;
+  return CheckAssetData(entry.kind, entry.name, stored.data,
+                        entry.fabric.value_or(FabricParameters{}), what, kCharacterFileLabel,
+                        made_for);
+}
+
+/// CheckStored in a child process under `limits`: stored bytes were checked when imported,
+/// but a damaged database (or another program's writes) can hand assimp bytes it crashes
+/// on, which would end the whole check. Throws sim::InputError naming `what`.
+void CheckStoredInChild(const EntryInfo& entry, const StoredVersion& stored,
+                        const std::string& what, const process::ChildLimits& limits) {
+  const process::ChildResult trial = process::RunLimited(
+      [&] {
+        CheckStored(entry, stored, what);
+        return std::string();
+      },
+      limits);
+  switch (trial.ending) {
+    case process::ChildEnding::kReturned: return;
+    case process::ChildEnding::kThrew: throw sim::InputError(trial.output);
+    case process::ChildEnding::kNotStarted: CheckStored(entry, stored, what); return;
+    default:
+      throw sim::InputError(what + ": reading it " +
+                            process::DescribeEnding(trial, limits, "--check-memory-mb",
+                                                    "--check-seconds") +
+                            "; the stored data is likely damaged");
+  }
+}
+
 }  // namespace
 
 std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id) {
@@ -341,9 +397,7 @@ std::shared_ptr<const sim::Clip> LoadClip(Catalog& catalog, std::int64_t id) {
 
 std::shared_ptr<const sim::Avatar> MadeForBody(Catalog& catalog, std::int64_t id) {
   const EntryInfo entry = EntryOfKind(catalog, id, Kind::kGarment);
-  const AssetData first = catalog.Data(id, 1);
-  if (first.format != "makehuman-garment") return nullptr;
-  return MakeHumanBundle(first, EntryWhat(entry, 1)).LoadBody();
+  return FirstVersionBody(entry, catalog.Data(id, 1));
 }
 
 sim::GarmentSpec LoadGarment(Catalog& catalog, std::int64_t id, int version) {
@@ -428,15 +482,11 @@ ThumbnailRequest CheckAssetData(Kind kind, const std::string& name, const AssetD
 
 ThumbnailRequest CheckStoredVersion(Catalog& catalog, const EntryInfo& entry, int version,
                                     const std::string& what) {
-  const AssetData data = catalog.Data(entry.id, version);
-  // Only a saved edit lacks the body it was made for; a garment's own data names it.
-  const std::shared_ptr<const sim::Avatar> made_for =
-      data.format == "edited-garment" ? MadeForBody(catalog, entry.id) : nullptr;
-  return CheckAssetData(entry.kind, entry.name, data, entry.fabric.value_or(FabricParameters{}),
-                        what, kCharacterFileLabel, made_for);
+  return CheckStored(entry, ReadStoredVersion(catalog, entry, version), what);
 }
 
-std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log) {
+std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log,
+                                      const process::ChildLimits& limits) {
   std::vector<std::string> problems = catalog.CheckIntegrity();
   for (const std::string& problem : problems) log << problem << "\n";
   for (Kind kind : {Kind::kAvatar, Kind::kAnimation, Kind::kGarment}) {
@@ -445,10 +495,12 @@ std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log) {
         const std::string what = EntryWhat(entry, version) + " (id " + std::to_string(entry.id) + ")";
         log << what << ": " << std::flush;  // a garment's cloth takes a moment to build
         try {
-          CheckStoredVersion(catalog, entry, version, what);
+          CheckStoredInChild(entry, ReadStoredVersion(catalog, entry, version), what, limits);
           log << "ok\n";
         } catch (const sim::InputError& error) {
-          log << error.what() << "\n";
+          // The message names the entry again (the loaders quote their source), so on a line
+          // of its own rather than after the name.
+          log << "refused\n  " << error.what() << "\n";
           problems.push_back(error.what());
         }
       }

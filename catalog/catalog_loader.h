@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "catalog/catalog.h"
+#include "process/limited_child.h"
 #include "sim_core/avatar/avatar.h"
 #include "sim_core/avatar/clip.h"
 #include "sim_core/cloth/material.h"
@@ -54,6 +55,15 @@ bool AddGarmentToScene(Catalog& catalog, std::int64_t id, int version,
 /// it and is worn by that body only (GarmentSpec::made_for; its thumbnail shows it on that
 /// body).
 
+/// Limits for loading one file (an import) or one stored version (a check) in a child
+/// process (`--check-memory-mb`, `--check-seconds`): the real assets of ../shared/data need
+/// under 0.12 GB and 0.3 s each; a 1 KB Collada file with "nan" among its indices makes
+/// assimp 5.2 allocate without end.
+inline constexpr std::uint64_t kDefaultCheckMemoryMb = 4096;
+inline constexpr int kDefaultCheckSeconds = 300;
+inline constexpr process::ChildLimits kDefaultCheckLimits{
+    .memory_bytes = kDefaultCheckMemoryMb << 20, .cpu_seconds = kDefaultCheckSeconds};
+
 /// What messages call a stored DeepMimic clip's character file (after the clip's own name):
 /// the character is kept in the clip's bundle, its file name lost.
 inline constexpr const char* kCharacterFileLabel = "its character file";
@@ -77,8 +87,13 @@ ThumbnailRequest CheckStoredVersion(Catalog& catalog, const EntryInfo& entry, in
 /// Checks the whole catalogue as imports check a new file: Catalog::CheckIntegrity, then
 /// every version of every entry loaded (CheckAssetData: an importer's refusal, a clip no
 /// avatar can play, a garment whose cloth cannot be built). Entries stored by older builds
-/// may fail checks added since. Writes a line per entry and version to `log` and returns
-/// the problems (empty: all sound).
-std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log);
+/// may fail checks added since. Each version is loaded in a child process under `limits`
+/// (process/limited_child.h): stored bytes damaged after their import (a damaged database,
+/// another program's writes) can make an importer crash or allocate without bound, and are
+/// then reported as damaged. Writes a line per entry and version to `log` ("...: ok", or
+/// "...: refused" and the problem on the next line) and returns the problems (empty: all
+/// sound).
+std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log,
+                                      const process::ChildLimits& limits = kDefaultCheckLimits);
 
 }  // namespace costume::catalog

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "catalog/catalog.h"
+#include "catalog/catalog_loader.h"
 #include "process/limited_child.h"
 
 namespace costume::catalog {
@@ -55,12 +56,8 @@ struct ImportRequest {
   int thumbnail_size = 128;
   /// What checking one file may take: memory beyond the importing process's own, processor
   /// time (`costume-catalog import --check-memory-mb`, `--check-seconds`). A file that needs
-  /// more is refused. The real assets of ../shared/data need under 0.12 GB and 0.3 s each;
-  /// a 1 KB Collada file with "nan" among its indices makes assimp 5.2 allocate without end.
-  process::ChildLimits check_limits{.memory_bytes = kDefaultCheckMemoryMb << 20,
-                                    .cpu_seconds = kDefaultCheckSeconds};
-  static constexpr std::uint64_t kDefaultCheckMemoryMb = 4096;
-  static constexpr int kDefaultCheckSeconds = 300;
+  /// more is refused.
+  process::ChildLimits check_limits = kDefaultCheckLimits;
 };
 
 /// The canonical path of `file` (symbolic links and ".." resolved), which must exist and lie

@@ -69,8 +69,12 @@ std::string ReadAll(int fd) {
   }
 }
 
+/// Set in RunLimited's child (each child has its own copy of this process's memory).
+bool in_limited_child = false;
+
 [[noreturn]] void RunChild(int fd, const std::function<std::string()>& work,
                            const ChildLimits& limits) {
+  in_limited_child = true;
   ApplyLimits(limits);
   char tag = kReturnedTag;
   std::string output;
@@ -141,6 +145,8 @@ ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimi
   }
   return Interpret(bytes, status, usage, limits);
 }
+
+bool InLimitedChild() { return in_limited_child; }
 
 std::string DescribeEnding(const ChildResult& result, const ChildLimits& limits,
                            const std::string& memory_option, const std::string& time_option) {

@@ -47,6 +47,11 @@ struct ChildResult {
 /// before calling, or the child's exit may repeat it. Never throws (but std::bad_alloc).
 ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimits& limits);
 
+/// True in the child of RunLimited while its work runs. Work that would guard itself with a
+/// child of its own runs directly there instead: the limits already hold, and a grandchild
+/// stopped at them would report them as its own.
+bool InLimitedChild();
+
 /// A phrase for an error message about a child that did not return, naming the limit it hit
 /// and `memory_option` / `time_option` (the user's setting for it), e.g. "needed more than
 /// 4096 MB of memory (--check-memory-mb)". Empty for kReturned.

@@ -12,6 +12,13 @@ A case is bad when the program neither stores the file (exit 0) nor refuses it w
 
     python3 tools/fuzz_import.py --count 300 --seed 1
 
+With --stored, the seeds are imported once, undamaged, and each case damages a copy of that
+SQLite catalogue (flipped bytes, runs of 0x00 or 0xff) and runs `costume-catalog check` on
+it, which loads every stored entry as the simulation server and the GUI do: a bad case is a
+signal, another exit status than 0 or 1, or a hang. Entries whose loading crashed the check's
+child are counted apart ("crashed, reported"): each is a crash that a program loading the
+entry outside a child would suffer.
+
 Prints one line per case and a summary; exits 1 when any case was bad. Not a test: it
 needs ../shared/data and takes minutes (docs/catalog.md, "Safety").
 """
@@ -133,6 +140,56 @@ def run_case(n, rng, args, work, catalogue):
     return bad
 
 
+def import_seeds(args, catalogue, scratch):
+    """Imports every seed, undamaged, into `catalogue` (no thumbnails)."""
+    for n, (kind, files, roles) in enumerate(SEEDS):
+        command = [args.program, '--url', 'sqlite:' + catalogue, '--no-thumbnails', 'import',
+                   '--kind', kind, '--root', scratch, '--name', 'seed%d' % n]
+        folder = os.path.join(scratch, 'seed%d' % n)
+        os.makedirs(folder)
+        for name, role in zip(files, roles):
+            path = os.path.join(folder, os.path.basename(name))
+            shutil.copy(source_path(name, args.data), path)
+            command += [path] if role is None else [] if role == 'beside' else [role, path]
+        subprocess.run(command, check=True, capture_output=True, timeout=args.timeout)
+
+
+def damage_stored(data, rng):
+    """Flips bytes or writes runs of 0x00 / 0xff at random places, keeping the file's size."""
+    data = bytearray(data)
+    for _ in range(rng.randint(1, 8)):
+        i = rng.randrange(len(data))
+        for k in range(i, min(len(data), i + rng.choice([1, 1, 4, 16]))):
+            data[k] = rng.choice([0, 0xff, rng.randrange(256)])
+    return bytes(data)
+
+
+def run_stored_case(n, rng, args, base, catalogue):
+    """Returns (bad, crashed entries reported)."""
+    with open(base, 'rb') as f:
+        data = damage_stored(f.read(), rng)
+    with open(catalogue, 'wb') as f:
+        f.write(data)
+    command = [args.program, '--url', 'sqlite:' + catalogue, '--no-thumbnails', 'check']
+    try:
+        done = subprocess.run(command, capture_output=True, timeout=args.timeout)
+        status = done.returncode
+        output = (done.stdout + done.stderr).decode(errors='replace')
+    except subprocess.TimeoutExpired:
+        status, output = 'timeout', ''
+    crashed = output.count('crashed (signal')
+    if status not in (0, 1):
+        keep = os.path.join(args.keep, 'stored%d.sqlite' % n)
+        os.makedirs(args.keep, exist_ok=True)
+        shutil.copy(catalogue, keep)
+        print('BAD check: %s, kept in %s; %s' % (status, keep, output[-300:]), flush=True)
+        return True, crashed
+    problems = [line for line in output.splitlines() if line.startswith('  ')]
+    print('%s%s' % ('sound' if status == 0 else '%d problem(s)' % len(problems),
+                    ': ' + problems[0].strip()[:200] if problems else ''), flush=True)
+    return False, crashed
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--count', type=int, default=100, help='cases to run (default 100)')
@@ -147,6 +204,9 @@ def main():
     parser.add_argument('--only', default='',
                         help='damage only the seeds whose first file path contains this '
                              '(e.g. mhclo; default: all)')
+    parser.add_argument('--stored', action='store_true',
+                        help='damage a catalogue holding the seeds and check it, instead of '
+                             'damaging files to import')
     parser.add_argument('--keep', default=os.path.join(tempfile.gettempdir(), 'fuzz_import'),
                         help='folder for the bad cases (default /tmp/fuzz_import)')
     args = parser.parse_args()
@@ -162,8 +222,17 @@ def main():
     start = time.time()
     with tempfile.TemporaryDirectory(prefix='fuzz_import-') as scratch:
         work, catalogue = os.path.join(scratch, 'in'), os.path.join(scratch, 'catalog.sqlite')
-        bad = sum(run_case(n, rng, args, work, catalogue) for n in range(args.count))
-    print('%d cases, %d bad, in %.0f s' % (args.count, bad, time.time() - start))
+        if not args.stored:
+            bad = sum(run_case(n, rng, args, work, catalogue) for n in range(args.count))
+            print('%d cases, %d bad, in %.0f s' % (args.count, bad, time.time() - start))
+            return 1 if bad else 0
+        base = os.path.join(scratch, 'seeds.sqlite')
+        import_seeds(args, base, scratch)
+        results = [run_stored_case(n, rng, args, base, catalogue) for n in range(args.count)]
+    bad = sum(b for b, _ in results)
+    crashed = sum(c for _, c in results)
+    print('%d cases, %d bad, %d entries crashed, reported, in %.0f s'
+          % (args.count, bad, crashed, time.time() - start))
     return 1 if bad else 0
 
 

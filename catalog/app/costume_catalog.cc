@@ -208,19 +208,24 @@ int main(int argc, char** argv) {
                      "default_weights.mhw beside the body)");
   import->add_option("--label", request.label, "garments: the first version's label")
       ->capture_default_str();
-  std::uint64_t check_memory_mb = costume::catalog::ImportRequest::kDefaultCheckMemoryMb;
-  import
-      ->add_option("--check-memory-mb", check_memory_mb,
-                   "memory one file's check may use; a file needing more is refused as "
-                   "damaged [MB]")
-      ->check(CLI::Range(std::uint64_t{64}, std::uint64_t{1} << 20))
-      ->capture_default_str();
-  import
-      ->add_option("--check-seconds", request.check_limits.cpu_seconds,
-                   "processor time one file's check may take; a file needing more is "
-                   "refused as damaged [s]")
-      ->check(CLI::Range(1, 86400))
-      ->capture_default_str();
+  std::uint64_t check_memory_mb = costume::catalog::kDefaultCheckMemoryMb;
+  int check_seconds = costume::catalog::kDefaultCheckSeconds;
+  // Both import and check load each file or stored version in a child under these limits.
+  const auto add_check_limits = [&](CLI::App* command, const std::string& what) {
+    command
+        ->add_option("--check-memory-mb", check_memory_mb,
+                     "memory loading one " + what + " may use; needing more, it is refused "
+                     "as damaged [MB]")
+        ->check(CLI::Range(std::uint64_t{64}, std::uint64_t{1} << 20))
+        ->capture_default_str();
+    command
+        ->add_option("--check-seconds", check_seconds,
+                     "processor time loading one " + what + " may take; needing more, it is "
+                     "refused as damaged [s]")
+        ->check(CLI::Range(1, 86400))
+        ->capture_default_str();
+  };
+  add_check_limits(import, "file");
 
   std::string list_kind;
   auto* list = app.add_subcommand("list", "list the entries");
@@ -256,6 +261,7 @@ int main(int argc, char** argv) {
 
   auto* checker = app.add_subcommand(
       "check", "check the database and load every version of every entry as an import would");
+  add_check_limits(checker, "stored version");
 
   int thumbnail_size = 128;
   auto* thumbnails = app.add_subcommand(
@@ -272,13 +278,15 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  const costume::process::ChildLimits check_limits{.memory_bytes = check_memory_mb << 20,
+                                                   .cpu_seconds = check_seconds};
   try {
     costume::catalog::OpenOptions options;
     if (!no_thumbnails) options = costume::catalog::WithRenderedThumbnails();
     const auto catalog = Catalog::Open(url, options);
     if (*import) {
       request.kind = costume::catalog::ParseKind(kind_name);
-      request.check_limits.memory_bytes = check_memory_mb << 20;
+      request.check_limits = check_limits;
       if (!no_thumbnails) request.thumbnails = costume::catalog::RenderedThumbnails();
       costume::catalog::ImportFiles(*catalog, request, std::cout);
     } else if (*list) {
@@ -301,7 +309,7 @@ int main(int argc, char** argv) {
                                                       thumbnail_size, std::cout);
       std::printf("made %d thumbnail(s)\n", made);
     } else if (*checker) {
-      const auto problems = costume::catalog::CheckEntries(*catalog, std::cout);
+      const auto problems = costume::catalog::CheckEntries(*catalog, std::cout, check_limits);
       std::printf("%zu problem(s)\n", problems.size());
       if (!problems.empty()) return 1;
     } else if (*remover) {

@@ -5,6 +5,7 @@
 #include <set>
 
 #include "assets/skeleton_families.h"
+#include "process/limited_child.h"
 #include "sim_core/avatar/clip.h"
 #include "sim_core/common/input_error.h"
 #include "tests/assets/assimp_export_support.h"
@@ -191,6 +192,22 @@ TEST(AvatarImport, UndeclaredUnitsAreGuessedFromTheHeight) {
   EXPECT_NEAR(lying->rest_vertices().col(2).minCoeff(), -1.7, 1e-9);
 }
 
+// The check runs before assimp's JoinIdenticalVertices, which merges a vertex read as nan into
+// another vertex (ImportSurfaceMesh returned a face folded onto itself, without a word).
+TEST(AvatarImport, AVertexAtNoFinitePointIsRefusedNamingIt) {
+  ScratchDir dir;
+  std::string box = kBoxObj;
+  box.replace(box.find("v 20 170 10"), 11, "v 20 nan 10");
+  try {
+    LoadAvatar(dir.Write("nan_box.obj", box));
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("nan_box.obj: mesh 0"), std::string::npos) << message;
+    EXPECT_NE(message.find("(20, nan, 10) is not a finite point"), std::string::npos) << message;
+  }
+}
+
 TEST(AvatarImport, DamagedFilesThrowNamingTheFile) {
   ScratchDir dir;
   std::vector<std::string> files = {dir.WriteGarbage("junk.glb", 4000), dir.WriteGarbage("junk.fbx", 4000),
@@ -258,6 +275,38 @@ TEST(AvatarImport, ASingularInverseBindMatrixIsRefusedNamingTheBone) {
     EXPECT_NE(std::string(e.what()).find("inverse bind matrix is singular"), std::string::npos)
         << e.what();
   }
+}
+
+// assimp 5.2 dereferences the accessor of a skin's inverse bind matrices even when the skin
+// has none (glTF allows that: identity matrices). One flipped byte of CesiumMan.glb's
+// "inverseBindMatrices", found by damaging a stored entry, crashed the calling program: the
+// simulation server or the GUI reading a scene file. Read first in a child, it is refused.
+TEST(AvatarImport, AFileAssimpCrashesOnIsRefusedAndThisProcessGoesOn) {
+  ScratchDir dir;
+  std::string no_binds = SkinnedQuad(kIdentityBinds);
+  no_binds.replace(no_binds.find("\"inverseBindMatrices\""), 21, "\"xnverseBindMatrices\"");
+  const std::string path = dir.Write("no_binds.gltf", no_binds);
+  try {
+    LoadAvatar(path);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("no_binds.gltf: cannot read the avatar file: assimp crashed (signal "),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("damaged or uses what this assimp cannot read"), std::string::npos)
+        << message;
+  }
+  // Inside a limited child (the catalogue's import check) there is no second child: the crash
+  // is that child's, which its caller reports.
+  const process::ChildResult nested = process::RunLimited(
+      [&] {
+        LoadAvatar(path);
+        return std::string();
+      },
+      {});
+  EXPECT_EQ(nested.ending, process::ChildEnding::kCrashed);
+  EXPECT_EQ(LoadAvatar(dir.Write("quad.gltf", SkinnedQuad(kIdentityBinds)))->num_vertices(), 4);
 }
 
 }  // namespace

@@ -210,6 +210,24 @@ TEST(ImportSurfaceMesh, RefusesTruncatedFileWhoseFacesNameMissingVertices) {
   ExpectRefused([&] { ImportSurfaceMesh(path, {}); }, {path, "vertex index out of range"});
 }
 
+// Found by mutating a real garment OBJ: "nan", "inf" or 1e308 (beyond assimp's floats) in a
+// vertex came back as a non-finite position.
+TEST(ImportSurfaceMesh, RefusesVerticesAtNoFinitePoint) {
+  ScratchDir dir;
+  for (const char* number : {"nan", "inf", "1e308"}) {
+    const std::string path =
+        dir.Write("far.obj", std::string("v 0 0 0\nv 1 0 0\nv 1 ") + number + " 0\nf 1 2 3\n");
+    ExpectRefused([&] { ImportSurfaceMesh(path, {}); },
+                  {path, "vertex 2 at (1, ", "not a finite point"});
+  }
+  // A finite file coordinate that the scale takes beyond a double's range.
+  MeshImportOptions huge;
+  huge.scale = 1e300;
+  const std::string path = dir.Write("big.obj", "v 0 0 0\nv 1 0 0\nv 1 1e30 0\nf 1 2 3\n");
+  ExpectRefused([&] { ImportSurfaceMesh(path, huge); },
+                {path, "vertex 2 at (1, 1e+30, 0)", "not a finite point"});
+}
+
 TEST(ImportSurfaceMesh, RefusesMeshOfPointsOnly) {
   ScratchDir dir;
   const std::string path = dir.Write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n");

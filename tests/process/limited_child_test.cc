@@ -41,6 +41,15 @@ TEST(RunLimited, BringsBackWhatTheWorkReturnsWholeAndLeavesThisProcessUntouched)
   EXPECT_EQ(result.signal, 0);
 }
 
+TEST(RunLimited, TheWorkKnowsItRunsInALimitedChild) {
+  EXPECT_FALSE(InLimitedChild());
+  const ChildResult result =
+      RunLimited([] { return std::string(InLimitedChild() ? "yes" : "no"); }, {});
+  ASSERT_EQ(result.ending, ChildEnding::kReturned);
+  EXPECT_EQ(result.output, "yes");
+  EXPECT_FALSE(InLimitedChild());
+}
+
 TEST(RunLimited, AnExceptionComesBackAsItsMessage) {
   const ChildResult result =
       RunLimited([]() -> std::string { throw std::runtime_error("file.dae:3: bad index"); }, {});
