@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <QGuiApplication>
+#include <QRegularExpression>
 #include <QTest>
 #include <filesystem>
 #include <fstream>
@@ -702,6 +704,13 @@ TEST(MainWindowLoads, TheViewFollowsALoadedCostumeOnceTheServerRunsIt) {
   const int cape = window.pending_mirror()->num_particles();
   ASSERT_NE(cape, skirt);
   EXPECT_EQ(window.mirror().num_particles(), skirt);  // until the server shows the cape
+  // Building the copy can take seconds (MakeHuman's suit with a motion-capture clip): the
+  // log says how long, and the busy cursor is gone once it is built.
+  const QRegularExpression built(
+      QString("new scene \\(%1 particles; its copy built in \\d+\\.\\d s\\)").arg(cape));
+  EXPECT_TRUE(window.message_log()->toPlainText().contains(built))
+      << window.message_log()->toPlainText().toStdString();
+  EXPECT_EQ(QGuiApplication::overrideCursor(), nullptr);
 
   // The server refuses: the view keeps the skirt.
   PublishSimWarnings(bus,
