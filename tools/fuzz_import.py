@@ -98,6 +98,15 @@ def damage(data, rng):
     return b'\n'.join(lines), 'lines'
 
 
+def run_program(command, timeout):
+    """The program's exit status ('timeout' after `timeout` s) and its output, both streams."""
+    try:
+        done = subprocess.run(command, capture_output=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return 'timeout', ''
+    return done.returncode, (done.stdout + done.stderr).decode(errors='replace')
+
+
 def source_path(name, data_folder):
     return os.path.join(REPO, name[1:]) if name.startswith('@') else os.path.join(data_folder, name)
 
@@ -121,12 +130,7 @@ def run_case(n, rng, args, work, catalogue):
                '--root', work, '--name', 'case%d' % n]
     for path, role in zip(paths, roles):
         command += [path] if role is None else [] if role == 'beside' else [role, path]
-    try:
-        done = subprocess.run(command, capture_output=True, timeout=args.timeout)
-        status = done.returncode
-        output = (done.stdout + done.stderr).decode(errors='replace')
-    except subprocess.TimeoutExpired:
-        status, output = 'timeout', ''
+    status, output = run_program(command, args.timeout)
     what = '%s %s (%s)' % (kind, os.path.basename(files[victim]), how)
     bad = status not in (0, 1) or (status == 1 and 'error' not in output)
     if bad:
@@ -171,12 +175,7 @@ def run_stored_case(n, rng, args, base, catalogue):
     with open(catalogue, 'wb') as f:
         f.write(data)
     command = [args.program, '--url', 'sqlite:' + catalogue, '--no-thumbnails', 'check']
-    try:
-        done = subprocess.run(command, capture_output=True, timeout=args.timeout)
-        status = done.returncode
-        output = (done.stdout + done.stderr).decode(errors='replace')
-    except subprocess.TimeoutExpired:
-        status, output = 'timeout', ''
+    status, output = run_program(command, args.timeout)
     crashed = output.count('crashed (signal')
     if status not in (0, 1):
         keep = os.path.join(args.keep, 'stored%d.sqlite' % n)

@@ -160,12 +160,18 @@ TEST(MakeHumanImport, GarmentsFitTheBodyByTheirMhclo) {
   EXPECT_LT(fitted.vertices.col(1).maxCoeff(), 0.7);
 }
 
+/// A scratch folder holding the suit's OBJ, which a .mhclo written there names.
+void CopySuitObj(const ScratchDir& dir) {
+  fs::copy_file(kData / "makehuman/clothes/female_casualsuit02/female_casualsuit02.obj",
+                dir.path() / "female_casualsuit02.obj");
+}
+
 TEST(MakeHumanImport, DamagedMhcloThrowsNamingTheFile) {
   SKIP_WITHOUT("makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo");
   const fs::path suit = kData / "makehuman/clothes/female_casualsuit02";
   const ObjMesh base = ReadObj((kBody / "base.obj").string());
   ScratchDir dir;
-  fs::copy_file(suit / "female_casualsuit02.obj", dir.path() / "female_casualsuit02.obj");
+  CopySuitObj(dir);
   for (const std::string& file :
        {dir.WriteTruncated("cut.mhclo", suit / "female_casualsuit02.mhclo"), dir.WriteGarbage("junk.mhclo", 4000),
         dir.Write("bad_row.mhclo", "obj_file female_casualsuit02.obj\nx_scale 5399 11998 1.3980\n"
@@ -184,10 +190,9 @@ TEST(MakeHumanImport, DamagedMhcloThrowsNamingTheFile) {
 // which the loader returned.
 TEST(MakeHumanImport, MhcloRowsOffTheBodyAreRefusedNamingTheLine) {
   SKIP_WITHOUT("makehuman/clothes/female_casualsuit02/female_casualsuit02.mhclo");
-  const fs::path suit = kData / "makehuman/clothes/female_casualsuit02";
   const ObjMesh base = ReadObj((kBody / "base.obj").string());
   ScratchDir dir;
-  fs::copy_file(suit / "female_casualsuit02.obj", dir.path() / "female_casualsuit02.obj");
+  CopySuitObj(dir);
   const std::string head =
       "obj_file female_casualsuit02.obj\nx_scale 5399 11998 1.3980\nz_scale 962 5320 1.8461\n"
       "y_scale 791 881 2.2048\nverts 0\n";
