@@ -20,6 +20,11 @@ using sim::InputError;
 constexpr int kMaxJoints = 10000;
 constexpr long kMaxFrames = 10000000;
 constexpr double kDegrees = M_PI / 180.0;
+/// The largest rotation a channel may hold [degrees]. Angles unwrapped over a long capture
+/// pass 360 by some turns, but none a capture writes comes near 1e5 (278 turns); a value of
+/// 1e308, made by damaging a file at random, turned the joint to an arbitrary angle for a
+/// frame, which imported without a word.
+constexpr double kMaxRotationDegrees = 1e5;
 
 /// The file split into whitespace-separated words, each with its line number.
 class Tokens {
@@ -122,13 +127,24 @@ struct BvhFile {
   std::vector<double> values;  // num_frames × num_channels
 };
 
+constexpr std::pair<const char*, Channel> kChannelNames[] = {
+    {"Xposition", Channel::kXpos}, {"Yposition", Channel::kYpos}, {"Zposition", Channel::kZpos},
+    {"Xrotation", Channel::kXrot}, {"Yrotation", Channel::kYrot}, {"Zrotation", Channel::kZrot}};
+
+const char* ChannelName(Channel channel) {
+  for (const auto& [name, c] : kChannelNames) {
+    if (c == channel) return name;
+  }
+  return "?";
+}
+
+bool IsRotation(Channel channel) {
+  return channel == Channel::kXrot || channel == Channel::kYrot || channel == Channel::kZrot;
+}
+
 Channel ParseChannel(Tokens& tokens) {
   const std::string word = tokens.Take("a channel name");
-  static const std::pair<const char*, Channel> kNames[] = {
-      {"Xposition", Channel::kXpos}, {"Yposition", Channel::kYpos},
-      {"Zposition", Channel::kZpos}, {"Xrotation", Channel::kXrot},
-      {"Yrotation", Channel::kYrot}, {"Zrotation", Channel::kZrot}};
-  for (const auto& [name, channel] : kNames) {
+  for (const auto& [name, channel] : kChannelNames) {
     if (word.size() == std::string_view(name).size() &&
         std::equal(word.begin(), word.end(), name, [](char a, char b) {
           return std::tolower(static_cast<unsigned char>(a)) ==
@@ -203,6 +219,11 @@ void ParseMotion(Tokens& tokens, BvhFile& file) {
                       sim::FormatValue(sim::kMinFrameTime) + ", " +
                       sim::FormatValue(sim::kMaxFrameTime) + "])");
   }
+  // Per value of a frame, its joint and channel, for the messages.
+  std::vector<std::pair<const BvhJoint*, Channel>> columns;
+  for (const BvhJoint& joint : file.joints) {
+    for (Channel channel : joint.channels) columns.emplace_back(&joint, channel);
+  }
   const long total = file.num_frames * file.num_channels;
   file.values.reserve(static_cast<std::size_t>(std::min<long>(total, 100000000)));
   for (long i = 0; i < total; ++i) {
@@ -213,7 +234,15 @@ void ParseMotion(Tokens& tokens, BvhFile& file) {
                        std::to_string(file.num_frames) + " frames of " +
                        std::to_string(file.num_channels) + " values)");
     }
-    file.values.push_back(tokens.TakeNumber("channel value"));
+    const double value = tokens.TakeNumber("channel value");
+    const auto& [joint, channel] = columns[static_cast<std::size_t>(i % file.num_channels)];
+    if (IsRotation(channel) && !(std::abs(value) <= kMaxRotationDegrees)) {
+      tokens.RefuseLast("frame " + std::to_string(i / file.num_channels) + ", joint '" +
+                        joint->name + "' " + ChannelName(channel) + " = " +
+                        sim::FormatValue(value) + " degrees (allowed: within ±" +
+                        sim::FormatValue(kMaxRotationDegrees) + ")");
+    }
+    file.values.push_back(value);
   }
   if (!tokens.done()) {
     throw InputError(tokens.Where() + ": '" + tokens.Peek().substr(0, 40) +
