@@ -275,8 +275,10 @@ std::vector<std::vector<std::pair<int, double>>> ReadWeights(const std::string& 
         throw InputError(at + ": vertex index " + std::to_string(vertex) + " out of range (allowed: 0.." +
                          std::to_string(kept_index.size() - 1) + ")");
       }
-      if (!std::isfinite(weight) || weight < 0.0) {
-        throw InputError(at + ": weight " + sim::FormatValue(weight) + " (allowed: finite, >= 0)");
+      // MakeHuman writes weights of 0.001 to 1; a damaged 2147483648 would take the vertex
+      // wholly to its bone after the renormalisation, without a word.
+      if (!(weight >= 0.0 && weight <= 1.0)) {
+        throw InputError(at + ": weight " + sim::FormatValue(weight) + " (allowed: [0, 1])");
       }
       if (kept_index[vertex] >= 0 && weight > 0.0) influences[kept_index[vertex]].emplace_back(joint, weight);
     }

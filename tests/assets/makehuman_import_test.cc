@@ -123,7 +123,11 @@ TEST(MakeHumanImport, DamagedFilesThrowNamingTheFile) {
                         Case{obj, junk_skel, weights, "junk.mhskel"},
                         Case{junk_obj, skel, weights, "junk.obj"},
                         Case{cut_obj, skel, weights, "cut"},
-                        Case{obj, skel, dir.path().string() + "/missing.mhw", "missing.mhw"}}) {
+                        Case{obj, skel, dir.path().string() + "/missing.mhw", "missing.mhw"},
+                        // A weight beyond 1: damaged (MakeHuman writes 0.001 to 1).
+                        Case{obj, skel,
+                             dir.Write("heavy.mhw", R"({"weights": {"root": [[0, 2147483648]]}})"),
+                             "heavy.mhw: weights.root[0]: weight 2.14748e+09 (allowed: [0, 1])"}}) {
     try {
       LoadMakeHumanAvatar(c.obj, c.skel, c.weights);
       ADD_FAILURE() << "no error for " << c.named;
