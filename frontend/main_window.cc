@@ -88,20 +88,16 @@ QListWidget* MakeThumbnailList() {
   return list;
 }
 
-/// The view's copy of `scene`. Building it fits the garments and may search the arms'
-/// spread: seconds for MakeHuman's suit with a motion-capture clip, during which the window
-/// cannot draw, so the cursor shows it is busy; `seconds` (when given) says how long it took.
-std::unique_ptr<SceneMirror> BuildMirror(sim::SceneDescription scene, double* seconds = nullptr) {
-  QGuiApplication::setOverrideCursor(Qt::WaitCursor);
-  struct RestoreCursor {
-    ~RestoreCursor() { QGuiApplication::restoreOverrideCursor(); }
-  } restore;
-  QElapsedTimer timer;
-  timer.start();
-  auto mirror = std::make_unique<SceneMirror>(std::move(scene));
-  if (seconds) *seconds = static_cast<double>(timer.elapsed()) / 1000.0;
-  return mirror;
-}
+/// The busy cursor while it lives. Building the view's copy of a scene reads the catalogue's
+/// entries, fits the garments and may search the arms' spread: over a second for MakeHuman's
+/// suit with a motion-capture clip, during which the window cannot draw.
+class BusyCursor {
+ public:
+  BusyCursor() { QGuiApplication::setOverrideCursor(Qt::WaitCursor); }
+  ~BusyCursor() { QGuiApplication::restoreOverrideCursor(); }
+  BusyCursor(const BusyCursor&) = delete;
+  BusyCursor& operator=(const BusyCursor&) = delete;
+};
 
 }  // namespace
 
@@ -224,7 +220,9 @@ void MainWindow::RestartSimServer() {
   // A fresh server runs the start scene from frame 0: the view follows it when its frames
   // come, as after a load.
   try {
-    pending_mirror_ = BuildMirror(LoadScene(options_.builtin, options_.scene_file));
+    const BusyCursor busy;
+    pending_mirror_ =
+        std::make_unique<SceneMirror>(LoadScene(options_.builtin, options_.scene_file));
   } catch (const sim::InputError& refusal) {
     Log(QString("the view keeps its scene: ") + refusal.what());
   }
@@ -401,15 +399,17 @@ void MainWindow::LoadSelected(EntryKind kind) {
 
 void MainWindow::MirrorLoad(EntryKind kind, const CatalogItem& item) {
   try {
+    const BusyCursor busy;
+    QElapsedTimer timer;
+    timer.start();
     // Built on the pending scene when loads follow each other before the server answers.
     sim::SceneDescription scene = (pending_mirror_ ? *pending_mirror_ : *mirror_).scene();
     catalog_->ApplyToScene(kind, item, scene);
-    double seconds = 0.0;
-    pending_mirror_ = BuildMirror(std::move(scene), &seconds);
+    pending_mirror_ = std::make_unique<SceneMirror>(std::move(scene));
     Log(QString("the view follows once the server runs the new scene (%1 particles; its copy "
                 "built in %2 s)")
             .arg(pending_mirror_->num_particles())
-            .arg(seconds, 0, 'f', 1));
+            .arg(static_cast<double>(timer.elapsed()) / 1000.0, 0, 'f', 1));
   } catch (const sim::InputError& error) {
     Log(QString("the view keeps its scene: ") + error.what());
   }

@@ -128,14 +128,14 @@ TEST(BvhImport, MalformedTextNamesFileAndLine) {
   }
   // A rotation of -1e308 degrees (tools/fuzz_import.py stored one) turned the joint to an
   // arbitrary angle; 1e5 degrees, 278 turns, is the most a channel may hold.
-  EXPECT_EQ(LoadClip(dir.Write("turns.bvh", TwoJointBvh("Xrotation Zrotation", "1 -1e5"))).frames.size(),
-            1u);
+  const std::string turns = dir.Write("turns.bvh", TwoJointBvh("Xrotation Zrotation", "1 -1e5"));
+  EXPECT_EQ(LoadClip(turns).frames.size(), 1u);
   try {
     LoadClip(dir.Write("spun.bvh", TwoJointBvh("Xrotation Zrotation", "1 -1e308")));
     ADD_FAILURE();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find(
-                  "spun.bvh:19: frame 0, joint 'a' Zrotation = -1e+308 degrees (allowed: within ±100000)"),
+    EXPECT_NE(std::string(e.what()).find("spun.bvh:19: frame 0, joint 'a' Zrotation = -1e+308 "
+                                         "degrees (allowed: within ±100000)"),
               std::string::npos)
         << e.what();
   }

@@ -234,9 +234,10 @@ TEST_F(CatalogLoaderTest, AStoredFileAnImporterCrashesOnIsReportedNotFatal) {
     LoadAvatar(*catalog_, id);
     ADD_FAILURE() << "no error";
   } catch (const sim::InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("the file is damaged or uses what this assimp cannot read"),
+    const std::string message = e.what();
+    EXPECT_NE(message.find("the file is damaged or uses what this assimp cannot read"),
               std::string::npos)
-        << e.what();
+        << message;
   }
 }
 
