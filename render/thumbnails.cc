@@ -8,6 +8,7 @@
 #include "sim_core/avatar/garment_patterns.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/scene/arm_spread.h"
 #include "sim_core/scene/simulation.h"
 
 namespace costume::render {
@@ -125,6 +126,9 @@ Thumbnail BuildClipThumbnail(const sim::Avatar& avatar, const sim::Clip& clip, i
   sim::AvatarMotionSettings settings;
   settings.fit_time = 0.0;
   settings.blend_time = 0.0;
+  // With the arms' spread the simulation chooses on this avatar (sim_core/scene/arm_spread.h):
+  // a clip captured on a body narrower at the hips showed its hands through them.
+  settings.arm_spread = sim::FindArmSpread(Borrow(avatar), Borrow(clip), settings).angle;
   sim::AvatarMotion motion(Borrow(avatar), Borrow(clip), settings);
   motion.Evaluate(0.5 * clip.duration());
   RenderScene scene;

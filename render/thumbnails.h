@@ -33,7 +33,8 @@ Thumbnail BuildAvatarThumbnail(const sim::Avatar& avatar, int size);
 /// Renders BuildAvatarThumbnail.
 Image RenderAvatarThumbnail(const sim::Avatar& avatar, int size);
 
-/// The avatar posed at the middle of `clip` (clip retargeted onto the avatar's skeleton), from
+/// The avatar posed at the middle of `clip` (clip retargeted onto the avatar's skeleton, the
+/// arms spread as sim::FindArmSpread chooses for this avatar, as the simulation plays it), from
 /// the front, framed like BuildAvatarThumbnail. Throws sim::InputError for an invalid clip or
 /// one that cannot be retargeted onto the avatar.
 Thumbnail BuildClipThumbnail(const sim::Avatar& avatar, const sim::Clip& clip, int size);

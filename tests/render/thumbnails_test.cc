@@ -2,9 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <initializer_list>
+
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
+#include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/surface_geometry.h"
 #include "sim_core/common/input_error.h"
+#include "tests/support/humanoid.h"
 #include "tests/render/coverage.h"
 
 namespace costume::render {
@@ -91,6 +97,44 @@ TEST(Thumbnails, ClipShowsTheMidClipPose) {
   const sim::Clip walk = sim::MakeBuiltInClip("walk", sim::MakeHumanoidSkeleton());
   const Thumbnail thumbnail = BuildClipThumbnail(*avatar, walk, kSize);
   ExpectSilhouette(thumbnail, RenderThumbnail(thumbnail));
+}
+
+// A clip holding the left arm 24° in puts the hand into the thigh (tests/support/humanoid.h);
+// the simulation plays it with the arm spread out, and the thumbnail shows that: before, it
+// drew the hand through the thigh.
+TEST(Thumbnails, ClipShowsTheArmsSpreadAsTheSimulationPlaysThem) {
+  const auto avatar = test::Humanoid();
+  const auto& segments = avatar->vertex_segments();
+  const auto in = [&](int v, std::initializer_list<sim::HAnimJoint> joints) {
+    return segments[v] && std::find(joints.begin(), joints.end(), *segments[v]) != joints.end();
+  };
+  const Thumbnail thumbnail = BuildClipThumbnail(*avatar, *test::ArmInClip(24.0), kSize);
+  const std::vector<Eigen::Vector3f>& posed = thumbnail.scene.meshes.at(0).positions;
+  sim::Points x(static_cast<Eigen::Index>(posed.size()), 3);
+  for (std::size_t v = 0; v < posed.size(); ++v) x.row(static_cast<Eigen::Index>(v)) = posed[v].cast<double>();
+  // The pelvis and legs, as posed: the built-in humanoid's closed tubes (connected pieces)
+  // whose first corner's segment is one of theirs.
+  using J = sim::HAnimJoint;
+  const std::initializer_list<J> legs = {J::kSacroiliac, J::kLHip, J::kRHip, J::kLKnee,
+                                         J::kRKnee, J::kLTalocrural, J::kRTalocrural};
+  const sim::SurfacePseudonormals surface(avatar->num_vertices(), avatar->triangles());
+  std::vector<char> leg_piece(surface.num_pieces(), 0);
+  for (int t = 0; t < surface.num_triangles(); ++t) {
+    if (in(avatar->triangles()[t][0], legs)) leg_piece[surface.piece_of(t)] = 1;
+  }
+  std::vector<Eigen::Vector3i> lower;
+  for (int t = 0; t < surface.num_triangles(); ++t) {
+    if (leg_piece[surface.piece_of(t)]) lower.push_back(avatar->triangles()[t]);
+  }
+  const sim::MeshDistance body("lower body", x, lower);
+  int hand_inside = 0, hand = 0;
+  for (int v = 0; v < avatar->num_vertices(); ++v) {
+    if (!in(v, {J::kLElbow, J::kLRadiocarpal})) continue;
+    ++hand;
+    hand_inside += body.Inside(x.row(v).transpose());
+  }
+  ASSERT_GT(hand, 50);
+  EXPECT_EQ(hand_inside, 0) << "of " << hand << " forearm and hand vertices";
 }
 
 TEST(Thumbnails, PosedSilhouetteDiffersFromRestWhereTheLimbsMoved) {
