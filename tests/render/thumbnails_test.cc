@@ -111,7 +111,9 @@ TEST(Thumbnails, ClipShowsTheArmsSpreadAsTheSimulationPlaysThem) {
   const Thumbnail thumbnail = BuildClipThumbnail(*avatar, *test::ArmInClip(24.0), kSize);
   const std::vector<Eigen::Vector3f>& posed = thumbnail.scene.meshes.at(0).positions;
   sim::Points x(static_cast<Eigen::Index>(posed.size()), 3);
-  for (std::size_t v = 0; v < posed.size(); ++v) x.row(static_cast<Eigen::Index>(v)) = posed[v].cast<double>();
+  for (std::size_t v = 0; v < posed.size(); ++v) {
+    x.row(static_cast<Eigen::Index>(v)) = posed[v].cast<double>();
+  }
   // The pelvis and legs, as posed: the built-in humanoid's closed tubes (connected pieces)
   // whose first corner's segment is one of theirs.
   using J = sim::HAnimJoint;
