@@ -359,29 +359,6 @@ ThumbnailRequest CheckStored(const EntryInfo& entry, const StoredVersion& stored
                         made_for);
 }
 
-/// CheckStored in a child process under `limits`: stored bytes were checked when imported,
-/// but a damaged database (or another program's writes) can hand assimp bytes it crashes
-/// on, which would end the whole check. Throws sim::InputError naming `what`.
-void CheckStoredInChild(const EntryInfo& entry, const StoredVersion& stored,
-                        const std::string& what, const process::ChildLimits& limits) {
-  const process::ChildResult trial = process::RunLimited(
-      [&] {
-        CheckStored(entry, stored, what);
-        return std::string();
-      },
-      limits);
-  switch (trial.ending) {
-    case process::ChildEnding::kReturned: return;
-    case process::ChildEnding::kThrew: throw sim::InputError(trial.output);
-    case process::ChildEnding::kNotStarted: CheckStored(entry, stored, what); return;
-    default:
-      throw sim::InputError(what + ": reading it " +
-                            process::DescribeEnding(trial, limits, "--check-memory-mb",
-                                                    "--check-seconds") +
-                            "; the stored data is likely damaged");
-  }
-}
-
 }  // namespace
 
 std::shared_ptr<const sim::Avatar> LoadAvatar(Catalog& catalog, std::int64_t id) {
@@ -485,6 +462,26 @@ ThumbnailRequest CheckStoredVersion(Catalog& catalog, const EntryInfo& entry, in
   return CheckStored(entry, ReadStoredVersion(catalog, entry, version), what);
 }
 
+void CheckInChild(const std::function<void()>& check, const process::ChildLimits& limits,
+                  const std::string& what, const std::string& subject) {
+  const process::ChildResult trial = process::RunLimited(
+      [&] {
+        check();
+        return std::string();
+      },
+      limits);
+  switch (trial.ending) {
+    case process::ChildEnding::kReturned: return;
+    case process::ChildEnding::kThrew: throw sim::InputError(trial.output);
+    case process::ChildEnding::kNotStarted: check(); return;  // unguarded: no child to be had
+    default:
+      throw sim::InputError(what + ": reading it " +
+                            process::DescribeEnding(trial, limits, "--check-memory-mb",
+                                                    "--check-seconds") +
+                            "; the " + subject + " is likely damaged");
+  }
+}
+
 std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log,
                                       const process::ChildLimits& limits) {
   std::vector<std::string> problems = catalog.CheckIntegrity();
@@ -495,7 +492,10 @@ std::vector<std::string> CheckEntries(Catalog& catalog, std::ostream& log,
         const std::string what = EntryWhat(entry, version) + " (id " + std::to_string(entry.id) + ")";
         log << what << ": " << std::flush;  // a garment's cloth takes a moment to build
         try {
-          CheckStoredInChild(entry, ReadStoredVersion(catalog, entry, version), what, limits);
+          // Stored bytes were checked when imported, but a damaged database (or another
+          // program's writes) can hand an importer bytes it crashes on, ending the check.
+          const StoredVersion stored = ReadStoredVersion(catalog, entry, version);
+          CheckInChild([&] { CheckStored(entry, stored, what); }, limits, what, "stored data");
           log << "ok\n";
         } catch (const sim::InputError& error) {
           // The message names the entry again (the loaders quote their source), so on a line

@@ -4,6 +4,7 @@
 /// bytes are written to a private temporary folder when an importer needs a path).
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <ostream>
 #include <string>
@@ -63,6 +64,14 @@ inline constexpr std::uint64_t kDefaultCheckMemoryMb = 4096;
 inline constexpr int kDefaultCheckSeconds = 300;
 inline constexpr process::ChildLimits kDefaultCheckLimits{
     .memory_bytes = kDefaultCheckMemoryMb << 20, .cpu_seconds = kDefaultCheckSeconds};
+
+/// Runs `check` in a child process under `limits` (process/limited_child.h), so that bytes
+/// which make an importer crash or allocate without bound cost this process nothing; where
+/// no child can be made, runs it here. Throws sim::InputError with the child's refusal, or
+/// naming `what`, the limit it hit (`--check-memory-mb`, `--check-seconds`) and "the
+/// `subject` is likely damaged". What `check` changes stays in the child, unless it ran here.
+void CheckInChild(const std::function<void()>& check, const process::ChildLimits& limits,
+                  const std::string& what, const std::string& subject);
 
 /// What messages call a stored DeepMimic clip's character file (after the clip's own name):
 /// the character is kept in the clip's bundle, its file name lost.

@@ -351,31 +351,11 @@ std::optional<ThumbnailRequest> CheckCandidate(const Candidate& c, const ImportR
     return CheckAssetData(c.entry.kind, c.entry.name, c.entry.data,
                           c.entry.fabric.value_or(FabricParameters{}), c.shown, character_what);
   };
-  const process::ChildResult trial = process::RunLimited(
-      [&] {
-        check();
-        return std::string();
-      },
-      request.check_limits);
-  switch (trial.ending) {
-    case process::ChildEnding::kReturned:
-      break;
-    case process::ChildEnding::kThrew:
-      throw sim::InputError(trial.output);
-    case process::ChildEnding::kNotStarted: {
-      // No child (out of processes): checked here, unguarded.
-      ThumbnailRequest here = check();
-      if (!request.thumbnails) return std::nullopt;
-      return here;
-    }
-    default:
-      throw sim::InputError(c.shown + ": reading it " +
-                            process::DescribeEnding(trial, request.check_limits,
-                                                    "--check-memory-mb", "--check-seconds") +
-                            "; the file is likely damaged");
-  }
+  // `here` is set only where the check ran in this process (no child could be made).
+  std::optional<ThumbnailRequest> here;
+  CheckInChild([&] { here = check(); }, request.check_limits, c.shown, "file");
   if (!request.thumbnails) return std::nullopt;
-  return check();
+  return here ? here : check();
 }
 
 }  // namespace
