@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <unordered_set>
 
+#include "assets/gltf_bind_matrices.h"
 #include "assets/import_units.h"
 #include "process/limited_child.h"
 #include "sim_core/common/input_error.h"
@@ -81,9 +82,11 @@ void RefuseNonFiniteVertices(const aiScene& scene, const std::string& path) {
 
 /// assimp's read with `steps`, null when assimp refuses the file. The steps run after the
 /// vertices are checked: JoinIdenticalVertices would merge a vertex read as nan into another
-/// one without a word (nan compares equal to everything in its sort).
+/// one without a word (nan compares equal to everything in its sort). A glTF's skins
+/// without inverse bind matrices get them written out first (gltf_bind_matrices.h).
 const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, unsigned steps,
                            const std::string& what) {
+  ReadSkinsWithBindMatrices(importer, path);
   const auto guarded = [&](const auto& call) {
     try {
       return call();
@@ -99,7 +102,7 @@ const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, 
 
 /// Reads the file once in a child process under kAssimpReadLimits before this process does:
 /// assimp 5.2 crashes on some files (a glTF skin without inverse bind matrices, which glTF
-/// allows: SIGSEGV) and allocates without end on others (a Collada index list holding
+/// allows, did before ReadChecked wrote them out: SIGSEGV) and allocates without end on others (a Collada index list holding
 /// "nan"), which would take the calling program (the simulation server, the GUI) down with
 /// it. A file assimp reads or refuses is read again here, for its scene or its own message.
 /// Inside a limited child already (the catalogue's import check) no second child is needed.

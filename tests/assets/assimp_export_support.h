@@ -29,6 +29,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "tests/assets/import_test_support.h"
+
 namespace costume::assets::testing {
 
 /// How the CesiumMan glTF is converted.
@@ -64,13 +66,6 @@ inline std::string ConvertedName(Conversion conversion) {
 }
 
 namespace detail {
-
-inline std::string ReadBytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream all;
-  all << in.rdbuf();
-  return all.str();
-}
 
 inline void WriteBytes(const std::filesystem::path& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary) << bytes;
@@ -166,7 +161,7 @@ inline std::uint64_t CopyFbxNode(const std::string& in, std::uint64_t at, bool i
 /// Rewrites a binary FBX 7.5 file from assimp 5.2.5's exporter with the null records that
 /// close nested nodes and objects, which the exporter leaves out.
 inline void RepairBinaryFbx(const std::filesystem::path& path) {
-  const std::string in = detail::ReadBytes(path);
+  const std::string in = ReadBytes(path);
   constexpr std::uint64_t kHeader = 27;
   std::string out = in.substr(0, kHeader);
   std::uint64_t at = kHeader;
@@ -217,7 +212,7 @@ inline void ExportCesiumMan(const std::filesystem::path& source, const std::file
       if (repair) RepairBinaryFbx(target);
       break;
     case Conversion::kFbxAsciiMetresZUp:
-      text = detail::ReadBytes(target);
+      text = ReadBytes(target);
       detail::ReplaceOnce(text, "P: \"UpAxis\", \"int\", \"Integer\", \"\", 1",
                           "P: \"UpAxis\", \"int\", \"Integer\", \"\", 2");
       detail::ReplaceOnce(text, "P: \"UnitScaleFactor\", \"double\", \"Number\", \"\", 1\n",
@@ -225,7 +220,7 @@ inline void ExportCesiumMan(const std::filesystem::path& source, const std::file
       detail::WriteBytes(target, text);
       break;
     case Conversion::kColladaCentimetres:
-      text = detail::ReadBytes(target);
+      text = ReadBytes(target);
       detail::ReplaceOnce(text, "<unit name=\"meter\" meter=\"1\" />",
                           "<unit name=\"centimeter\" meter=\"0.01\" />");
       detail::WriteBytes(target, text);

@@ -33,6 +33,14 @@ inline bool HaveData(const fs::path& relative) { return fs::exists(kData / relat
                << " not present"
 
 /// A fresh folder for one test's files, removed afterwards.
+/// The bytes of the file at `source`.
+inline std::string ReadBytes(const fs::path& source) {
+  std::ifstream in(source, std::ios::binary);
+  std::ostringstream all;
+  all << in.rdbuf();
+  return all.str();
+}
+
 class ScratchDir {
  public:
   ScratchDir() {
@@ -56,10 +64,7 @@ class ScratchDir {
   }
   /// The first half of the bytes of `source`, as `name`.
   std::string WriteTruncated(const std::string& name, const fs::path& source) const {
-    std::ifstream in(source, std::ios::binary);
-    std::ostringstream all;
-    all << in.rdbuf();
-    const std::string bytes = all.str();
+    const std::string bytes = ReadBytes(source);
     return Write(name, bytes.substr(0, bytes.size() / 2));
   }
   /// `size` random bytes (fixed seed), as `name`.
