@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <unordered_set>
 
-#include "assets/gltf_bind_matrices.h"
+#include "assets/explicit_defaults.h"
 #include "assets/import_units.h"
 #include "process/limited_child.h"
 #include "sim_core/common/input_error.h"
@@ -82,11 +82,11 @@ void RefuseNonFiniteVertices(const aiScene& scene, const std::string& path) {
 
 /// assimp's read with `steps`, null when assimp refuses the file. The steps run after the
 /// vertices are checked: JoinIdenticalVertices would merge a vertex read as nan into another
-/// one without a word (nan compares equal to everything in its sort). A glTF's skins
-/// without inverse bind matrices get them written out first (gltf_bind_matrices.h).
+/// one without a word (nan compares equal to everything in its sort). What a glTF or
+/// COLLADA skin leaves to its format's defaults is written out first (explicit_defaults.h).
 const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, unsigned steps,
                            const std::string& what) {
-  ReadSkinsWithBindMatrices(importer, path);
+  ReadWithExplicitDefaults(importer, path);
   const auto guarded = [&](const auto& call) {
     try {
       return call();

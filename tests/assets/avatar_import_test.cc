@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <set>
+#include <sstream>
 
 #include "assets/skeleton_families.h"
 #include "process/limited_child.h"
@@ -318,6 +319,29 @@ TEST(AvatarImport, ASkinWithoutInverseBindMatricesHasIdentityOnes) {
                                        "\"xnverseBindMatrices\"");
   ExpectSameAvatar(*LoadAvatar(kCesiumMan.string()), *LoadAvatar(dir.Write("flipped.glb", flipped)),
                    /*rest_vertices=*/false);
+}
+
+// COLLADA lets a skin leave out its <bind_shape_matrix> (the identity); assimp 5.2 took a zero
+// matrix instead, and the avatar was refused: every bone's inverse bind matrix singular. The
+// exported CesiumMan's bind shape is the identity, so without it the body is the same.
+TEST(AvatarImport, ACOLLADASkinWithoutBindShapeMatrixHasTheIdentity) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  const fs::path with = dir.path() / "man.dae";
+  ExportCesiumMan(kCesiumMan, with, Conversion::kColladaCentimetres);
+  std::string without = ReadBytes(with);
+  const std::string open = "<bind_shape_matrix>", close = "</bind_shape_matrix>";
+  const std::size_t start = without.find(open), end = without.find(close);
+  ASSERT_NE(start, std::string::npos);
+  ASSERT_NE(end, std::string::npos);
+  std::istringstream values(without.substr(start + open.size(), end - start - open.size()));
+  for (int k = 0; k < 16; ++k) {
+    double value = -1.0;
+    values >> value;
+    ASSERT_EQ(value, k % 5 == 0 ? 1.0 : 0.0) << "bind shape entry " << k;
+  }
+  without.erase(start, end + close.size() - start);
+  ExpectSameAvatar(*LoadAvatar(with.string()), *LoadAvatar(dir.Write("without.dae", without)));
 }
 
 // assimp reads as many matrices as the skin has joints, past the end of a shorter accessor.

@@ -1,7 +1,8 @@
-#include "assets/gltf_bind_matrices.h"
+#include "assets/explicit_defaults.h"
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -191,15 +192,48 @@ std::optional<std::string> WithExplicitBindMatrices(const std::string& bytes, bo
   return binary ? AmendGlb(bytes, path) : AmendJson(bytes, path);
 }
 
-void ReadSkinsWithBindMatrices(Assimp::Importer& importer, const std::string& path) {
+std::optional<std::string> WithExplicitBindShapes(const std::string& text) {
+  static constexpr char kIdentity[] =
+      "<bind_shape_matrix>1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1</bind_shape_matrix>";
+  std::string amended;
+  std::size_t copied = 0;
+  for (std::size_t at = text.find("<skin"); at != std::string::npos;
+       at = text.find("<skin", at + 1)) {
+    const std::size_t name_end = at + 5;
+    if (name_end >= text.size() ||
+        (text[name_end] != '>' && !std::isspace(static_cast<unsigned char>(text[name_end])))) {
+      continue;  // another element whose name starts so
+    }
+    const std::size_t open_end = text.find('>', name_end);
+    if (open_end == std::string::npos) break;
+    if (text[open_end - 1] == '/') continue;  // <skin ... />: nothing to bind
+    const std::size_t close = text.find("</skin>", open_end);
+    const std::size_t shape = text.find("<bind_shape_matrix", open_end);
+    if (shape != std::string::npos && shape < close) continue;
+    // The schema puts <bind_shape_matrix> first among the skin's children.
+    amended.append(text, copied, open_end + 1 - copied);
+    amended += kIdentity;
+    copied = open_end + 1;
+  }
+  if (copied == 0) return std::nullopt;
+  amended.append(text, copied);
+  return amended;
+}
+
+void ReadWithExplicitDefaults(Assimp::Importer& importer, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  if (extension != ".gltf" && extension != ".glb") return;
+  const bool gltf = extension == ".gltf" || extension == ".glb";
+  if (!gltf && extension != ".dae") return;
   std::ifstream file(path, std::ios::binary);
   const std::string bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  // A skin is named in the JSON as "skins" (a GLB's JSON is plain text too): most files
-  // without one are passed over unparsed.
-  if (bytes.find("\"skins\"") == std::string::npos) return;
-  std::optional<std::string> amended = WithExplicitBindMatrices(bytes, extension == ".glb", path);
+  std::optional<std::string> amended;
+  if (!gltf) {
+    amended = WithExplicitBindShapes(bytes);
+  } else if (bytes.find("\"skins\"") != std::string::npos) {
+    // A skin is named in the JSON as "skins" (a GLB's JSON is plain text too): most files
+    // without one are passed over unparsed.
+    amended = WithExplicitBindMatrices(bytes, extension == ".glb", path);
+  }
   if (amended) importer.SetIOHandler(new SubstitutedFileSystem(path, std::move(*amended)));
 }
 
