@@ -28,6 +28,22 @@ std::string_view StripNamespace(std::string_view name) {
   return colon == std::string_view::npos ? name : name.substr(colon + 1);
 }
 
+/// `name` without `prefix` (compared ignoring case) when it starts so and goes on.
+std::string_view StripPrefix(std::string_view name, std::string_view prefix) {
+  return name.size() > prefix.size() && EqualIgnoringCase(name.substr(0, prefix.size()), prefix)
+             ? name.substr(prefix.size())
+             : name;
+}
+
+/// "Bip01 L Thigh" → "L Thigh": a Biped's bones carry its name, which the user may change
+/// from Max's "Bip01" / "Bip001", before their own. The biped's root is the name alone.
+std::string_view StripBipedName(std::string_view name) {
+  const std::size_t space = name.find(' ');
+  return space == std::string_view::npos || !EqualIgnoringCase(name.substr(0, 3), "bip")
+             ? name
+             : name.substr(space + 1);
+}
+
 // The tables. Left and right are the character's own (checked against the files' rest
 // positions: the left side lies at +x for a character facing +z, y up).
 
@@ -173,18 +189,91 @@ const std::vector<FamilyMapping> kDeepMimicTable = {
     {J::kRRadiocarpal, {"right_wrist"}},
 };
 
+/// Blender's human metarig: "spine" is the hips bone, its chain goes on to the head
+/// (spine.006); "shoulder.L" is the clavicle. Rigify's generated rig deforms the skin with
+/// copies of these bones named "DEF-…" (TableName drops the prefix); its control (no
+/// prefix, other names), ORG- and MCH- bones are not mapped.
+const std::vector<FamilyMapping> kBlenderTable = {
+    {J::kHumanoidRoot, {"spine"}},
+    {J::kLHip, {"thigh.L"}},
+    {J::kLKnee, {"shin.L"}},
+    {J::kLTalocrural, {"foot.L"}},
+    {J::kRHip, {"thigh.R"}},
+    {J::kRKnee, {"shin.R"}},
+    {J::kRTalocrural, {"foot.R"}},
+    {J::kVl5, {"spine.001"}},
+    {J::kVc7, {"spine.004"}},
+    {J::kSkullbase, {"spine.006"}},
+    {J::kLShoulder, {"upper_arm.L"}},
+    {J::kLElbow, {"forearm.L"}},
+    {J::kLRadiocarpal, {"hand.L"}},
+    {J::kRShoulder, {"upper_arm.R"}},
+    {J::kRElbow, {"forearm.R"}},
+    {J::kRRadiocarpal, {"hand.R"}},
+};
+
+/// Unreal's mannequins: "root" lies on the floor under the pelvis and carries root motion;
+/// the pelvis is the body's root joint. The twist bones (thigh_twist_01_l, …) are not mapped.
+const std::vector<FamilyMapping> kUnrealTable = {
+    {J::kHumanoidRoot, {"pelvis"}},
+    {J::kLHip, {"thigh_l"}},
+    {J::kLKnee, {"calf_l"}},
+    {J::kLTalocrural, {"foot_l"}},
+    {J::kRHip, {"thigh_r"}},
+    {J::kRKnee, {"calf_r"}},
+    {J::kRTalocrural, {"foot_r"}},
+    {J::kVl5, {"spine_01"}},
+    {J::kVc7, {"neck_01"}},
+    {J::kSkullbase, {"head"}},
+    {J::kLShoulder, {"upperarm_l"}},
+    {J::kLElbow, {"lowerarm_l"}},
+    {J::kLRadiocarpal, {"hand_l"}},
+    {J::kRShoulder, {"upperarm_r"}},
+    {J::kRElbow, {"lowerarm_r"}},
+    {J::kRRadiocarpal, {"hand_r"}},
+};
+
+/// 3ds Max's Biped, its names without the biped's (StripBipedName): the biped's root
+/// ("Bip01") sits at the pelvis, above the "Pelvis" bone.
+const std::vector<FamilyMapping> kMaxBipedTable = {
+    {J::kHumanoidRoot, {"Bip01", "Bip001"}},
+    {J::kSacroiliac, {"Pelvis"}},
+    {J::kLHip, {"L Thigh"}},
+    {J::kLKnee, {"L Calf"}},
+    {J::kLTalocrural, {"L Foot"}},
+    {J::kRHip, {"R Thigh"}},
+    {J::kRKnee, {"R Calf"}},
+    {J::kRTalocrural, {"R Foot"}},
+    {J::kVl5, {"Spine"}},
+    {J::kVc7, {"Neck"}},
+    {J::kSkullbase, {"Head"}},
+    {J::kLShoulder, {"L UpperArm"}},
+    {J::kLElbow, {"L Forearm"}},
+    {J::kLRadiocarpal, {"L Hand"}},
+    {J::kRShoulder, {"R UpperArm"}},
+    {J::kRElbow, {"R Forearm"}},
+    {J::kRRadiocarpal, {"R Hand"}},
+};
+
 const std::vector<FamilyMapping> kEmptyTable;
 
 /// Every family in detection order.
-constexpr std::array<SkeletonFamily, 9> kFamilies = {
+constexpr std::array<SkeletonFamily, 12> kFamilies = {
     SkeletonFamily::kHAnim,           SkeletonFamily::kCmuCgspeed, SkeletonFamily::kPoserBvh,
     SkeletonFamily::kBiovisionBvh,    SkeletonFamily::kMakeHumanDefault,
     SkeletonFamily::kMakeHumanBvh,    SkeletonFamily::kCesiumMan,  SkeletonFamily::kDeepMimic,
-    SkeletonFamily::kMixamo};
+    SkeletonFamily::kMixamo,          SkeletonFamily::kBlender,    SkeletonFamily::kUnreal,
+    SkeletonFamily::kMaxBiped};
 
-/// The name as the family's table spells it (namespace stripped for Mixamo).
+/// The name as the family's table spells it: without Mixamo's namespace, Rigify's "DEF-"
+/// or the Biped's name.
 std::string_view TableName(SkeletonFamily family, std::string_view name) {
-  return family == SkeletonFamily::kMixamo ? StripNamespace(name) : name;
+  switch (family) {
+    case SkeletonFamily::kMixamo: return StripNamespace(name);
+    case SkeletonFamily::kBlender: return StripPrefix(name, "DEF-");
+    case SkeletonFamily::kMaxBiped: return StripBipedName(name);
+    default: return name;
+  }
 }
 
 /// For each H-Anim joint, the index in `names` of the joint `family` maps onto it (-1).
@@ -238,6 +327,9 @@ std::string_view FamilyName(SkeletonFamily family) {
     case SkeletonFamily::kCesiumMan: return "glTF CesiumMan";
     case SkeletonFamily::kDeepMimic: return "DeepMimic humanoid3d";
     case SkeletonFamily::kMixamo: return "Mixamo";
+    case SkeletonFamily::kBlender: return "Blender metarig / Rigify";
+    case SkeletonFamily::kUnreal: return "Unreal mannequin";
+    case SkeletonFamily::kMaxBiped: return "3ds Max Biped";
   }
   return "unknown";
 }
@@ -252,6 +344,9 @@ const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family) {
     case SkeletonFamily::kMakeHumanBvh: return kMakeHumanBvhTable;
     case SkeletonFamily::kCesiumMan: return kCesiumManTable;
     case SkeletonFamily::kDeepMimic: return kDeepMimicTable;
+    case SkeletonFamily::kBlender: return kBlenderTable;
+    case SkeletonFamily::kUnreal: return kUnrealTable;
+    case SkeletonFamily::kMaxBiped: return kMaxBipedTable;
     case SkeletonFamily::kUnknown:
     case SkeletonFamily::kHAnim: return kEmptyTable;
   }

@@ -43,6 +43,18 @@ enum class SkeletonFamily {
   kDeepMimic,
   /// Mixamo rigs: "mixamorig:Hips", "mixamorig:LeftUpLeg", … (any "prefix:" namespace).
   kMixamo,
+  /// Blender's human metarig (Blender 2.8 and later) and the deform bones Rigify generates
+  /// from it ("DEF-" dropped): spine (the hips), spine.001 … spine.006 (the head), thigh.L,
+  /// shin.L, foot.L, shoulder.L (the clavicle), upper_arm.L, forearm.L, hand.L.
+  kBlender,
+  /// Unreal Engine's mannequins (UE4; UE5's Manny and Quinn): root (on the floor), pelvis,
+  /// spine_01 …, neck_01, head, thigh_l, calf_l, foot_l, clavicle_l, upperarm_l,
+  /// lowerarm_l, hand_l.
+  kUnreal,
+  /// 3ds Max's Biped, any biped name ("Bip01", "Bip001"): Bip01, Bip01 Pelvis, Bip01 Spine,
+  /// Bip01 Neck, Bip01 Head, Bip01 L Thigh, Bip01 L Calf, Bip01 L Foot, Bip01 L Clavicle,
+  /// Bip01 L UpperArm, Bip01 L Forearm, Bip01 L Hand.
+  kMaxBiped,
 };
 
 /// The family's name for messages and docs ("CMU BVH (cgspeed)").
@@ -60,7 +72,8 @@ struct FamilyMapping {
 const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family);
 
 /// The H-Anim joint that `joint_name` is in `family`, or nullopt. For kMixamo, a namespace
-/// prefix ending in ':' ("mixamorig:", "mixamorig1:") is ignored.
+/// prefix ending in ':' ("mixamorig:", "mixamorig1:") is ignored; for kBlender, Rigify's
+/// "DEF-"; for kMaxBiped, the biped's name before the first space ("Bip01 ").
 /// Note: a table row with several names maps only the first present in a skeleton; this
 /// function answers for one name alone and so accepts any of them.
 std::optional<sim::HAnimJoint> LookUpJoint(SkeletonFamily family, std::string_view joint_name);

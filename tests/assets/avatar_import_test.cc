@@ -136,6 +136,45 @@ TEST(AvatarImport, CesiumManConvertedToFbxAndColladaMatchesTheGlb) {
   }
 }
 
+// CesiumMan with its joints renamed as Rigify names the deform bones of a Blender rig: the
+// importer finds the Blender family in the file and maps the same joints onto H-Anim.
+TEST(AvatarImport, ARigNamedAsBlendersMapsAsTheOriginal) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  const fs::path original = dir.path() / "man.dae";
+  ExportCesiumMan(kCesiumMan, original, Conversion::kColladaCentimetres);
+  std::string text = ReadBytes(original);
+  // Longer names first: "Skeleton_arm_joint_R" begins two others.
+  const std::pair<std::string, std::string> kRenames[] = {
+      {"Skeleton_arm_joint_R__2_", "DEF-forearm.R"}, {"Skeleton_arm_joint_R__3_", "DEF-hand.R"},
+      {"Skeleton_arm_joint_R", "DEF-upper_arm.R"},   {"Skeleton_arm_joint_L__4_", "DEF-upper_arm.L"},
+      {"Skeleton_arm_joint_L__3_", "DEF-forearm.L"}, {"Skeleton_arm_joint_L__2_", "DEF-hand.L"},
+      {"Skeleton_torso_joint_1", "DEF-spine"},       {"Skeleton_torso_joint_2", "DEF-spine.001"},
+      {"Skeleton_neck_joint_1", "DEF-spine.004"},    {"Skeleton_neck_joint_2", "DEF-spine.006"},
+      {"leg_joint_L_1", "DEF-thigh.L"},              {"leg_joint_L_2", "DEF-shin.L"},
+      {"leg_joint_L_3", "DEF-foot.L"},               {"leg_joint_R_1", "DEF-thigh.R"},
+      {"leg_joint_R_2", "DEF-shin.R"},               {"leg_joint_R_3", "DEF-foot.R"}};
+  for (const auto& [from, to] : kRenames) {
+    int replaced = 0;
+    for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at)) {
+      text.replace(at, from.size(), to);
+      ++replaced;
+    }
+    EXPECT_GT(replaced, 0) << from;
+  }
+  const auto expected = LoadAvatar(original.string());
+  const auto renamed = LoadAvatar(dir.Write("rigify.dae", text));
+  for (sim::HAnimJoint joint : sim::AllHAnimJoints()) {
+    const int e = expected->skeleton().Find(joint), r = renamed->skeleton().Find(joint);
+    ASSERT_EQ(r < 0, e < 0) << sim::HAnimName(joint);
+    if (e < 0) continue;
+    EXPECT_EQ(renamed->skeleton().joint(r).name.substr(0, 4), "DEF-") << sim::HAnimName(joint);
+    EXPECT_LT((renamed->skeleton().rest_world()[r].translation() -
+               expected->skeleton().rest_world()[e].translation()).norm(), 1e-9)
+        << sim::HAnimName(joint);
+  }
+}
+
 TEST(AvatarImport, TruncatedConvertedFilesThrowNamingTheFile) {
   SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
   ScratchDir dir;

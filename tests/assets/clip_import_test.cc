@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -478,6 +479,108 @@ TEST(SkeletonFamilies, DetectsEachFamilyFromRealNames) {
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kBiovisionBvh, "LeftShoulder"), HAnimJoint::kLShoulder);
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kCmuCgspeed, "LeftShoulder"), std::nullopt);
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kMixamo, "mixamorig1:LeftArm"), HAnimJoint::kLShoulder);
+}
+
+/// The name of the joint each H-Anim id lands on when `family` maps joints named `names`,
+/// and (in `count`) the number mapped.
+std::map<HAnimJoint, std::string> Mapped(SkeletonFamily family,
+                                         const std::vector<std::string>& names, int& count) {
+  std::vector<sim::Joint> joints(names.size());
+  for (std::size_t j = 0; j < names.size(); ++j) joints[j].name = names[j];
+  count = ApplyFamily(family, joints);
+  std::map<HAnimJoint, std::string> mapped;
+  for (const sim::Joint& joint : joints) {
+    if (joint.hanim) mapped[*joint.hanim] = joint.name;
+  }
+  return mapped;
+}
+
+/// Both sides of each name holding `{side}`, with `left` and `right` put in its place.
+std::vector<std::string> Sided(const std::vector<std::string>& names, const std::string& left,
+                               const std::string& right) {
+  std::vector<std::string> all;
+  for (const std::string& name : names) {
+    const std::size_t at = name.find("{side}");
+    if (at == std::string::npos) {
+      all.push_back(name);
+      continue;
+    }
+    for (const std::string& side : {left, right}) all.push_back(std::string(name).replace(at, 6, side));
+  }
+  return all;
+}
+
+// The rigs of the tools a designer's avatar most likely comes from, named as those tools
+// name their bones (Blender's human metarig and the rig Rigify generates from it, with its
+// control, ORG- and MCH- bones beside the DEF- bones that hold the skin; Unreal's UE5
+// mannequin; a 3ds Max Biped): each is detected, and the joints that bend the skin map.
+TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnrealAnd3dsMax) {
+  const std::vector<std::string> rigify = Sided(
+      {"root", "torso", "hips", "chest", "MCH-spine", "ORG-spine", "ORG-thigh{side}",
+       "ORG-shin{side}", "thigh_fk{side}", "thigh_ik{side}", "foot_ik{side}", "hand_ik{side}",
+       "upper_arm_fk{side}", "DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003",
+       "DEF-spine.004", "DEF-spine.005", "DEF-spine.006", "DEF-thigh{side}",
+       "DEF-thigh{side}.001", "DEF-shin{side}", "DEF-shin{side}.001", "DEF-foot{side}",
+       "DEF-toe{side}", "DEF-shoulder{side}", "DEF-upper_arm{side}", "DEF-upper_arm{side}.001",
+       "DEF-forearm{side}", "DEF-forearm{side}.001", "DEF-hand{side}"},
+      ".L", ".R");
+  EXPECT_EQ(DetectFamily(rigify), SkeletonFamily::kBlender);
+  int count = 0;
+  std::map<HAnimJoint, std::string> mapped = Mapped(SkeletonFamily::kBlender, rigify, count);
+  EXPECT_EQ(count, 16);
+  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "DEF-spine");
+  EXPECT_EQ(mapped[HAnimJoint::kVl5], "DEF-spine.001");
+  EXPECT_EQ(mapped[HAnimJoint::kVc7], "DEF-spine.004");
+  EXPECT_EQ(mapped[HAnimJoint::kSkullbase], "DEF-spine.006");
+  EXPECT_EQ(mapped[HAnimJoint::kLHip], "DEF-thigh.L");
+  EXPECT_EQ(mapped[HAnimJoint::kRKnee], "DEF-shin.R");
+  EXPECT_EQ(mapped[HAnimJoint::kLShoulder], "DEF-upper_arm.L");
+  EXPECT_EQ(mapped[HAnimJoint::kRElbow], "DEF-forearm.R");
+  EXPECT_EQ(mapped[HAnimJoint::kLRadiocarpal], "DEF-hand.L");
+
+  const std::vector<std::string> metarig = Sided(
+      {"spine", "spine.001", "spine.002", "spine.003", "spine.004", "spine.005", "spine.006",
+       "pelvis{side}", "thigh{side}", "shin{side}", "foot{side}", "toe{side}", "heel.02{side}",
+       "breast{side}", "shoulder{side}", "upper_arm{side}", "forearm{side}", "hand{side}"},
+      ".L", ".R");
+  EXPECT_EQ(DetectFamily(metarig), SkeletonFamily::kBlender);
+  mapped = Mapped(SkeletonFamily::kBlender, metarig, count);
+  EXPECT_EQ(count, 16);
+  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "spine");
+  EXPECT_EQ(mapped[HAnimJoint::kRTalocrural], "foot.R");
+
+  const std::vector<std::string> unreal = Sided(
+      {"root", "pelvis", "spine_01", "spine_02", "spine_03", "spine_04", "spine_05", "neck_01",
+       "neck_02", "head", "clavicle{side}", "upperarm{side}", "upperarm_twist_01{side}",
+       "lowerarm{side}", "lowerarm_twist_01{side}", "hand{side}", "thigh{side}",
+       "thigh_twist_01{side}", "calf{side}", "calf_twist_01{side}", "foot{side}", "ball{side}",
+       "ik_foot_root", "ik_hand_root"},
+      "_l", "_r");
+  EXPECT_EQ(DetectFamily(unreal), SkeletonFamily::kUnreal);
+  mapped = Mapped(SkeletonFamily::kUnreal, unreal, count);
+  EXPECT_EQ(count, 16);
+  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "pelvis");  // not the root on the floor
+  EXPECT_EQ(mapped[HAnimJoint::kLKnee], "calf_l");
+  EXPECT_EQ(mapped[HAnimJoint::kRShoulder], "upperarm_r");
+  EXPECT_EQ(mapped[HAnimJoint::kVc7], "neck_01");
+
+  const std::vector<std::string> biped = Sided(
+      {"Bip001", "Bip001 Pelvis", "Bip001 Spine", "Bip001 Spine1", "Bip001 Neck", "Bip001 Head",
+       "Bip001 {side} Clavicle", "Bip001 {side} UpperArm", "Bip001 {side} Forearm",
+       "Bip001 {side} Hand", "Bip001 {side} Finger0", "Bip001 {side} Thigh",
+       "Bip001 {side} Calf", "Bip001 {side} Foot", "Bip001 {side} Toe0"},
+      "L", "R");
+  EXPECT_EQ(DetectFamily(biped), SkeletonFamily::kMaxBiped);
+  mapped = Mapped(SkeletonFamily::kMaxBiped, biped, count);
+  EXPECT_EQ(count, 17);
+  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "Bip001");
+  EXPECT_EQ(mapped[HAnimJoint::kSacroiliac], "Bip001 Pelvis");
+  EXPECT_EQ(mapped[HAnimJoint::kVl5], "Bip001 Spine");
+  EXPECT_EQ(mapped[HAnimJoint::kLHip], "Bip001 L Thigh");
+  EXPECT_EQ(mapped[HAnimJoint::kRRadiocarpal], "Bip001 R Hand");
+  // A biped renamed in Max keeps its bones' own names after its name.
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kMaxBiped, "Bip02 L Calf"), HAnimJoint::kLKnee);
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kBlender, "ORG-thigh.L"), std::nullopt);
 }
 
 }  // namespace
