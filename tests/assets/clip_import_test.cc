@@ -516,7 +516,8 @@ std::vector<std::string> Sided(const std::vector<std::string>& names, const std:
 // mannequin; a 3ds Max Biped): each is detected, and the joints that bend the skin map.
 TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnrealAnd3dsMax) {
   const std::vector<std::string> rigify = Sided(
-      {"root", "torso", "hips", "chest", "MCH-spine", "ORG-spine", "ORG-thigh{side}",
+      {"root", "torso", "hips", "chest", "neck", "head", "shoulder{side}", "spine_fk",
+       "spine_fk.001", "MCH-spine", "ORG-spine", "ORG-thigh{side}",
        "ORG-shin{side}", "thigh_fk{side}", "thigh_ik{side}", "foot_ik{side}", "hand_ik{side}",
        "upper_arm_fk{side}", "DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003",
        "DEF-spine.004", "DEF-spine.005", "DEF-spine.006", "DEF-thigh{side}",
