@@ -255,15 +255,36 @@ const std::vector<FamilyMapping> kMaxBipedTable = {
     {J::kRRadiocarpal, {"R Hand"}},
 };
 
+/// VRoid Studio: "J_Bip_" bones form the humanoid ("C" centre, "L", "R"); "J_Sec_" (hair,
+/// skirt) and "J_Adj_" (face) bones are not mapped.
+const std::vector<FamilyMapping> kVRoidTable = {
+    {J::kHumanoidRoot, {"J_Bip_C_Hips"}},
+    {J::kLHip, {"J_Bip_L_UpperLeg"}},
+    {J::kLKnee, {"J_Bip_L_LowerLeg"}},
+    {J::kLTalocrural, {"J_Bip_L_Foot"}},
+    {J::kRHip, {"J_Bip_R_UpperLeg"}},
+    {J::kRKnee, {"J_Bip_R_LowerLeg"}},
+    {J::kRTalocrural, {"J_Bip_R_Foot"}},
+    {J::kVl5, {"J_Bip_C_Spine"}},
+    {J::kVc7, {"J_Bip_C_Neck"}},
+    {J::kSkullbase, {"J_Bip_C_Head"}},
+    {J::kLShoulder, {"J_Bip_L_UpperArm"}},
+    {J::kLElbow, {"J_Bip_L_LowerArm"}},
+    {J::kLRadiocarpal, {"J_Bip_L_Hand"}},
+    {J::kRShoulder, {"J_Bip_R_UpperArm"}},
+    {J::kRElbow, {"J_Bip_R_LowerArm"}},
+    {J::kRRadiocarpal, {"J_Bip_R_Hand"}},
+};
+
 const std::vector<FamilyMapping> kEmptyTable;
 
 /// Every family in detection order.
-constexpr std::array<SkeletonFamily, 12> kFamilies = {
+constexpr std::array<SkeletonFamily, 13> kFamilies = {
     SkeletonFamily::kHAnim,           SkeletonFamily::kCmuCgspeed, SkeletonFamily::kPoserBvh,
     SkeletonFamily::kBiovisionBvh,    SkeletonFamily::kMakeHumanDefault,
     SkeletonFamily::kMakeHumanBvh,    SkeletonFamily::kCesiumMan,  SkeletonFamily::kDeepMimic,
     SkeletonFamily::kMixamo,          SkeletonFamily::kBlender,    SkeletonFamily::kUnreal,
-    SkeletonFamily::kMaxBiped};
+    SkeletonFamily::kMaxBiped,        SkeletonFamily::kVRoid};
 
 /// The name as the family's table spells it: without Mixamo's namespace, Rigify's "DEF-"
 /// or the Biped's name.
@@ -330,6 +351,7 @@ std::string_view FamilyName(SkeletonFamily family) {
     case SkeletonFamily::kBlender: return "Blender metarig / Rigify";
     case SkeletonFamily::kUnreal: return "Unreal mannequin";
     case SkeletonFamily::kMaxBiped: return "3ds Max Biped";
+    case SkeletonFamily::kVRoid: return "VRoid (VRM)";
   }
   return "unknown";
 }
@@ -347,6 +369,7 @@ const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family) {
     case SkeletonFamily::kBlender: return kBlenderTable;
     case SkeletonFamily::kUnreal: return kUnrealTable;
     case SkeletonFamily::kMaxBiped: return kMaxBipedTable;
+    case SkeletonFamily::kVRoid: return kVRoidTable;
     case SkeletonFamily::kUnknown:
     case SkeletonFamily::kHAnim: return kEmptyTable;
   }

@@ -55,6 +55,10 @@ enum class SkeletonFamily {
   /// Bip01 Neck, Bip01 Head, Bip01 L Thigh, Bip01 L Calf, Bip01 L Foot, Bip01 L Clavicle,
   /// Bip01 L UpperArm, Bip01 L Forearm, Bip01 L Hand.
   kMaxBiped,
+  /// VRoid Studio's VRM avatars: J_Bip_C_Hips, J_Bip_C_Spine, J_Bip_C_Chest, J_Bip_C_Neck,
+  /// J_Bip_C_Head, J_Bip_L_UpperLeg, J_Bip_L_LowerLeg, J_Bip_L_Foot, J_Bip_L_Shoulder (the
+  /// clavicle), J_Bip_L_UpperArm, J_Bip_L_LowerArm, J_Bip_L_Hand.
+  kVRoid,
 };
 
 /// The family's name for messages and docs ("CMU BVH (cgspeed)").

@@ -513,8 +513,9 @@ std::vector<std::string> Sided(const std::vector<std::string>& names, const std:
 // The rigs of the tools a designer's avatar most likely comes from, named as those tools
 // name their bones (Blender's human metarig and the rig Rigify generates from it, with its
 // control, ORG- and MCH- bones beside the DEF- bones that hold the skin; Unreal's UE5
-// mannequin; a 3ds Max Biped): each is detected, and the joints that bend the skin map.
-TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnrealAnd3dsMax) {
+// mannequin; a 3ds Max Biped; a VRoid Studio avatar with hair and skirt bones): each is
+// detected, and the joints that bend the skin map.
+TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnreal3dsMaxAndVRoid) {
   const std::vector<std::string> rigify = Sided(
       {"root", "torso", "hips", "chest", "neck", "head", "shoulder{side}", "spine_fk",
        "spine_fk.001", "MCH-spine", "ORG-spine", "ORG-thigh{side}",
@@ -579,6 +580,19 @@ TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnrealAnd3dsMax) {
   EXPECT_EQ(mapped[HAnimJoint::kVl5], "Bip001 Spine");
   EXPECT_EQ(mapped[HAnimJoint::kLHip], "Bip001 L Thigh");
   EXPECT_EQ(mapped[HAnimJoint::kRRadiocarpal], "Bip001 R Hand");
+  const std::vector<std::string> vroid = Sided(
+      {"Root", "J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest",
+       "J_Bip_C_Neck", "J_Bip_C_Head", "J_Adj_L_FaceEye", "J_Bip_{side}_Shoulder",
+       "J_Bip_{side}_UpperArm", "J_Bip_{side}_LowerArm", "J_Bip_{side}_Hand",
+       "J_Bip_{side}_UpperLeg", "J_Bip_{side}_LowerLeg", "J_Bip_{side}_Foot",
+       "J_Bip_{side}_ToeBase", "J_Sec_Hair1_01", "J_Sec_{side}_SkirtBack0_01"},
+      "L", "R");
+  EXPECT_EQ(DetectFamily(vroid), SkeletonFamily::kVRoid);
+  mapped = Mapped(SkeletonFamily::kVRoid, vroid, count);
+  EXPECT_EQ(count, 16);
+  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "J_Bip_C_Hips");
+  EXPECT_EQ(mapped[HAnimJoint::kRShoulder], "J_Bip_R_UpperArm");
+  EXPECT_EQ(mapped[HAnimJoint::kLTalocrural], "J_Bip_L_Foot");
   // A biped renamed in Max keeps its bones' own names after its name.
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kMaxBiped, "Bip02 L Calf"), HAnimJoint::kLKnee);
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kBlender, "ORG-thigh.L"), std::nullopt);
