@@ -136,13 +136,19 @@ TEST(AvatarImport, CesiumManConvertedToFbxAndColladaMatchesTheGlb) {
   }
 }
 
+/// CesiumMan exported as COLLADA into `dir` (assimp_export_support.h).
+fs::path ExportedCollada(const ScratchDir& dir) {
+  const fs::path file = dir.path() / "man.dae";
+  ExportCesiumMan(kCesiumMan, file, Conversion::kColladaCentimetres);
+  return file;
+}
+
 // CesiumMan with its joints renamed as Rigify names the deform bones of a Blender rig: the
 // importer finds the Blender family in the file and maps the same joints onto H-Anim.
 TEST(AvatarImport, ARigNamedAsBlendersMapsAsTheOriginal) {
   SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
   ScratchDir dir;
-  const fs::path original = dir.path() / "man.dae";
-  ExportCesiumMan(kCesiumMan, original, Conversion::kColladaCentimetres);
+  const fs::path original = ExportedCollada(dir);
   std::string text = ReadBytes(original);
   // Longer names first: "Skeleton_arm_joint_R" begins two others.
   const std::pair<std::string, std::string> kRenames[] = {
@@ -366,8 +372,7 @@ TEST(AvatarImport, ASkinWithoutInverseBindMatricesHasIdentityOnes) {
 TEST(AvatarImport, ACOLLADASkinWithoutBindShapeMatrixHasTheIdentity) {
   SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
   ScratchDir dir;
-  const fs::path with = dir.path() / "man.dae";
-  ExportCesiumMan(kCesiumMan, with, Conversion::kColladaCentimetres);
+  const fs::path with = ExportedCollada(dir);
   std::string without = ReadBytes(with);
   const std::string open = "<bind_shape_matrix>", close = "</bind_shape_matrix>";
   const std::size_t start = without.find(open), end = without.find(close);

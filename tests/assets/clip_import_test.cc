@@ -510,89 +510,90 @@ std::vector<std::string> Sided(const std::vector<std::string>& names, const std:
   return all;
 }
 
+/// A rig as a tool names its joints, and what its family should map.
+struct ToolRig {
+  const char* tool;
+  SkeletonFamily family;
+  std::vector<std::string> names;
+  int num_mapped;
+  std::vector<std::pair<HAnimJoint, std::string>> expected;
+};
+
 // The rigs of the tools a designer's avatar most likely comes from, named as those tools
 // name their bones (Blender's human metarig and the rig Rigify generates from it, with its
 // control, ORG- and MCH- bones beside the DEF- bones that hold the skin; Unreal's UE5
 // mannequin; a 3ds Max Biped; a VRoid Studio avatar with hair and skirt bones): each is
 // detected, and the joints that bend the skin map.
 TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnreal3dsMaxAndVRoid) {
-  const std::vector<std::string> rigify = Sided(
-      {"root", "torso", "hips", "chest", "neck", "head", "shoulder{side}", "spine_fk",
-       "spine_fk.001", "MCH-spine", "ORG-spine", "ORG-thigh{side}",
-       "ORG-shin{side}", "thigh_fk{side}", "thigh_ik{side}", "foot_ik{side}", "hand_ik{side}",
-       "upper_arm_fk{side}", "DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003",
-       "DEF-spine.004", "DEF-spine.005", "DEF-spine.006", "DEF-thigh{side}",
-       "DEF-thigh{side}.001", "DEF-shin{side}", "DEF-shin{side}.001", "DEF-foot{side}",
-       "DEF-toe{side}", "DEF-shoulder{side}", "DEF-upper_arm{side}", "DEF-upper_arm{side}.001",
-       "DEF-forearm{side}", "DEF-forearm{side}.001", "DEF-hand{side}"},
-      ".L", ".R");
-  EXPECT_EQ(DetectFamily(rigify), SkeletonFamily::kBlender);
-  int count = 0;
-  std::map<HAnimJoint, std::string> mapped = Mapped(SkeletonFamily::kBlender, rigify, count);
-  EXPECT_EQ(count, 16);
-  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "DEF-spine");
-  EXPECT_EQ(mapped[HAnimJoint::kVl5], "DEF-spine.001");
-  EXPECT_EQ(mapped[HAnimJoint::kVc7], "DEF-spine.004");
-  EXPECT_EQ(mapped[HAnimJoint::kSkullbase], "DEF-spine.006");
-  EXPECT_EQ(mapped[HAnimJoint::kLHip], "DEF-thigh.L");
-  EXPECT_EQ(mapped[HAnimJoint::kRKnee], "DEF-shin.R");
-  EXPECT_EQ(mapped[HAnimJoint::kLShoulder], "DEF-upper_arm.L");
-  EXPECT_EQ(mapped[HAnimJoint::kRElbow], "DEF-forearm.R");
-  EXPECT_EQ(mapped[HAnimJoint::kLRadiocarpal], "DEF-hand.L");
-
-  const std::vector<std::string> metarig = Sided(
-      {"spine", "spine.001", "spine.002", "spine.003", "spine.004", "spine.005", "spine.006",
-       "pelvis{side}", "thigh{side}", "shin{side}", "foot{side}", "toe{side}", "heel.02{side}",
-       "breast{side}", "shoulder{side}", "upper_arm{side}", "forearm{side}", "hand{side}"},
-      ".L", ".R");
-  EXPECT_EQ(DetectFamily(metarig), SkeletonFamily::kBlender);
-  mapped = Mapped(SkeletonFamily::kBlender, metarig, count);
-  EXPECT_EQ(count, 16);
-  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "spine");
-  EXPECT_EQ(mapped[HAnimJoint::kRTalocrural], "foot.R");
-
-  const std::vector<std::string> unreal = Sided(
-      {"root", "pelvis", "spine_01", "spine_02", "spine_03", "spine_04", "spine_05", "neck_01",
-       "neck_02", "head", "clavicle{side}", "upperarm{side}", "upperarm_twist_01{side}",
-       "lowerarm{side}", "lowerarm_twist_01{side}", "hand{side}", "thigh{side}",
-       "thigh_twist_01{side}", "calf{side}", "calf_twist_01{side}", "foot{side}", "ball{side}",
-       "ik_foot_root", "ik_hand_root"},
-      "_l", "_r");
-  EXPECT_EQ(DetectFamily(unreal), SkeletonFamily::kUnreal);
-  mapped = Mapped(SkeletonFamily::kUnreal, unreal, count);
-  EXPECT_EQ(count, 16);
-  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "pelvis");  // not the root on the floor
-  EXPECT_EQ(mapped[HAnimJoint::kLKnee], "calf_l");
-  EXPECT_EQ(mapped[HAnimJoint::kRShoulder], "upperarm_r");
-  EXPECT_EQ(mapped[HAnimJoint::kVc7], "neck_01");
-
-  const std::vector<std::string> biped = Sided(
-      {"Bip001", "Bip001 Pelvis", "Bip001 Spine", "Bip001 Spine1", "Bip001 Neck", "Bip001 Head",
-       "Bip001 {side} Clavicle", "Bip001 {side} UpperArm", "Bip001 {side} Forearm",
-       "Bip001 {side} Hand", "Bip001 {side} Finger0", "Bip001 {side} Thigh",
-       "Bip001 {side} Calf", "Bip001 {side} Foot", "Bip001 {side} Toe0"},
-      "L", "R");
-  EXPECT_EQ(DetectFamily(biped), SkeletonFamily::kMaxBiped);
-  mapped = Mapped(SkeletonFamily::kMaxBiped, biped, count);
-  EXPECT_EQ(count, 17);
-  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "Bip001");
-  EXPECT_EQ(mapped[HAnimJoint::kSacroiliac], "Bip001 Pelvis");
-  EXPECT_EQ(mapped[HAnimJoint::kVl5], "Bip001 Spine");
-  EXPECT_EQ(mapped[HAnimJoint::kLHip], "Bip001 L Thigh");
-  EXPECT_EQ(mapped[HAnimJoint::kRRadiocarpal], "Bip001 R Hand");
-  const std::vector<std::string> vroid = Sided(
-      {"Root", "J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest",
-       "J_Bip_C_Neck", "J_Bip_C_Head", "J_Adj_L_FaceEye", "J_Bip_{side}_Shoulder",
-       "J_Bip_{side}_UpperArm", "J_Bip_{side}_LowerArm", "J_Bip_{side}_Hand",
-       "J_Bip_{side}_UpperLeg", "J_Bip_{side}_LowerLeg", "J_Bip_{side}_Foot",
-       "J_Bip_{side}_ToeBase", "J_Sec_Hair1_01", "J_Sec_{side}_SkirtBack0_01"},
-      "L", "R");
-  EXPECT_EQ(DetectFamily(vroid), SkeletonFamily::kVRoid);
-  mapped = Mapped(SkeletonFamily::kVRoid, vroid, count);
-  EXPECT_EQ(count, 16);
-  EXPECT_EQ(mapped[HAnimJoint::kHumanoidRoot], "J_Bip_C_Hips");
-  EXPECT_EQ(mapped[HAnimJoint::kRShoulder], "J_Bip_R_UpperArm");
-  EXPECT_EQ(mapped[HAnimJoint::kLTalocrural], "J_Bip_L_Foot");
+  using H = HAnimJoint;
+  const ToolRig rigs[] = {
+      {"Rigify", SkeletonFamily::kBlender,
+       Sided({"root", "torso", "hips", "chest", "neck", "head", "shoulder{side}", "spine_fk",
+              "spine_fk.001", "MCH-spine", "ORG-spine", "ORG-thigh{side}", "ORG-shin{side}",
+              "thigh_fk{side}", "thigh_ik{side}", "foot_ik{side}", "hand_ik{side}",
+              "upper_arm_fk{side}", "DEF-spine", "DEF-spine.001", "DEF-spine.002",
+              "DEF-spine.003", "DEF-spine.004", "DEF-spine.005", "DEF-spine.006",
+              "DEF-thigh{side}", "DEF-thigh{side}.001", "DEF-shin{side}", "DEF-shin{side}.001",
+              "DEF-foot{side}", "DEF-toe{side}", "DEF-shoulder{side}", "DEF-upper_arm{side}",
+              "DEF-upper_arm{side}.001", "DEF-forearm{side}", "DEF-forearm{side}.001",
+              "DEF-hand{side}"},
+             ".L", ".R"),
+       16,
+       {{H::kHumanoidRoot, "DEF-spine"}, {H::kVl5, "DEF-spine.001"}, {H::kVc7, "DEF-spine.004"},
+        {H::kSkullbase, "DEF-spine.006"}, {H::kLHip, "DEF-thigh.L"}, {H::kRKnee, "DEF-shin.R"},
+        {H::kLShoulder, "DEF-upper_arm.L"}, {H::kRElbow, "DEF-forearm.R"},
+        {H::kLRadiocarpal, "DEF-hand.L"}}},
+      {"Blender metarig", SkeletonFamily::kBlender,
+       Sided({"spine", "spine.001", "spine.002", "spine.003", "spine.004", "spine.005",
+              "spine.006", "pelvis{side}", "thigh{side}", "shin{side}", "foot{side}",
+              "toe{side}", "heel.02{side}", "breast{side}", "shoulder{side}", "upper_arm{side}",
+              "forearm{side}", "hand{side}"},
+             ".L", ".R"),
+       16, {{H::kHumanoidRoot, "spine"}, {H::kRTalocrural, "foot.R"}}},
+      {"Unreal UE5", SkeletonFamily::kUnreal,
+       Sided({"root", "pelvis", "spine_01", "spine_02", "spine_03", "spine_04", "spine_05",
+              "neck_01", "neck_02", "head", "clavicle{side}", "upperarm{side}",
+              "upperarm_twist_01{side}", "lowerarm{side}", "lowerarm_twist_01{side}",
+              "hand{side}", "thigh{side}", "thigh_twist_01{side}", "calf{side}",
+              "calf_twist_01{side}", "foot{side}", "ball{side}", "ik_foot_root",
+              "ik_hand_root"},
+             "_l", "_r"),
+       16,
+       // The pelvis, not the root on the floor.
+       {{H::kHumanoidRoot, "pelvis"}, {H::kLKnee, "calf_l"}, {H::kRShoulder, "upperarm_r"},
+        {H::kVc7, "neck_01"}}},
+      {"3ds Max Biped", SkeletonFamily::kMaxBiped,
+       Sided({"Bip001", "Bip001 Pelvis", "Bip001 Spine", "Bip001 Spine1", "Bip001 Neck",
+              "Bip001 Head", "Bip001 {side} Clavicle", "Bip001 {side} UpperArm",
+              "Bip001 {side} Forearm", "Bip001 {side} Hand", "Bip001 {side} Finger0",
+              "Bip001 {side} Thigh", "Bip001 {side} Calf", "Bip001 {side} Foot",
+              "Bip001 {side} Toe0"},
+             "L", "R"),
+       17,
+       {{H::kHumanoidRoot, "Bip001"}, {H::kSacroiliac, "Bip001 Pelvis"},
+        {H::kVl5, "Bip001 Spine"}, {H::kLHip, "Bip001 L Thigh"},
+        {H::kRRadiocarpal, "Bip001 R Hand"}}},
+      {"VRoid Studio", SkeletonFamily::kVRoid,
+       Sided({"Root", "J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest",
+              "J_Bip_C_Neck", "J_Bip_C_Head", "J_Adj_L_FaceEye", "J_Bip_{side}_Shoulder",
+              "J_Bip_{side}_UpperArm", "J_Bip_{side}_LowerArm", "J_Bip_{side}_Hand",
+              "J_Bip_{side}_UpperLeg", "J_Bip_{side}_LowerLeg", "J_Bip_{side}_Foot",
+              "J_Bip_{side}_ToeBase", "J_Sec_Hair1_01", "J_Sec_{side}_SkirtBack0_01"},
+             "L", "R"),
+       16,
+       {{H::kHumanoidRoot, "J_Bip_C_Hips"}, {H::kRShoulder, "J_Bip_R_UpperArm"},
+        {H::kLTalocrural, "J_Bip_L_Foot"}}},
+  };
+  for (const ToolRig& rig : rigs) {
+    SCOPED_TRACE(rig.tool);
+    EXPECT_EQ(DetectFamily(rig.names), rig.family);
+    int count = 0;
+    std::map<HAnimJoint, std::string> mapped = Mapped(rig.family, rig.names, count);
+    EXPECT_EQ(count, rig.num_mapped);
+    for (const auto& [joint, name] : rig.expected) {
+      EXPECT_EQ(mapped[joint], name) << sim::HAnimName(joint);
+    }
+  }
   // A biped renamed in Max keeps its bones' own names after its name.
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kMaxBiped, "Bip02 L Calf"), HAnimJoint::kLKnee);
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kBlender, "ORG-thigh.L"), std::nullopt);
