@@ -10,7 +10,7 @@
 #include <filesystem>
 #include <unordered_set>
 
-#include "assets/explicit_defaults.h"
+#include "assets/assimp_input.h"
 #include "assets/import_units.h"
 #include "process/limited_child.h"
 #include "sim_core/common/input_error.h"
@@ -82,11 +82,11 @@ void RefuseNonFiniteVertices(const aiScene& scene, const std::string& path) {
 
 /// assimp's read with `steps`, null when assimp refuses the file. The steps run after the
 /// vertices are checked: JoinIdenticalVertices would merge a vertex read as nan into another
-/// one without a word (nan compares equal to everything in its sort). What a glTF or
-/// COLLADA skin leaves to its format's defaults is written out first (explicit_defaults.h).
+/// one without a word (nan compares equal to everything in its sort). assimp reads the
+/// file as assimp_input.h prepares it (a VRM as a GLB, format defaults written out).
 const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, unsigned steps,
                            const std::string& what) {
-  ReadWithExplicitDefaults(importer, path);
+  const std::string name = PrepareAssimpInput(importer, path);
   const auto guarded = [&](const auto& call) {
     try {
       return call();
@@ -94,7 +94,7 @@ const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, 
       throw sim::InputError(path + ": cannot read the " + what + ": " + e.what());
     }
   };
-  const aiScene* scene = guarded([&] { return importer.ReadFile(path, 0); });
+  const aiScene* scene = guarded([&] { return importer.ReadFile(name, 0); });
   if (scene == nullptr) return nullptr;
   RefuseNonFiniteVertices(*scene, path);
   return guarded([&] { return importer.ApplyPostProcessing(steps); });
@@ -169,7 +169,9 @@ Eigen::Isometry3d RigidPart(const Eigen::Matrix4d& transform) {
 
 double DeclaredMetresPerUnit(const aiScene& scene, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  if (extension == ".gltf" || extension == ".glb" || extension == ".dae") return 1.0;
+  if (extension == ".gltf" || extension == ".glb" || extension == ".vrm" || extension == ".dae") {
+    return 1.0;
+  }
   if (extension == ".fbx") {
     // FBX: UnitScaleFactor is centimetres per unit (1 when absent, FBX's default cm).
     const double factor = MetadataNumber(scene, "UnitScaleFactor").value_or(1.0);
@@ -180,7 +182,9 @@ double DeclaredMetresPerUnit(const aiScene& scene, const std::string& path) {
 
 UpAxis DeclaredUp(const aiScene& scene, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  if (extension == ".gltf" || extension == ".glb" || extension == ".dae") return UpAxis::kY;
+  if (extension == ".gltf" || extension == ".glb" || extension == ".vrm" || extension == ".dae") {
+    return UpAxis::kY;
+  }
   if (extension == ".fbx") {
     return MetadataNumber(scene, "UpAxis").value_or(1.0) == 2.0 ? UpAxis::kZ : UpAxis::kY;
   }

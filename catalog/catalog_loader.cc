@@ -109,8 +109,8 @@ const BundleFile& Member(const std::vector<BundleFile>& files, const std::string
 }
 
 bool IsMeshFormat(const std::string& format) {
-  return format == "glb" || format == "gltf" || format == "fbx" || format == "dae" ||
-         format == "obj";
+  return format == "glb" || format == "gltf" || format == "vrm" || format == "fbx" ||
+         format == "dae" || format == "obj";
 }
 
 std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const AssetData& data,
@@ -146,7 +146,7 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
     });
   }
   throw sim::InputError(what + ": format '" + data.format +
-                        "' is not an avatar format: allowed are builtin, glb, gltf, fbx, dae, "
+                        "' is not an avatar format: allowed are builtin, glb, gltf, vrm, fbx, dae, "
                         "obj, makehuman");
 }
 

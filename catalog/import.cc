@@ -250,7 +250,8 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                               (request.kind == Kind::kAvatar ? "an " : "a ") +
                               KindName(request.kind) + " format: allowed are " +
                               (request.kind == Kind::kAvatar
-                                   ? ".glb, .gltf, .fbx, .dae, .obj, MakeHuman's .obj+.mhskel+.mhw"
+                                   ? ".glb, .gltf, .vrm, .fbx, .dae, .obj, MakeHuman's "
+                                     ".obj+.mhskel+.mhw"
                                : request.kind == Kind::kAnimation
                                    ? ".bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json"
                                    : ".toml (one [[garment]]), MakeHuman's .mhclo, .cdgarment "
@@ -302,7 +303,9 @@ std::string FormatOfExtension(Kind kind, const std::string& extension) {
   const std::string e = Lower(extension);
   switch (kind) {
     case Kind::kAvatar:
-      if (e == "glb" || e == "gltf" || e == "fbx" || e == "dae" || e == "obj") return e;
+      if (e == "glb" || e == "gltf" || e == "vrm" || e == "fbx" || e == "dae" || e == "obj") {
+        return e;
+      }
       break;
     case Kind::kAnimation:
       if (e == "bvh" || e == "glb" || e == "gltf" || e == "fbx" || e == "dae") return e;

@@ -40,7 +40,7 @@ const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 /// Per list: what `costume-catalog import --kind` calls its entries, and the files it reads
 /// (docs/catalog.md).
 const char* kImportKinds[3] = {"avatar", "garment", "animation"};
-const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.fbx *.dae *.obj *.mhskel *.mhw)",
+const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.vrm *.fbx *.dae *.obj *.mhskel *.mhw)",
                                  "Costumes (*.toml *.mhclo *.cdgarment);;MakeHuman garments with "
                                  "their body (*.mhclo *.obj *.mhskel *.mhw)",
                                  "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};

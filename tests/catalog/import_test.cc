@@ -383,6 +383,24 @@ TEST_F(SharedDataImportTest, AvatarsLoadAsFromTheirFiles) {
   EXPECT_GT(makehuman->skeleton().num_joints(), 100);  // the 163-bone skeleton
 }
 
+// A VRoid Studio avatar (.vrm) is a GLB by another name: stored as "vrm", it loads as the
+// GLB does (CesiumMan.glb under that name stands in for one: no VRM file is at hand).
+TEST_F(SharedDataImportTest, AVrmAvatarIsStoredAndLoadsAsTheGlbItIs) {
+  std::ifstream glb(kSharedData / "khronos-cesiumman/CesiumMan.glb", std::ios::binary);
+  std::ostringstream bytes;
+  bytes << glb.rdbuf();
+  ImportRequest request;
+  request.kind = Kind::kAvatar;
+  request.files = {Write("avatars/man.vrm", bytes.str())};
+  const std::int64_t id = Import(request).at(0);
+  EXPECT_EQ(catalog_->Data(id).format, "vrm");
+  const auto direct =
+      assets::LoadAvatar((kSharedData / "khronos-cesiumman/CesiumMan.glb").string());
+  const auto stored = LoadAvatar(*catalog_, id);
+  EXPECT_EQ(stored->rest_vertices(), direct->rest_vertices());
+  EXPECT_EQ(stored->skeleton().num_joints(), direct->skeleton().num_joints());
+}
+
 TEST_F(SharedDataImportTest, ClipsLoadAsFromTheirFiles) {
   const auto ids =
       ImportShared(Kind::kAnimation,

@@ -1,8 +1,9 @@
 #pragma once
 /// @file
-/// Defaults of the file formats that assimp 5.2 does not apply, written out into the copy of
-/// the file it reads (from memory, while every other file the scene names, a .bin or an
-/// image, is read from disk):
+/// What the importers hand assimp 5.2 in place of a file (read from memory, while every
+/// other file the scene names, a .bin or an image, is read from disk): a VRM avatar (VRoid
+/// Studio's) as the GLB it is, which assimp reads only by that name; and the defaults of the
+/// file formats that assimp does not apply, written out:
 /// - a glTF 2.0 skin may leave out its inverse bind matrices (each is then the identity: the
 ///   joints' bind pose is the mesh's own frame); assimp crashes on such a skin (SIGSEGV: it
 ///   reads the accessor that is not there);
@@ -29,9 +30,10 @@ std::optional<std::string> WithExplicitBindMatrices(const std::string& bytes, bo
 /// every <skin> that has none; nullopt when every skin has one.
 std::optional<std::string> WithExplicitBindShapes(const std::string& text);
 
-/// When `path` is a glTF, GLB or COLLADA file that the functions above amend, makes
-/// `importer` read the amended copy in its place (and the other files from disk); otherwise
-/// leaves it alone. Throws as WithExplicitBindMatrices.
-void ReadWithExplicitDefaults(Assimp::Importer& importer, const std::string& path);
+/// Makes `importer` read the copy of `path` the functions above amend, if any, in its place
+/// (and the other files from disk). Returns the name to hand to Importer::ReadFile: `path`,
+/// or for a VRM `path` + ".glb", under which the importer finds the VRM's bytes. Throws as
+/// WithExplicitBindMatrices.
+std::string PrepareAssimpInput(Assimp::Importer& importer, const std::string& path);
 
 }  // namespace costume::assets

@@ -1,4 +1,4 @@
-#include "assets/explicit_defaults.h"
+#include "assets/assimp_input.h"
 
 #include <algorithm>
 #include <array>
@@ -157,7 +157,8 @@ std::optional<std::string> AmendGlb(const std::string& bytes, const std::string&
   if (json_bytes > bytes.size() - kJsonStart) return std::nullopt;
   std::optional<std::string> text = AmendJson(bytes.substr(kJsonStart, json_bytes), path);
   if (!text) return std::nullopt;
-  text->append((4 - text->size() % 4) % 4, ' ');  // chunks are 4-byte aligned, JSON padded by spaces
+  // Chunks are 4-byte aligned; JSON is padded with spaces.
+  text->append((4 - text->size() % 4) % 4, ' ');
   const std::string rest = bytes.substr(kJsonStart + json_bytes);
   std::string glb = bytes.substr(0, 8);
   AppendWord(glb, static_cast<std::uint32_t>(kJsonStart + text->size() + rest.size()));
@@ -166,21 +167,28 @@ std::optional<std::string> AmendGlb(const std::string& bytes, const std::string&
   return glb + *text + rest;
 }
 
-/// The file system assimp reads through, with one file's bytes replaced.
+/// The file system assimp reads through, with the file `path` holding `bytes` (a file in
+/// its place, or one that is not on disk at all).
 class SubstitutedFileSystem : public Assimp::DefaultIOSystem {
  public:
   SubstitutedFileSystem(std::string path, std::string bytes)
       : path_(std::move(path)), bytes_(std::move(bytes)) {}
 
+  bool Exists(const char* file) const override {
+    return IsSubstitute(file) || DefaultIOSystem::Exists(file);
+  }
+
   Assimp::IOStream* Open(const char* file, const char* mode) override {
-    if (file != path_ && !ComparePaths(file, path_.c_str())) {
-      return DefaultIOSystem::Open(file, mode);
-    }
+    if (!IsSubstitute(file)) return DefaultIOSystem::Open(file, mode);
     return new Assimp::MemoryIOStream(reinterpret_cast<const std::uint8_t*>(bytes_.data()),
                                       bytes_.size());
   }
 
  private:
+  bool IsSubstitute(const char* file) const {
+    return file == path_ || ComparePaths(file, path_.c_str());
+  }
+
   std::string path_;
   std::string bytes_;
 };
@@ -220,21 +228,30 @@ std::optional<std::string> WithExplicitBindShapes(const std::string& text) {
   return amended;
 }
 
-void ReadWithExplicitDefaults(Assimp::Importer& importer, const std::string& path) {
+std::string PrepareAssimpInput(Assimp::Importer& importer, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  const bool gltf = extension == ".gltf" || extension == ".glb";
-  if (!gltf && extension != ".dae") return;
+  const bool vrm = extension == ".vrm";
+  const bool binary = vrm || extension == ".glb";
+  const bool gltf = binary || extension == ".gltf";
+  if (!gltf && extension != ".dae") return path;
   std::ifstream file(path, std::ios::binary);
-  const std::string bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+  std::string bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
   std::optional<std::string> amended;
   if (!gltf) {
     amended = WithExplicitBindShapes(bytes);
   } else if (bytes.find("\"skins\"") != std::string::npos) {
     // A skin is named in the JSON as "skins" (a GLB's JSON is plain text too): most files
     // without one are passed over unparsed.
-    amended = WithExplicitBindMatrices(bytes, extension == ".glb", path);
+    amended = WithExplicitBindMatrices(bytes, binary, path);
   }
-  if (amended) importer.SetIOHandler(new SubstitutedFileSystem(path, std::move(*amended)));
+  // assimp picks its reader by the extension, and reads a VRM (a GLB with VRM's own
+  // extension in its JSON) only under the name ".glb".
+  const std::string name = vrm ? path + ".glb" : path;
+  if (amended || vrm) {
+    importer.SetIOHandler(
+        new SubstitutedFileSystem(name, amended ? std::move(*amended) : std::move(bytes)));
+  }
+  return name;
 }
 
 }  // namespace costume::assets
