@@ -9,6 +9,7 @@
 #include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <vector>
 
 #include <assimp/DefaultIOSystem.h>
@@ -58,15 +59,18 @@ std::string IdentityMatrices(std::size_t count) {
   return all;
 }
 
-/// The number of elements of accessor `index`, or -1 when the file does not say.
-long long AccessorCount(const json& gltf, const json& index) {
+/// The number of elements of accessor `index`, or nullopt when the file does not say.
+std::optional<std::uint64_t> AccessorCount(const json& gltf, const json& index) {
   const auto accessors = gltf.find("accessors");
-  if (!index.is_number_unsigned() || accessors == gltf.end() || !accessors->is_array()) return -1;
-  const auto i = index.get<std::size_t>();
-  if (i >= accessors->size()) return -1;
+  if (!index.is_number_unsigned() || accessors == gltf.end() || !accessors->is_array()) {
+    return std::nullopt;
+  }
+  const auto i = index.get<std::uint64_t>();
+  if (i >= accessors->size()) return std::nullopt;
   const json& accessor = (*accessors)[i];
   const auto count = accessor.is_object() ? accessor.find("count") : accessor.end();
-  return count != accessor.end() && count->is_number_unsigned() ? count->get<long long>() : -1;
+  if (count == accessor.end() || !count->is_number_unsigned()) return std::nullopt;
+  return count->get<std::uint64_t>();
 }
 
 /// Appends `item` to the array `key` of `gltf` (made when absent); its index, or -1 when
@@ -95,13 +99,13 @@ std::vector<json*> SkinsWithoutMatrices(json& gltf, std::size_t& most_joints,
       most_joints = std::max(most_joints, joints->size());
       continue;
     }
-    const long long count = AccessorCount(gltf, *matrices);
-    if (count >= 0 && static_cast<std::size_t>(count) < joints->size()) {
+    const std::optional<std::uint64_t> count = AccessorCount(gltf, *matrices);
+    if (count && *count < joints->size()) {
       const auto name = skin.find("name");
       throw sim::InputError(
           path + ": skin " + std::to_string(s) +
           (name != skin.end() && name->is_string() ? " '" + name->get<std::string>() + "'" : "") +
-          " has " + std::to_string(count) + " inverse bind matrices for " +
+          " has " + std::to_string(*count) + " inverse bind matrices for " +
           std::to_string(joints->size()) + " joints (allowed: one per joint)");
     }
   }

@@ -101,9 +101,9 @@ const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, 
 }
 
 /// Reads the file once in a child process under kAssimpReadLimits before this process does:
-/// assimp 5.2 crashes on some files (a glTF skin without inverse bind matrices, which glTF
-/// allows, did before ReadChecked wrote them out: SIGSEGV) and allocates without end on others (a Collada index list holding
-/// "nan"), which would take the calling program (the simulation server, the GUI) down with
+/// assimp 5.2 crashes on some files (a glTF skin without joints: SIGSEGV; one without
+/// inverse bind matrices did before assimp_input.h wrote them out) and allocates without end
+/// on others (a Collada index list holding "nan"), which would take the calling program (the simulation server, the GUI) down with
 /// it. A file assimp reads or refuses is read again here, for its scene or its own message.
 /// Inside a limited child already (the catalogue's import check) no second child is needed.
 void ReadInChildFirst(Assimp::Importer& importer, const std::string& path, unsigned steps,
@@ -167,11 +167,16 @@ Eigen::Isometry3d RigidPart(const Eigen::Matrix4d& transform) {
   return rigid;
 }
 
+/// glTF (and VRM, a GLB) is in metres with y up by its specification; assimp turns a
+/// Collada file's <unit> and <up_axis> into that.
+bool MetresYUp(const std::string& extension) {
+  return extension == ".gltf" || extension == ".glb" || extension == ".vrm" ||
+         extension == ".dae";
+}
+
 double DeclaredMetresPerUnit(const aiScene& scene, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  if (extension == ".gltf" || extension == ".glb" || extension == ".vrm" || extension == ".dae") {
-    return 1.0;
-  }
+  if (MetresYUp(extension)) return 1.0;
   if (extension == ".fbx") {
     // FBX: UnitScaleFactor is centimetres per unit (1 when absent, FBX's default cm).
     const double factor = MetadataNumber(scene, "UnitScaleFactor").value_or(1.0);
@@ -182,9 +187,7 @@ double DeclaredMetresPerUnit(const aiScene& scene, const std::string& path) {
 
 UpAxis DeclaredUp(const aiScene& scene, const std::string& path) {
   const std::string extension = LowerExtension(path);
-  if (extension == ".gltf" || extension == ".glb" || extension == ".vrm" || extension == ".dae") {
-    return UpAxis::kY;
-  }
+  if (MetresYUp(extension)) return UpAxis::kY;
   if (extension == ".fbx") {
     return MetadataNumber(scene, "UpAxis").value_or(1.0) == 2.0 ? UpAxis::kZ : UpAxis::kY;
   }

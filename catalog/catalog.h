@@ -91,9 +91,8 @@ struct AssetData {
   /// "cape", "dress"). Otherwise the file format: "glb", "gltf", "fbx", "dae", "obj" (avatars,
   /// and glTF/FBX/Collada clips), "vrm" (avatars), "bvh", "deepmimic" (a bundle: motion and
   /// character file, catalog/bundle.h), "makehuman" (a bundle: base.obj, .mhskel, .mhw);
-  /// garments:
-  /// "garment-toml" (a scene file holding one [[garment]] table, with a mesh file in a bundle
-  /// when it uses one; see catalog_loader.h), "makehuman-garment" (a bundle: the .mhclo, its
+  /// garments: "garment-toml" (a scene file holding one [[garment]] table, with a mesh file
+  /// in a bundle when it uses one; see catalog_loader.h), "makehuman-garment" (a bundle: the .mhclo, its
   /// garment OBJ and the MakeHuman body it is fitted to; catalog_loader.h) or
   /// "edited-garment" (assets/edited_garment.h).
   std::string format;

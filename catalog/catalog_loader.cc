@@ -146,8 +146,8 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
     });
   }
   throw sim::InputError(what + ": format '" + data.format +
-                        "' is not an avatar format: allowed are builtin, glb, gltf, vrm, fbx, dae, "
-                        "obj, makehuman");
+                        "' is not an avatar format: allowed are builtin, glb, gltf, vrm, fbx, "
+                        "dae, obj, makehuman");
 }
 
 /// `character_what` names a DeepMimic clip's character file in messages.
