@@ -35,13 +35,12 @@ std::string_view StripPrefix(std::string_view name, std::string_view prefix) {
              : name;
 }
 
-/// "Bip01 L Thigh" → "L Thigh": a Biped's bones carry its name, which the user may change
-/// from Max's "Bip01" / "Bip001", before their own. The biped's root is the name alone.
+/// "Bip01 L Thigh" → "L Thigh": a Biped's bones carry its name ("Bip01", "Bip001", or one
+/// the user gave it) before their own. The biped's root is the name alone: "Bip01" for any.
 std::string_view StripBipedName(std::string_view name) {
+  if (!EqualIgnoringCase(name.substr(0, 3), "bip")) return name;
   const std::size_t space = name.find(' ');
-  return space == std::string_view::npos || !EqualIgnoringCase(name.substr(0, 3), "bip")
-             ? name
-             : name.substr(space + 1);
+  return space == std::string_view::npos ? std::string_view("Bip01") : name.substr(space + 1);
 }
 
 // The tables. Left and right are the character's own (checked against the files' rest
@@ -234,9 +233,9 @@ const std::vector<FamilyMapping> kUnrealTable = {
 };
 
 /// 3ds Max's Biped, its names without the biped's (StripBipedName): the biped's root
-/// ("Bip01") sits at the pelvis, above the "Pelvis" bone.
+/// sits at the pelvis, above the "Pelvis" bone.
 const std::vector<FamilyMapping> kMaxBipedTable = {
-    {J::kHumanoidRoot, {"Bip01", "Bip001"}},
+    {J::kHumanoidRoot, {"Bip01"}},
     {J::kSacroiliac, {"Pelvis"}},
     {J::kLHip, {"L Thigh"}},
     {J::kLKnee, {"L Calf"}},

@@ -51,7 +51,8 @@ enum class SkeletonFamily {
   /// spine_01 …, neck_01, head, thigh_l, calf_l, foot_l, clavicle_l, upperarm_l,
   /// lowerarm_l, hand_l.
   kUnreal,
-  /// 3ds Max's Biped, any biped name ("Bip01", "Bip001"): Bip01, Bip01 Pelvis, Bip01 Spine,
+  /// 3ds Max's Biped, whatever the biped's name ("Bip01", "Bip001", "Bip02", …, all starting
+  /// "Bip"): Bip01, Bip01 Pelvis, Bip01 Spine,
   /// Bip01 Neck, Bip01 Head, Bip01 L Thigh, Bip01 L Calf, Bip01 L Foot, Bip01 L Clavicle,
   /// Bip01 L UpperArm, Bip01 L Forearm, Bip01 L Hand.
   kMaxBiped,
@@ -77,7 +78,8 @@ const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family);
 
 /// The H-Anim joint that `joint_name` is in `family`, or nullopt. For kMixamo, a namespace
 /// prefix ending in ':' ("mixamorig:", "mixamorig1:") is ignored; for kBlender, Rigify's
-/// "DEF-"; for kMaxBiped, the biped's name before the first space ("Bip01 ").
+/// "DEF-"; for kMaxBiped, the biped's name before the first space ("Bip01 "; the name alone
+/// is the biped's root).
 /// Note: a table row with several names maps only the first present in a skeleton; this
 /// function answers for one name alone and so accepts any of them.
 std::optional<sim::HAnimJoint> LookUpJoint(SkeletonFamily family, std::string_view joint_name);

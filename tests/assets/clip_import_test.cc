@@ -594,8 +594,9 @@ TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnreal3dsMaxAndVRoid) {
       EXPECT_EQ(mapped[joint], name) << sim::HAnimName(joint);
     }
   }
-  // A biped renamed in Max keeps its bones' own names after its name.
+  // A biped renamed in Max keeps its bones' own names after its name, and is its root.
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kMaxBiped, "Bip02 L Calf"), HAnimJoint::kLKnee);
+  EXPECT_EQ(LookUpJoint(SkeletonFamily::kMaxBiped, "Bip02"), HAnimJoint::kHumanoidRoot);
   EXPECT_EQ(LookUpJoint(SkeletonFamily::kBlender, "ORG-thigh.L"), std::nullopt);
 }
 
