@@ -275,15 +275,61 @@ const std::vector<FamilyMapping> kVRoidTable = {
     {J::kRRadiocarpal, {"J_Bip_R_Hand"}},
 };
 
+/// Daz's Genesis 3 and 8: a limb's first bone is split into a bend and a twist bone, the
+/// bend bone is the joint; "hip" carries the pelvis, the spine and the thighs' parent
+/// "pelvis".
+const std::vector<FamilyMapping> kDazGenesisTable = {
+    {J::kHumanoidRoot, {"hip"}},
+    {J::kSacroiliac, {"pelvis"}},
+    {J::kLHip, {"lThighBend"}},
+    {J::kLKnee, {"lShin"}},
+    {J::kLTalocrural, {"lFoot"}},
+    {J::kRHip, {"rThighBend"}},
+    {J::kRKnee, {"rShin"}},
+    {J::kRTalocrural, {"rFoot"}},
+    {J::kVl5, {"abdomenLower"}},
+    {J::kVc7, {"neckLower"}},
+    {J::kSkullbase, {"head"}},
+    {J::kLShoulder, {"lShldrBend"}},
+    {J::kLElbow, {"lForearmBend"}},
+    {J::kLRadiocarpal, {"lHand"}},
+    {J::kRShoulder, {"rShldrBend"}},
+    {J::kRElbow, {"rForearmBend"}},
+    {J::kRRadiocarpal, {"rHand"}},
+};
+
+/// Reallusion's Character Creator: CC_Base_BoneRoot on the floor, CC_Base_Hip at the hips
+/// above CC_Base_Pelvis (the thighs' parent) and CC_Base_Waist (the spine's).
+const std::vector<FamilyMapping> kCharacterCreatorTable = {
+    {J::kHumanoidRoot, {"CC_Base_Hip"}},
+    {J::kSacroiliac, {"CC_Base_Pelvis"}},
+    {J::kLHip, {"CC_Base_L_Thigh"}},
+    {J::kLKnee, {"CC_Base_L_Calf"}},
+    {J::kLTalocrural, {"CC_Base_L_Foot"}},
+    {J::kRHip, {"CC_Base_R_Thigh"}},
+    {J::kRKnee, {"CC_Base_R_Calf"}},
+    {J::kRTalocrural, {"CC_Base_R_Foot"}},
+    {J::kVl5, {"CC_Base_Waist"}},
+    {J::kVc7, {"CC_Base_NeckTwist01"}},
+    {J::kSkullbase, {"CC_Base_Head"}},
+    {J::kLShoulder, {"CC_Base_L_Upperarm"}},
+    {J::kLElbow, {"CC_Base_L_Forearm"}},
+    {J::kLRadiocarpal, {"CC_Base_L_Hand"}},
+    {J::kRShoulder, {"CC_Base_R_Upperarm"}},
+    {J::kRElbow, {"CC_Base_R_Forearm"}},
+    {J::kRRadiocarpal, {"CC_Base_R_Hand"}},
+};
+
 const std::vector<FamilyMapping> kEmptyTable;
 
 /// Every family in detection order.
-constexpr std::array<SkeletonFamily, 13> kFamilies = {
+constexpr std::array<SkeletonFamily, 15> kFamilies = {
     SkeletonFamily::kHAnim,           SkeletonFamily::kCmuCgspeed, SkeletonFamily::kPoserBvh,
     SkeletonFamily::kBiovisionBvh,    SkeletonFamily::kMakeHumanDefault,
     SkeletonFamily::kMakeHumanBvh,    SkeletonFamily::kCesiumMan,  SkeletonFamily::kDeepMimic,
     SkeletonFamily::kMixamo,          SkeletonFamily::kBlender,    SkeletonFamily::kUnreal,
-    SkeletonFamily::kMaxBiped,        SkeletonFamily::kVRoid};
+    SkeletonFamily::kMaxBiped,        SkeletonFamily::kVRoid,      SkeletonFamily::kDazGenesis,
+    SkeletonFamily::kCharacterCreator};
 
 /// The name as the family's table spells it: without Mixamo's namespace, Rigify's "DEF-"
 /// or the Biped's name.
@@ -351,6 +397,8 @@ std::string_view FamilyName(SkeletonFamily family) {
     case SkeletonFamily::kUnreal: return "Unreal mannequin";
     case SkeletonFamily::kMaxBiped: return "3ds Max Biped";
     case SkeletonFamily::kVRoid: return "VRoid (VRM)";
+    case SkeletonFamily::kDazGenesis: return "Daz Genesis 3/8";
+    case SkeletonFamily::kCharacterCreator: return "Reallusion Character Creator";
   }
   return "unknown";
 }
@@ -369,6 +417,8 @@ const std::vector<FamilyMapping>& MappingTable(SkeletonFamily family) {
     case SkeletonFamily::kUnreal: return kUnrealTable;
     case SkeletonFamily::kMaxBiped: return kMaxBipedTable;
     case SkeletonFamily::kVRoid: return kVRoidTable;
+    case SkeletonFamily::kDazGenesis: return kDazGenesisTable;
+    case SkeletonFamily::kCharacterCreator: return kCharacterCreatorTable;
     case SkeletonFamily::kUnknown:
     case SkeletonFamily::kHAnim: return kEmptyTable;
   }

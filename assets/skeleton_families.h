@@ -60,6 +60,15 @@ enum class SkeletonFamily {
   /// J_Bip_C_Head, J_Bip_L_UpperLeg, J_Bip_L_LowerLeg, J_Bip_L_Foot, J_Bip_L_Shoulder (the
   /// clavicle), J_Bip_L_UpperArm, J_Bip_L_LowerArm, J_Bip_L_Hand.
   kVRoid,
+  /// Daz 3D's Genesis 3 and 8 figures: hip, pelvis, abdomenLower, neckLower, head,
+  /// lThighBend, lShin, lFoot, lCollar, lShldrBend, lForearmBend, lHand (… Twist bones beside).
+  /// Genesis 1 and 2 are named as Poser's figures (kPoserBvh).
+  kDazGenesis,
+  /// Reallusion's Character Creator 3 and 4 (and AccuRIG, ActorCore): CC_Base_Hip,
+  /// CC_Base_Pelvis, CC_Base_Waist, CC_Base_NeckTwist01, CC_Base_Head, CC_Base_L_Thigh,
+  /// CC_Base_L_Calf, CC_Base_L_Foot, CC_Base_L_Clavicle, CC_Base_L_Upperarm,
+  /// CC_Base_L_Forearm, CC_Base_L_Hand.
+  kCharacterCreator,
 };
 
 /// The family's name for messages and docs ("CMU BVH (cgspeed)").

@@ -522,9 +522,10 @@ struct ToolRig {
 // The rigs of the tools a designer's avatar most likely comes from, named as those tools
 // name their bones (Blender's human metarig and the rig Rigify generates from it, with its
 // control, ORG- and MCH- bones beside the DEF- bones that hold the skin; Unreal's UE5
-// mannequin; a 3ds Max Biped; a VRoid Studio avatar with hair and skirt bones): each is
-// detected, and the joints that bend the skin map.
-TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnreal3dsMaxAndVRoid) {
+// mannequin; a 3ds Max Biped; a VRoid Studio avatar with hair and skirt bones; Daz's Genesis
+// 8 with its twist bones; Reallusion's Character Creator): each is detected, and the joints
+// that bend the skin map.
+TEST(SkeletonFamilies, MapsTheRigsOfTheToolsAvatarsComeFrom) {
   using H = HAnimJoint;
   const ToolRig rigs[] = {
       {"Rigify", SkeletonFamily::kBlender,
@@ -583,6 +584,27 @@ TEST(SkeletonFamilies, MapsTheRigsOfBlenderUnreal3dsMaxAndVRoid) {
        16,
        {{H::kHumanoidRoot, "J_Bip_C_Hips"}, {H::kRShoulder, "J_Bip_R_UpperArm"},
         {H::kLTalocrural, "J_Bip_L_Foot"}}},
+      {"Daz Genesis 8", SkeletonFamily::kDazGenesis,
+       Sided({"hip", "pelvis", "{side}ThighBend", "{side}ThighTwist", "{side}Shin", "{side}Foot",
+              "{side}Metatarsals", "abdomenLower", "abdomenUpper", "chestLower", "chestUpper",
+              "neckLower", "neckUpper", "head", "{side}Collar", "{side}ShldrBend",
+              "{side}ShldrTwist", "{side}ForearmBend", "{side}ForearmTwist", "{side}Hand"},
+             "l", "r"),
+       17,
+       {{H::kHumanoidRoot, "hip"}, {H::kSacroiliac, "pelvis"}, {H::kLHip, "lThighBend"},
+        {H::kVl5, "abdomenLower"}, {H::kVc7, "neckLower"}, {H::kRShoulder, "rShldrBend"},
+        {H::kLElbow, "lForearmBend"}}},
+      {"Character Creator 4", SkeletonFamily::kCharacterCreator,
+       Sided({"CC_Base_BoneRoot", "CC_Base_Hip", "CC_Base_Pelvis", "CC_Base_{side}_Thigh",
+              "CC_Base_{side}_Calf", "CC_Base_{side}_Foot", "CC_Base_{side}_ToeBase",
+              "CC_Base_Waist", "CC_Base_Spine01", "CC_Base_Spine02", "CC_Base_NeckTwist01",
+              "CC_Base_NeckTwist02", "CC_Base_Head", "CC_Base_{side}_Clavicle",
+              "CC_Base_{side}_Upperarm", "CC_Base_{side}_Forearm", "CC_Base_{side}_Hand"},
+             "L", "R"),
+       17,
+       {{H::kHumanoidRoot, "CC_Base_Hip"}, {H::kSacroiliac, "CC_Base_Pelvis"},
+        {H::kVl5, "CC_Base_Waist"}, {H::kVc7, "CC_Base_NeckTwist01"},
+        {H::kRKnee, "CC_Base_R_Calf"}, {H::kLRadiocarpal, "CC_Base_L_Hand"}}},
   };
   for (const ToolRig& rig : rigs) {
     SCOPED_TRACE(rig.tool);
