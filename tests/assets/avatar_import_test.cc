@@ -334,7 +334,9 @@ std::string Replaced(std::string text, const std::string& from, const std::strin
 void ExpectSameAvatar(const sim::Avatar& expected, const sim::Avatar& actual,
                       bool rest_vertices = true) {
   ASSERT_EQ(actual.num_vertices(), expected.num_vertices());
-  if (rest_vertices) EXPECT_EQ(actual.rest_vertices(), expected.rest_vertices());
+  if (rest_vertices) {
+    EXPECT_EQ(actual.rest_vertices(), expected.rest_vertices());
+  }
   EXPECT_EQ(actual.data().influence_joints, expected.data().influence_joints);
   EXPECT_EQ(actual.data().influence_weights, expected.data().influence_weights);
   ASSERT_EQ(actual.skeleton().num_joints(), expected.skeleton().num_joints());
