@@ -2,10 +2,13 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -69,6 +72,24 @@ std::string ReadAll(int fd) {
   }
 }
 
+/// The last `bytes` bytes of the file `fd` (the child's standard error).
+std::string Tail(int fd, off_t bytes) {
+  struct stat info {};
+  if (fstat(fd, &info) != 0) return "";
+  if (lseek(fd, std::max<off_t>(0, info.st_size - bytes), SEEK_SET) < 0) return "";
+  return ReadAll(fd);
+}
+
+/// The last line of `text` that holds more than blanks, trimmed, its last `most` characters.
+std::string LastLine(const std::string& text, std::size_t most) {
+  const std::size_t end = text.find_last_not_of(" \t\r\n");
+  if (end == std::string::npos) return "";
+  const std::size_t newline = text.rfind('\n', end);
+  const std::size_t start = newline == std::string::npos ? 0 : newline + 1;
+  const std::size_t length = end + 1 - start;
+  return text.substr(start + (length > most ? length - most : 0), std::min(length, most));
+}
+
 /// Set in RunLimited's child (each child has its own copy of this process's memory).
 bool in_limited_child = false;
 
@@ -118,22 +139,44 @@ ChildResult Interpret(const std::string& bytes, int status, const rusage& usage,
   return result;
 }
 
+/// Where the child's standard error is held until it ends: a file in memory (-1 when none
+/// could be made: the child then writes where this process does).
+int MakeErrorFile() { return memfd_create("limited-child-stderr", MFD_CLOEXEC); }
+
+/// After the child ended: its standard error to this process's when the work returned or
+/// threw, else its last line to `result`.
+void HandOnErrors(int error_file, ChildResult& result) {
+  if (error_file < 0) return;
+  // A child that printed without end is cut to its last 64 KB.
+  const std::string text = Tail(error_file, off_t{1} << 16);
+  close(error_file);
+  if (result.ending == ChildEnding::kReturned || result.ending == ChildEnding::kThrew) {
+    WriteAll(STDERR_FILENO, text.data(), text.size());
+  } else {
+    result.last_words = LastLine(text, ChildResult::kMaxLastWords);
+  }
+}
+
 }  // namespace
 
 ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimits& limits) {
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0) {
-    return {ChildEnding::kNotStarted, std::string("pipe: ") + std::strerror(errno), 0};
+    return {ChildEnding::kNotStarted, std::string("pipe: ") + std::strerror(errno), 0, ""};
   }
+  std::fflush(stderr);
+  const int error_file = MakeErrorFile();
   const pid_t pid = fork();
   if (pid < 0) {
     const std::string why = std::string("fork: ") + std::strerror(errno);
     close(fds[0]);
     close(fds[1]);
-    return {ChildEnding::kNotStarted, why, 0};
+    if (error_file >= 0) close(error_file);
+    return {ChildEnding::kNotStarted, why, 0, ""};
   }
   if (pid == 0) {
     close(fds[0]);
+    if (error_file >= 0) dup2(error_file, STDERR_FILENO);  // the copy is not close-on-exec
     RunChild(fds[1], work, limits);
   }
   close(fds[1]);
@@ -143,7 +186,9 @@ ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimi
   rusage usage{};
   while (wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
   }
-  return Interpret(bytes, status, usage, limits);
+  ChildResult result = Interpret(bytes, status, usage, limits);
+  HandOnErrors(error_file, result);
+  return result;
 }
 
 bool InLimitedChild() { return in_limited_child; }
@@ -163,10 +208,13 @@ std::string DescribeEnding(const ChildResult& result, const ChildLimits& limits,
       return "took more than " + std::to_string(limits.cpu_seconds) +
              " s of processor time (" + time_option + ")";
     case ChildEnding::kCrashed: {
-      if (result.signal == 0) return "ended without a result";
+      const std::string said =
+          result.last_words.empty() ? "" : "\"" + result.last_words + "\"";
+      if (result.signal == 0) return "ended without a result" + (said.empty() ? "" : ": " + said);
       const char* name = sigabbrev_np(result.signal);
       return "crashed (signal " + std::to_string(result.signal) +
-             (name != nullptr ? std::string(", SIG") + name : std::string()) + ")";
+             (name != nullptr ? std::string(", SIG") + name : std::string()) +
+             (said.empty() ? "" : ": " + said) + ")";
     }
     case ChildEnding::kNotStarted:
       return "could not be run apart: " + result.output;

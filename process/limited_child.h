@@ -6,6 +6,7 @@
 /// here, then the machine's memory); in a child under a limit the same file costs a second
 /// and an error message (docs/catalog.md, "Safety").
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -36,11 +37,19 @@ struct ChildResult {
   ChildEnding ending = ChildEnding::kNotStarted;
   std::string output;
   int signal = 0;  ///< the signal that ended the child, 0 when none did
+  /// The last line the child wrote to its standard error when it did not return or throw
+  /// (a library's assertion, the C library's "munmap_chunk(): invalid pointer"), at most
+  /// kMaxLastWords characters; empty when it wrote none.
+  std::string last_words;
+  static constexpr std::size_t kMaxLastWords = 200;
 };
 
 /// Runs `work` in a forked child under `limits` and waits for it. Only `work`'s return value
 /// or exception message comes back (through a pipe); whatever else it changes stays in the
-/// child. An exception whose message names std::bad_alloc counts as out of memory, as
+/// child. What the child writes to its standard error is held until it ends: written to this
+/// process's standard error when the work returned or threw, else kept as
+/// ChildResult::last_words (so a dying library's complaint does not land in the middle of
+/// the caller's own output). An exception whose message names std::bad_alloc counts as out of memory, as
 /// libraries that catch their own exceptions (assimp) report it that way. The child has only
 /// the calling thread: `work` must not need locks that other threads of this process may
 /// hold (plain parsing and computing is fine; rendering is not). Flush buffered output
@@ -54,7 +63,8 @@ bool InLimitedChild();
 
 /// A phrase for an error message about a child that did not return, naming the limit it hit
 /// and `memory_option` / `time_option` (the user's setting for it), e.g. "needed more than
-/// 4096 MB of memory (--check-memory-mb)". Empty for kReturned.
+/// 4096 MB of memory (--check-memory-mb)", or the signal it died of and its last words, e.g.
+/// "crashed (signal 6, SIGABRT: \"munmap_chunk(): invalid pointer\")". Empty for kReturned.
 std::string DescribeEnding(const ChildResult& result, const ChildLimits& limits,
                            const std::string& memory_option, const std::string& time_option);
 

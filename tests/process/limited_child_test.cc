@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -114,6 +115,52 @@ TEST(RunLimited, ACrashIsReportedWithItsSignal) {
   EXPECT_EQ(result.signal, SIGABRT);
   EXPECT_TRUE(Contains(DescribeEnding(result, {}, "--m", "--t"), "SIGABRT"))
       << DescribeEnding(result, {}, "--m", "--t");
+}
+
+// What a dying library writes to standard error (assimp's assertions, the C library's
+// "munmap_chunk(): invalid pointer") landed in the middle of the import's progress line;
+// it is now the crash's description, and only its last line.
+TEST(RunLimited, ACrashsLastWordsAreItsDescriptionNotThisProcesssOutput) {
+  const ChildResult result = RunLimited(
+      []() -> std::string {
+        std::fputs("reading mesh 3\nAssertion `pos < size' failed.\n", stderr);
+        std::abort();
+      },
+      {});
+  EXPECT_EQ(result.ending, ChildEnding::kCrashed);
+  EXPECT_EQ(result.last_words, "Assertion `pos < size' failed.");
+  EXPECT_EQ(DescribeEnding(result, {}, "--m", "--t"),
+            "crashed (signal 6, SIGABRT: \"Assertion `pos < size' failed.\")");
+  // The C library's own complaint about a damaged heap, as glibc writes it (under
+  // AddressSanitizer, the sanitizer's report instead, and an exit without a signal).
+  const ChildResult heap = RunLimited(
+      []() -> std::string {
+        // Not a block malloc gave (16 bytes into one): glibc aborts. Through an integer,
+        // so that the compiler does not refuse to build it.
+        volatile std::uintptr_t inside = reinterpret_cast<std::uintptr_t>(std::malloc(64)) + 16;
+        std::free(reinterpret_cast<void*>(inside));
+        return "freed";
+      },
+      {});
+  EXPECT_EQ(heap.ending, ChildEnding::kCrashed);
+  EXPECT_FALSE(heap.last_words.empty());
+  EXPECT_NE(DescribeEnding(heap, {}, "--m", "--t").find(heap.last_words), std::string::npos);
+}
+
+// A child that returns keeps what it wrote to standard error: it reaches this process's.
+TEST(RunLimited, WhatAReturningChildWritesToStandardErrorIsPassedOn) {
+  ::testing::internal::CaptureStderr();
+  const ChildResult result = RunLimited(
+      [] {
+        std::fputs("a warning\n", stderr);
+        return std::string("done");
+      },
+      {});
+  const std::string passed_on = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(result.ending, ChildEnding::kReturned);
+  EXPECT_EQ(result.output, "done");
+  EXPECT_TRUE(result.last_words.empty());
+  EXPECT_EQ(passed_on, "a warning\n");
 }
 
 TEST(RunLimited, AChildThatExitsWithoutAResultIsNotTakenForSuccess) {
