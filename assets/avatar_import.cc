@@ -5,6 +5,7 @@
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <cmath>
 #include <filesystem>
 #include <utility>
 #include <vector>
@@ -181,6 +182,31 @@ std::vector<sim::Joint> StaticSkeleton() {
   return {root};
 }
 
+/// The quarter turns about +y (0 to 3) that make a character face +z, its left hip at +x
+/// of its right one (the results' convention, which the built-in garments and the camera
+/// assume): the quarter turn nearest the exact one. 0 without both hips mapped.
+int QuarterTurnsToFaceZ(const sim::Skeleton& skeleton) {
+  const int left = skeleton.Find(sim::HAnimJoint::kLHip);
+  const int right = skeleton.Find(sim::HAnimJoint::kRHip);
+  if (left < 0 || right < 0) return 0;
+  const Eigen::Vector3d across =
+      skeleton.rest_world()[left].translation() - skeleton.rest_world()[right].translation();
+  if (!(std::hypot(across.x(), across.z()) > 0.0)) return 0;
+  // Turning by θ about +y takes (x, z) to (x cos θ + z sin θ, −x sin θ + z cos θ).
+  const double quarters = std::atan2(across.z(), across.x()) / (0.5 * M_PI);
+  return static_cast<int>(std::lround(quarters) + 4) % 4;
+}
+
+/// Turns the avatar `turns` quarter turns about +y: its root joints and its vertices.
+void TurnAboutY(int turns, std::vector<sim::Joint>& joints, sim::Points& vertices) {
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(turns * 0.5 * M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  for (sim::Joint& joint : joints) {
+    if (joint.parent < 0) joint.rest_local = Eigen::Isometry3d(turn) * joint.rest_local;
+  }
+  vertices = vertices * turn.transpose();
+}
+
 }  // namespace
 
 std::shared_ptr<const sim::Avatar> LoadAvatar(const std::string& path,
@@ -215,14 +241,20 @@ std::shared_ptr<const sim::Avatar> LoadAvatar(const std::string& path,
   } else {
     MapToHAnim(joints);
   }
-  try {
-    data.skeleton = sim::Skeleton::Create(data.name, std::move(joints));
-  } catch (const InputError& e) {
-    throw InputError(path + ": " + e.what());
-  }
   data.rest_vertices.resize(static_cast<Eigen::Index>(surface.vertices.size()), 3);
   for (std::size_t v = 0; v < surface.vertices.size(); ++v) {
     data.rest_vertices.row(static_cast<Eigen::Index>(v)) = surface.vertices[v].transpose();
+  }
+  try {
+    data.skeleton = sim::Skeleton::Create(data.name, joints);
+    // A file whose character faces another way than +z (a VRM 0.x faces −z) is turned to
+    // face it, so garments go on with their fronts to its front.
+    if (const int turns = QuarterTurnsToFaceZ(*data.skeleton); turns != 0) {
+      TurnAboutY(turns, joints, data.rest_vertices);
+      data.skeleton = sim::Skeleton::Create(data.name, std::move(joints));
+    }
+  } catch (const InputError& e) {
+    throw InputError(path + ": " + e.what());
   }
   data.triangles = std::move(surface.triangles);
   FillInfluences(surface.influences, data);

@@ -34,7 +34,9 @@ struct AvatarImportOptions {
 ///   of meshes without bones (and unweighted vertices) follow the joint at or above their
 ///   node, else the first root;
 /// - a file without bones (OBJ) gives a static avatar: one joint "root" at the origin
-///   carrying every vertex.
+///   carrying every vertex;
+/// - facing +z (its left hip at +x of its right one): an avatar facing another way in its
+///   file is turned about y by the nearest quarter turn that makes it face +z.
 /// Throws sim::InputError naming `path` for: options out of range, a missing, unreadable,
 /// truncated or malformed file (quoting assimp), a file without triangles, and whatever
 /// sim::Avatar::Create refuses.

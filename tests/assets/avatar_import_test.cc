@@ -181,6 +181,38 @@ TEST(AvatarImport, ARigNamedAsBlendersMapsAsTheOriginal) {
   }
 }
 
+// The built-in garments and the camera take an avatar to face +z (its left at +x), as
+// glTF's own convention has it; a VRM 0.x faces −z. CesiumMan, which faces +z, turned in its
+// file about the vertical (the export's z, its up axis) by a half and a quarter turn, is
+// turned back at import: the same body in the same place.
+TEST(AvatarImport, AnAvatarFacingAnotherWayIsTurnedToFacePlusZ) {
+  SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
+  ScratchDir dir;
+  const fs::path original = ExportedCollada(dir);
+  const auto expected = LoadAvatar(original.string());
+  const sim::Skeleton& skeleton = expected->skeleton();
+  const auto hip = [](const sim::Skeleton& s, sim::HAnimJoint j) {
+    return s.rest_world()[s.Find(j)].translation();
+  };
+  ASSERT_GT(hip(skeleton, sim::HAnimJoint::kLHip).x(), hip(skeleton, sim::HAnimJoint::kRHip).x());
+  for (const char* degrees : {"180", "90", "-90"}) {
+    SCOPED_TRACE(degrees);
+    std::string turned = ReadBytes(original);
+    const std::size_t scene = turned.find('>', turned.find("<visual_scene")) + 1;
+    turned.insert(scene, std::string("<node id=\"turn\" name=\"turn\" type=\"NODE\"><rotate>0 0 1 ") +
+                             degrees + "</rotate>");
+    turned.insert(turned.find("</visual_scene>"), "</node>");
+    const auto avatar = LoadAvatar(dir.Write("turned.dae", turned));
+    ASSERT_EQ(avatar->num_vertices(), expected->num_vertices());
+    EXPECT_LT((avatar->rest_vertices() - expected->rest_vertices()).cwiseAbs().maxCoeff(), 1e-5);
+    for (sim::HAnimJoint joint : sim::AllHAnimJoints()) {
+      if (skeleton.Find(joint) < 0) continue;
+      EXPECT_LT((hip(avatar->skeleton(), joint) - hip(skeleton, joint)).norm(), 1e-5)
+          << sim::HAnimName(joint);
+    }
+  }
+}
+
 TEST(AvatarImport, TruncatedConvertedFilesThrowNamingTheFile) {
   SKIP_WITHOUT("khronos-cesiumman/CesiumMan.glb");
   ScratchDir dir;
