@@ -184,14 +184,15 @@ std::vector<sim::Joint> StaticSkeleton() {
 
 /// The quarter turns about +y (0 to 3) that make a character face +z, its left hip at +x
 /// of its right one (the results' convention, which the built-in garments and the camera
-/// assume): the quarter turn nearest the exact one. 0 without both hips mapped.
+/// assume): the quarter turn nearest the exact one. 0 without both hips mapped, or when
+/// they lie more above each other than side by side (a body not standing up).
 int QuarterTurnsToFaceZ(const sim::Skeleton& skeleton) {
   const int left = skeleton.Find(sim::HAnimJoint::kLHip);
   const int right = skeleton.Find(sim::HAnimJoint::kRHip);
   if (left < 0 || right < 0) return 0;
   const Eigen::Vector3d across =
       skeleton.rest_world()[left].translation() - skeleton.rest_world()[right].translation();
-  if (!(std::hypot(across.x(), across.z()) > 0.0)) return 0;
+  if (!(std::hypot(across.x(), across.z()) > std::abs(across.y()))) return 0;
   // Turning by θ about +y takes (x, z) to (x cos θ + z sin θ, −x sin θ + z cos θ).
   const double quarters = std::atan2(across.z(), across.x()) / (0.5 * M_PI);
   return static_cast<int>(std::lround(quarters) + 4) % 4;
