@@ -84,12 +84,25 @@ Eigen::Matrix4d ChannelTransform(const aiNodeAnim& channel, double time) {
   return transform;
 }
 
+/// The joint whose path a clip's root translation follows: the H-Anim root when the
+/// skeleton's family maps one (joints' hanim set), else the skeleton's root. Unreal's and
+/// Character Creator's rigs keep a root on the floor, still or carrying root motion alone,
+/// and move the pelvis below it up and down.
+int PathJoint(const std::vector<sim::Joint>& joints) {
+  for (int j = 0; j < static_cast<int>(joints.size()); ++j) {
+    if (joints[j].hanim == sim::HAnimJoint::kHumanoidRoot) return j;
+  }
+  return 0;
+}
+
 /// Samples one animation of an assimp scene onto the skeleton of its nodes.
 class AnimationSampler {
  public:
   AnimationSampler(const aiAnimation& animation, const AssimpSkeleton& skeleton,
                    const Eigen::Matrix4d& file_to_world)
-      : skeleton_(skeleton), file_to_world_(file_to_world) {
+      : skeleton_(skeleton),
+        file_to_world_(file_to_world),
+        path_joint_(PathJoint(skeleton.joints)) {
     for (unsigned c = 0; c < animation.mNumChannels; ++c) {
       channels_[animation.mChannels[c]->mNodeName.C_Str()] = animation.mChannels[c];
     }
@@ -108,11 +121,24 @@ class AnimationSampler {
           joint.parent < 0 ? joint.rest_local : world[joint.parent] * joint.rest_local;
       pose.rotations[j] = Eigen::Quaterniond(rest.linear().transpose() * world[j].linear()).normalized();
     }
-    pose.root_translation = world[0].translation() - skeleton_.rest_world[0].translation();
+    // A pose moves the root only; the path joint's own motion (a pelvis's bob under a still
+    // root) is kept by moving the root so that the path joint lands where the file puts it.
+    pose.root_translation =
+        world[path_joint_].translation() - PlacedWithoutTranslation(world, path_joint_);
     return pose;
   }
 
  private:
+  /// Where joint `j` lands with the joints turned as `world` turns them and the root not
+  /// moved from its rest place.
+  Eigen::Vector3d PlacedWithoutTranslation(const std::vector<Eigen::Isometry3d>& world,
+                                           int j) const {
+    const sim::Joint& joint = skeleton_.joints[j];
+    if (joint.parent < 0) return joint.rest_local.translation();
+    return PlacedWithoutTranslation(world, joint.parent) +
+           world[joint.parent].linear() * joint.rest_local.translation();
+  }
+
   Eigen::Matrix4d Global(const aiNode* node, double time) const {
     Eigen::Matrix4d global = Eigen::Matrix4d::Identity();
     for (; node != nullptr; node = node->mParent) {
@@ -126,6 +152,7 @@ class AnimationSampler {
 
   const AssimpSkeleton& skeleton_;
   Eigen::Matrix4d file_to_world_;
+  int path_joint_ = 0;
   std::unordered_map<std::string, const aiNodeAnim*> channels_;
 };
 
@@ -222,6 +249,7 @@ sim::Clip LoadAssimpClip(const std::string& path, const ClipImportOptions& optio
                      sim::FormatValue(options.sample_rate) + " Hz exceeds " +
                      sim::FormatValue(kMaxFrames) + " frames");
   }
+  MapToHAnim(skeleton.joints);  // before sampling: the H-Anim root's path is the clip's
   const AnimationSampler sampler(animation, skeleton, file_to_world);
   const int intervals = std::max(1, static_cast<int>(std::lround(duration * options.sample_rate)));
   const sim::Pose first = sampler.PoseAt(0.0);
@@ -238,7 +266,6 @@ sim::Clip LoadAssimpClip(const std::string& path, const ClipImportOptions& optio
   for (int f = 0; f < num_frames; ++f) {
     clip.frames.push_back(sampler.PoseAt(animation.mDuration * f / intervals));
   }
-  MapToHAnim(skeleton.joints);
   clip.skeleton = sim::Skeleton::Create(clip.name, std::move(skeleton.joints));
   if (options.start_at_origin) MoveStartToOrigin(clip);
   sim::ValidateClip(clip);

@@ -510,6 +510,54 @@ std::vector<std::string> Sided(const std::vector<std::string>& names, const std:
   return all;
 }
 
+/// An Unreal-style rig (root on the floor, the pelvis 1 m above it, spine, arms, legs: made
+/// by a script) whose one animation raises the pelvis 10 cm in 1 s and leaves the root still;
+/// its skin (one triangle on the pelvis) has no inverse bind matrices.
+constexpr char kPelvisRisingClip[] =
+    R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0,17]}],"nodes":[{"name":"root")"
+    R"(,"translation":[0,0,0],"children":[1]},{"name":"pelvis","translation":[0,1,0],"children")"
+    R"(:[2,11,14]},{"name":"spine_01","translation":[0,0.1,0],"children":[3,5,8]},{"name":"neck)"
+    R"(_01","translation":[0,0.4,0],"children":[4]},{"name":"head","translation":[0,0.1,0]},{"n)"
+    R"(ame":"upperarm_l","translation":[0.2,0.35,0],"children":[6]},{"name":"lowerarm_l","trans)"
+    R"(lation":[0.3,0,0],"children":[7]},{"name":"hand_l","translation":[0.25,0,0]},{"name":"up)"
+    R"(perarm_r","translation":[-0.2,0.35,0],"children":[9]},{"name":"lowerarm_r","translation")"
+    R"(:[-0.3,0,0],"children":[10]},{"name":"hand_r","translation":[-0.25,0,0]},{"name":"thigh_)"
+    R"(l","translation":[0.1,-0.05,0],"children":[12]},{"name":"calf_l","translation":[0,-0.45,)"
+    R"(0],"children":[13]},{"name":"foot_l","translation":[0,-0.45,0]},{"name":"thigh_r","trans)"
+    R"(lation":[-0.1,-0.05,0],"children":[15]},{"name":"calf_r","translation":[0,-0.45,0],"chil)"
+    R"(dren":[16]},{"name":"foot_r","translation":[0,-0.45,0]},{"name":"body","mesh":0,"skin":0)"
+    R"(}],"skins":[{"joints":[0,1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16]}],"meshes":[{"primitive)"
+    R"(s":[{"attributes":{"POSITION":0,"JOINTS_0":1,"WEIGHTS_0":2}}]}],"animations":[{"channels)"
+    R"(":[{"sampler":0,"target":{"node":1,"path":"translation"}}],"samplers":[{"input":3,"outpu)"
+    R"(t":4,"interpolation":"LINEAR"}]}],"buffers":[{"byteLength":140,"uri":"data:application/o)"
+    R"(ctet-stream;base64,AAAAAAAAgD/NzMw9zczMPQAAgD/NzMw9AAAAAM3MjD/NzMw9AQAAAAAAAAABAAAAAAAAA)"
+    R"(AEAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAAAAAAAAAAAAAAAAAAAAAAAgD8AA)"
+    R"(AAAAACAPwAAAAAAAAAAzcyMPwAAAAA="}],"bufferViews":[{"buffer":0,"byteOffset":0,"byteLength)"
+    R"(":36},{"buffer":0,"byteOffset":36,"byteLength":24},{"buffer":0,"byteOffset":60,"byteLeng)"
+    R"(th":48},{"buffer":0,"byteOffset":108,"byteLength":8},{"buffer":0,"byteOffset":116,"byteL)"
+    R"(ength":24}],"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","m)"
+    R"(in":[0,1,0.1],"max":[0.1,1.1,0.1]},{"bufferView":1,"componentType":5123,"count":3,"type")"
+    R"(:"VEC4"},{"bufferView":2,"componentType":5126,"count":3,"type":"VEC4"},{"bufferView":3,")"
+    R"(componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[1]},{"bufferView":4,"comp)"
+    R"(onentType":5126,"count":2,"type":"VEC3"}]})";
+
+// Unreal's and Character Creator's rigs move the pelvis, not the root on the floor above
+// which it hangs; a clip keeps only its root's translation, and took it from the skeleton's
+// root: the rig's pelvis bob (and a jump) was lost. The H-Anim root's path is now the clip's.
+TEST(ClipImport, ThePelvisPathOfARigWithARootOnTheFloorIsTheClips) {
+  ScratchDir dir;
+  ClipImportOptions options;
+  options.sample_rate = 10.0;
+  const sim::Clip clip = LoadClip(dir.Write("rising.gltf", kPelvisRisingClip), options);
+  ASSERT_EQ(clip.frames.size(), 11u);  // 1 s at 10 Hz, both ends: it does not loop
+  for (std::size_t f = 0; f < clip.frames.size(); ++f) {
+    EXPECT_NEAR(clip.frames[f].root_translation.y(), 0.01 * f, 1e-6) << "frame " << f;
+    EXPECT_NEAR(clip.frames[f].root_translation.x(), 0.0, 1e-9);
+    EXPECT_NEAR(clip.frames[f].root_translation.z(), 0.0, 1e-9);
+  }
+  EXPECT_EQ(clip.skeleton->joint(clip.skeleton->Find(HAnimJoint::kHumanoidRoot)).name, "pelvis");
+}
+
 /// A rig as a tool names its joints, and what its family should map.
 struct ToolRig {
   const char* tool;
