@@ -100,12 +100,13 @@ const aiScene* ReadChecked(Assimp::Importer& importer, const std::string& path, 
   return guarded([&] { return importer.ApplyPostProcessing(steps); });
 }
 
-/// Reads the file once in a child process under kAssimpReadLimits before this process does:
-/// assimp 5.2 crashes on some files (a glTF skin without joints: SIGSEGV; one without
-/// inverse bind matrices did before assimp_input.h wrote them out) and allocates without end
-/// on others (a Collada index list holding "nan"), which would take the calling program (the simulation server, the GUI) down with
-/// it. A file assimp reads or refuses is read again here, for its scene or its own message.
-/// Inside a limited child already (the catalogue's import check) no second child is needed.
+/// Reads the file once in a child process under kAssimpReadLimits before this process does: assimp
+/// 5.2 crashes on some files (a glTF skin without joints: SIGSEGV; one without inverse bind
+/// matrices did before assimp_input.h wrote them out) and allocates without end on others (a
+/// Collada index list holding "nan"), which would take the calling program (the simulation server,
+/// the GUI) down with it. A file assimp reads or refuses is read again here, for its scene or its
+/// own message. Inside a limited child already (the catalogue's import check) no second child is
+/// needed.
 void ReadInChildFirst(Assimp::Importer& importer, const std::string& path, unsigned steps,
                       const std::string& what) {
   if (process::InLimitedChild()) return;

@@ -87,14 +87,14 @@ struct EntryInfo {
 
 /// An entry's data, as stored.
 struct AssetData {
-  /// "builtin": `bytes` are the built-in's name ("humanoid"; "stand", "walk", ...; "skirt",
-  /// "cape", "dress"). Otherwise the file format: "glb", "gltf", "fbx", "dae", "obj" (avatars,
-  /// and glTF/FBX/Collada clips), "vrm" (avatars), "bvh", "deepmimic" (a bundle: motion and
-  /// character file, catalog/bundle.h), "makehuman" (a bundle: base.obj, .mhskel, .mhw);
-  /// garments: "garment-toml" (a scene file holding one [[garment]] table, with a mesh file
-  /// in a bundle when it uses one; see catalog_loader.h), "makehuman-garment" (a bundle: the .mhclo, its
-  /// garment OBJ and the MakeHuman body it is fitted to; catalog_loader.h) or
-  /// "edited-garment" (assets/edited_garment.h).
+  /// "builtin": `bytes` are the built-in's name ("humanoid"; "stand", "walk", ...; "skirt", "cape",
+  /// "dress"). Otherwise the file format: "glb", "gltf", "fbx", "dae", "obj" (avatars, and
+  /// glTF/FBX/Collada clips), "vrm" (avatars), "bvh", "deepmimic" (a bundle: motion and character
+  /// file, catalog/bundle.h), "makehuman" (a bundle: base.obj, .mhskel, .mhw); garments:
+  /// "garment-toml" (a scene file holding one [[garment]] table, with a mesh file in a bundle when
+  /// it uses one; see catalog_loader.h), "makehuman-garment" (a bundle: the .mhclo, its garment OBJ
+  /// and the MakeHuman body it is fitted to; catalog_loader.h) or "edited-garment"
+  /// (assets/edited_garment.h).
   std::string format;
   std::vector<std::uint8_t> bytes;
 };

@@ -152,17 +152,26 @@ TEST(AvatarImport, ARigNamedAsBlendersMapsAsTheOriginal) {
   std::string text = ReadBytes(original);
   // Longer names first: "Skeleton_arm_joint_R" begins two others.
   const std::pair<std::string, std::string> kRenames[] = {
-      {"Skeleton_arm_joint_R__2_", "DEF-forearm.R"}, {"Skeleton_arm_joint_R__3_", "DEF-hand.R"},
-      {"Skeleton_arm_joint_R", "DEF-upper_arm.R"},   {"Skeleton_arm_joint_L__4_", "DEF-upper_arm.L"},
-      {"Skeleton_arm_joint_L__3_", "DEF-forearm.L"}, {"Skeleton_arm_joint_L__2_", "DEF-hand.L"},
-      {"Skeleton_torso_joint_1", "DEF-spine"},       {"Skeleton_torso_joint_2", "DEF-spine.001"},
-      {"Skeleton_neck_joint_1", "DEF-spine.004"},    {"Skeleton_neck_joint_2", "DEF-spine.006"},
-      {"leg_joint_L_1", "DEF-thigh.L"},              {"leg_joint_L_2", "DEF-shin.L"},
-      {"leg_joint_L_3", "DEF-foot.L"},               {"leg_joint_R_1", "DEF-thigh.R"},
-      {"leg_joint_R_2", "DEF-shin.R"},               {"leg_joint_R_3", "DEF-foot.R"}};
+      {"Skeleton_arm_joint_R__2_", "DEF-forearm.R"},
+      {"Skeleton_arm_joint_R__3_", "DEF-hand.R"},
+      {"Skeleton_arm_joint_R", "DEF-upper_arm.R"},
+      {"Skeleton_arm_joint_L__4_", "DEF-upper_arm.L"},
+      {"Skeleton_arm_joint_L__3_", "DEF-forearm.L"},
+      {"Skeleton_arm_joint_L__2_", "DEF-hand.L"},
+      {"Skeleton_torso_joint_1", "DEF-spine"},
+      {"Skeleton_torso_joint_2", "DEF-spine.001"},
+      {"Skeleton_neck_joint_1", "DEF-spine.004"},
+      {"Skeleton_neck_joint_2", "DEF-spine.006"},
+      {"leg_joint_L_1", "DEF-thigh.L"},
+      {"leg_joint_L_2", "DEF-shin.L"},
+      {"leg_joint_L_3", "DEF-foot.L"},
+      {"leg_joint_R_1", "DEF-thigh.R"},
+      {"leg_joint_R_2", "DEF-shin.R"},
+      {"leg_joint_R_3", "DEF-foot.R"}};
   for (const auto& [from, to] : kRenames) {
     int replaced = 0;
-    for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at)) {
+    for (std::size_t at = text.find(from); at != std::string::npos;
+         at = text.find(from, at + to.size())) {
       text.replace(at, from.size(), to);
       ++replaced;
     }
@@ -199,8 +208,8 @@ TEST(AvatarImport, AnAvatarFacingAnotherWayIsTurnedToFacePlusZ) {
     SCOPED_TRACE(degrees);
     std::string turned = ReadBytes(original);
     const std::size_t scene = turned.find('>', turned.find("<visual_scene")) + 1;
-    turned.insert(scene, std::string("<node id=\"turn\" name=\"turn\" type=\"NODE\"><rotate>0 0 1 ") +
-                             degrees + "</rotate>");
+    turned.insert(scene, std::string("<node id=\"turn\" name=\"turn\" type=\"NODE\">") +
+                             "<rotate>0 0 1 " + degrees + "</rotate>");
     turned.insert(turned.find("</visual_scene>"), "</node>");
     const auto avatar = LoadAvatar(dir.Write("turned.dae", turned));
     ASSERT_EQ(avatar->num_vertices(), expected->num_vertices());

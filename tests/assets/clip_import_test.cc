@@ -505,7 +505,9 @@ std::vector<std::string> Sided(const std::vector<std::string>& names, const std:
       all.push_back(name);
       continue;
     }
-    for (const std::string& side : {left, right}) all.push_back(std::string(name).replace(at, 6, side));
+    for (const std::string& side : {left, right}) {
+      all.push_back(std::string(name).replace(at, 6, side));
+    }
   }
   return all;
 }
