@@ -291,6 +291,26 @@ const char* KindName(Kind kind) {
   return "unknown";
 }
 
+const std::vector<std::string>& AvatarFileFormats() {
+  static const std::vector<std::string> formats{"glb", "gltf", "vrm", "fbx", "dae", "obj"};
+  return formats;
+}
+
+const std::vector<std::string>& AnimationFileFormats() {
+  static const std::vector<std::string> formats{"glb", "gltf", "fbx", "dae"};
+  return formats;
+}
+
+bool HasFormat(const std::vector<std::string>& formats, const std::string& format) {
+  return std::find(formats.begin(), formats.end(), format) != formats.end();
+}
+
+std::string ListFormats(const std::vector<std::string>& formats, const std::string& prefix) {
+  std::string list;
+  for (const std::string& format : formats) list += (list.empty() ? "" : ", ") + prefix + format;
+  return list;
+}
+
 Kind ParseKind(const std::string& name) {
   for (Kind kind : {Kind::kAvatar, Kind::kGarment, Kind::kAnimation}) {
     if (name == KindName(kind)) return kind;

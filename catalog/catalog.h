@@ -38,6 +38,16 @@ const char* KindName(Kind kind);
 /// the valid names otherwise.
 Kind ParseKind(const std::string& name);
 
+/// The file formats stored as the file itself and read through assimp (AssetData::format,
+/// the file's extension): an avatar may be any of them, an animation any but "vrm" and
+/// "obj", which hold none.
+const std::vector<std::string>& AvatarFileFormats();
+const std::vector<std::string>& AnimationFileFormats();
+/// Whether `formats` holds `format`.
+bool HasFormat(const std::vector<std::string>& formats, const std::string& format);
+/// `formats` as messages list them, each after `prefix` ("glb, gltf, ..."; ".glb, .gltf").
+std::string ListFormats(const std::vector<std::string>& formats, const std::string& prefix = "");
+
 /// A fabric's physical parameters, independent of how finely the cloth is sampled; the
 /// same quantities as sim::Material (sim_core/cloth/material.h).
 struct FabricParameters {

@@ -108,11 +108,6 @@ const BundleFile& Member(const std::vector<BundleFile>& files, const std::string
   throw sim::InputError(what + ": the bundle has no '*" + suffix + "' file");
 }
 
-bool IsMeshFormat(const std::string& format) {
-  return format == "glb" || format == "gltf" || format == "vrm" || format == "fbx" ||
-         format == "dae" || format == "obj";
-}
-
 std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const AssetData& data,
                                                   const std::string& what) {
   if (data.format == "builtin") {
@@ -123,7 +118,7 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
     return sim::MakeHumanoid();
   }
   TempDir dir;
-  if (IsMeshFormat(data.format)) {
+  if (HasFormat(AvatarFileFormats(), data.format)) {
     assets::AvatarImportOptions options;
     options.name = name;
     const std::string path = dir.Write("avatar." + data.format, data.bytes, what);
@@ -146,8 +141,8 @@ std::shared_ptr<const sim::Avatar> AvatarFromData(const std::string& name, const
     });
   }
   throw sim::InputError(what + ": format '" + data.format +
-                        "' is not an avatar format: allowed are builtin, glb, gltf, vrm, fbx, "
-                        "dae, obj, makehuman");
+                        "' is not an avatar format: allowed are builtin, " +
+                        ListFormats(AvatarFileFormats()) + ", makehuman");
 }
 
 /// `character_what` names a DeepMimic clip's character file in messages.
@@ -170,7 +165,7 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
   options.name = name;
   options.category = category;
   TempDir dir;
-  if (data.format == "bvh" || (IsMeshFormat(data.format) && data.format != "obj")) {
+  if (data.format == "bvh" || HasFormat(AnimationFileFormats(), data.format)) {
     const std::string path = dir.Write("clip." + data.format, data.bytes, what);
     return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }
@@ -183,8 +178,8 @@ std::shared_ptr<const sim::Clip> ClipFromData(const std::string& name, sim::Clip
     return dir.Guard([&] { return std::make_shared<sim::Clip>(assets::LoadClip(path, options)); });
   }
   throw sim::InputError(what + ": format '" + data.format +
-                        "' is not an animation format: allowed are builtin, bvh, glb, gltf, "
-                        "fbx, dae, deepmimic");
+                        "' is not an animation format: allowed are builtin, bvh, " +
+                        ListFormats(AnimationFileFormats()) + ", deepmimic");
 }
 
 /// A "makehuman-garment" bundle (catalog_loader.h) written out to a private folder, from

@@ -250,12 +250,13 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                               (request.kind == Kind::kAvatar ? "an " : "a ") +
                               KindName(request.kind) + " format: allowed are " +
                               (request.kind == Kind::kAvatar
-                                   ? ".glb, .gltf, .vrm, .fbx, .dae, .obj, MakeHuman's "
-                                     ".obj+.mhskel+.mhw"
+                                   ? ListFormats(AvatarFileFormats(), ".") +
+                                         ", MakeHuman's .obj+.mhskel+.mhw"
                                : request.kind == Kind::kAnimation
-                                   ? ".bvh, .glb, .gltf, .fbx, .dae, DeepMimic .txt/.json"
-                                   : ".toml (one [[garment]]), MakeHuman's .mhclo, .cdgarment "
-                                     "(edited garment)"));
+                                   ? ".bvh, " + ListFormats(AnimationFileFormats(), ".") +
+                                         ", DeepMimic .txt/.json"
+                                   : std::string(".toml (one [[garment]]), MakeHuman's .mhclo, .cdgarment "
+                                     "(edited garment)")));
       }
       if (format == "deepmimic") {
         // Resolved from the real motion path (a symbolic link on the way is followed), named
@@ -303,12 +304,10 @@ std::string FormatOfExtension(Kind kind, const std::string& extension) {
   const std::string e = Lower(extension);
   switch (kind) {
     case Kind::kAvatar:
-      if (e == "glb" || e == "gltf" || e == "vrm" || e == "fbx" || e == "dae" || e == "obj") {
-        return e;
-      }
+      if (HasFormat(AvatarFileFormats(), e)) return e;
       break;
     case Kind::kAnimation:
-      if (e == "bvh" || e == "glb" || e == "gltf" || e == "fbx" || e == "dae") return e;
+      if (e == "bvh" || HasFormat(AnimationFileFormats(), e)) return e;
       if (e == "txt" || e == "json") return "deepmimic";
       break;
     case Kind::kGarment:
