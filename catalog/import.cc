@@ -247,7 +247,7 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
       const std::string format = FormatOfExtension(request.kind, Extension(path));
       if (format.empty()) {
         throw sim::InputError(shown + ": extension '." + Extension(path) + "' is not " +
-                              (request.kind == Kind::kAvatar ? "an " : "a ") +
+                              (request.kind == Kind::kGarment ? "a " : "an ") +
                               KindName(request.kind) + " format: allowed are " +
                               (request.kind == Kind::kAvatar
                                    ? ListFormats(AvatarFileFormats(), ".") +

@@ -152,6 +152,7 @@ TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
       {Kind::kAnimation, "empty.bvh", "", "empty"},
       {Kind::kAvatar, "noise.glb", "glTF this is not a binary glTF at all", "noise.glb"},
       {Kind::kAvatar, "shape.xyz", "1 2 3", "'.xyz' is not an avatar format"},
+      {Kind::kAnimation, "steps.xyz", "1 2 3", "'.xyz' is not an animation format"},
       {Kind::kGarment, "broken.toml", "[[garment]\nname = 1", "broken.toml:1"},
       {Kind::kGarment, "two.toml",
        "[[garment]]\nname = \"a\"\n[garment.panel]\n[[garment]]\nname = \"b\"\n"
