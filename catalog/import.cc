@@ -8,6 +8,7 @@
 #include <iomanip>
 #include <optional>
 #include <sstream>
+#include <utility>
 
 #include "assets/deepmimic_import.h"
 #include "assets/import_units.h"
@@ -300,23 +301,48 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
+namespace {
+
+/// The formats of the files ImportFiles reads itself (not through assimp), by extension.
+const std::vector<std::pair<std::string, std::string>>& OwnFormats(Kind kind) {
+  static const std::vector<std::pair<std::string, std::string>> avatar;
+  static const std::vector<std::pair<std::string, std::string>> animation{
+      {"bvh", "bvh"}, {"txt", "deepmimic"}, {"json", "deepmimic"}};
+  static const std::vector<std::pair<std::string, std::string>> garment{
+      {"toml", "garment-toml"}, {"mhclo", "makehuman-garment"}, {"cdgarment", "edited-garment"}};
+  return kind == Kind::kAvatar ? avatar : kind == Kind::kAnimation ? animation : garment;
+}
+
+/// The formats assimp reads for `kind`, stored as the file itself.
+const std::vector<std::string>& AssimpFormats(Kind kind) {
+  static const std::vector<std::string> none;
+  return kind == Kind::kAvatar      ? AvatarFileFormats()
+         : kind == Kind::kAnimation ? AnimationFileFormats()
+                                    : none;
+}
+
+}  // namespace
+
 std::string FormatOfExtension(Kind kind, const std::string& extension) {
   const std::string e = Lower(extension);
-  switch (kind) {
-    case Kind::kAvatar:
-      if (HasFormat(AvatarFileFormats(), e)) return e;
-      break;
-    case Kind::kAnimation:
-      if (e == "bvh" || HasFormat(AnimationFileFormats(), e)) return e;
-      if (e == "txt" || e == "json") return "deepmimic";
-      break;
-    case Kind::kGarment:
-      if (e == "toml") return "garment-toml";
-      if (e == "mhclo") return "makehuman-garment";
-      if (e == "cdgarment") return "edited-garment";
-      break;
+  if (HasFormat(AssimpFormats(kind), e)) return e;
+  for (const auto& [own_extension, format] : OwnFormats(kind)) {
+    if (e == own_extension) return format;
   }
   return "";
+}
+
+std::vector<std::string> ImportExtensions(Kind kind) {
+  std::vector<std::string> extensions;
+  for (const auto& own : OwnFormats(kind)) extensions.push_back(own.first);
+  for (const std::string& format : AssimpFormats(kind)) extensions.push_back(format);
+  if (kind == Kind::kAvatar) extensions.insert(extensions.end(), {"mhskel", "mhw"});
+  return extensions;
+}
+
+const std::vector<std::string>& MakeHumanBodyExtensions() {
+  static const std::vector<std::string> extensions{"obj", "mhskel", "mhw"};
+  return extensions;
 }
 
 fs::path ResolveInsideRoot(const fs::path& root, const std::string& file) {

@@ -74,4 +74,15 @@ std::vector<std::int64_t> ImportFiles(Catalog& catalog, const ImportRequest& req
 /// The kind of format a file extension means ("bvh", "glb", ..., "" when unknown).
 std::string FormatOfExtension(Kind kind, const std::string& extension);
 
+/// The extensions (lower case, without the dot) of the files ImportFiles takes as `kind`'s
+/// entries: every one FormatOfExtension knows, and for avatars MakeHuman's .mhskel and .mhw
+/// (picked with its .obj). For a file dialog's filter, so that it offers what the import
+/// reads and nothing else.
+std::vector<std::string> ImportExtensions(Kind kind);
+
+/// The files of the MakeHuman body a garment's .mhclo is fitted to, when they are picked
+/// with it rather than found beside it (ImportRequest::makehuman_body, makehuman_skeleton,
+/// makehuman_weights): "obj", "mhskel", "mhw".
+const std::vector<std::string>& MakeHumanBodyExtensions();
+
 }  // namespace costume::catalog

@@ -7,6 +7,7 @@
 #include "catalog/catalog.h"
 #include "catalog/catalog_loader.h"
 #include "catalog/fabric_presets.h"
+#include "catalog/import.h"
 #include "catalog/rendered_thumbnails.h"
 #endif
 
@@ -141,6 +142,39 @@ std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::st
   if (warning && !url.empty()) *warning = "this build has no catalogue library; showing built-ins";
 #endif
   return MakeBuiltInCatalog();
+}
+
+#ifdef COSTUME_HAVE_CATALOG
+namespace {
+
+/// "*.a *.b" for a file dialog.
+std::string Patterns(const std::vector<std::string>& extensions) {
+  std::string patterns;
+  for (const std::string& e : extensions) patterns += (patterns.empty() ? "*." : " *.") + e;
+  return patterns;
+}
+
+}  // namespace
+#endif
+
+std::string ImportFilter(EntryKind kind) {
+#ifdef COSTUME_HAVE_CATALOG
+  switch (kind) {
+    case EntryKind::kAvatar:
+      return "Avatars (" + Patterns(catalog::ImportExtensions(catalog::Kind::kAvatar)) + ")";
+    case EntryKind::kAnimation:
+      return "Animations (" + Patterns(catalog::ImportExtensions(catalog::Kind::kAnimation)) +
+             ")";
+    case EntryKind::kCostume: {
+      std::vector<std::string> with_body{"mhclo"};
+      for (const std::string& e : catalog::MakeHumanBodyExtensions()) with_body.push_back(e);
+      return "Costumes (" + Patterns(catalog::ImportExtensions(catalog::Kind::kGarment)) +
+             ");;MakeHuman garments with their body (" + Patterns(with_body) + ")";
+    }
+  }
+#endif
+  (void)kind;
+  return "";
 }
 
 std::vector<FabricPreset> FabricPresets() {

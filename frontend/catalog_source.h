@@ -61,6 +61,12 @@ std::unique_ptr<CatalogSource> MakeBuiltInCatalog();
 /// `*warning` (when not null).
 std::unique_ptr<CatalogSource> OpenCatalogSource(const std::string& url, std::string* warning);
 
+/// The import dialog's file filter for `kind`, in Qt's form ("Avatars (*.glb *.gltf …)"; a
+/// garment's second filter, after ";;", adds the MakeHuman body picked with a .mhclo): the
+/// extensions `costume-catalog import` takes (catalog::ImportExtensions), so the dialog
+/// offers what the import reads. Empty in a build without the catalogue.
+std::string ImportFilter(EntryKind kind);
+
 /// The fabric presets for the material panel: the catalogue's fabric presets when the build
 /// has them, the simulation's named materials otherwise.
 std::vector<FabricPreset> FabricPresets();

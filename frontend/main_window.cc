@@ -40,10 +40,6 @@ const char* kListTitles[3] = {"Avatars", "Costumes", "Animations"};
 /// Per list: what `costume-catalog import --kind` calls its entries, and the files it reads
 /// (docs/catalog.md).
 const char* kImportKinds[3] = {"avatar", "garment", "animation"};
-const char* kImportFilters[3] = {"Avatars (*.glb *.gltf *.vrm *.fbx *.dae *.obj *.mhskel *.mhw)",
-                                 "Costumes (*.toml *.mhclo *.cdgarment);;MakeHuman garments with "
-                                 "their body (*.mhclo *.obj *.mhskel *.mhw)",
-                                 "Animations (*.bvh *.glb *.gltf *.fbx *.dae *.txt *.json)"};
 const char* kImportHints[3] = {
     "Add avatars to the catalogue (MakeHuman's: its .obj, .mhskel and .mhw picked together)",
     "Add costumes to the catalogue (a MakeHuman garment: with its body's .obj, .mhskel and .mhw "
@@ -523,7 +519,7 @@ void MainWindow::BuildMenus() {
     connect(import_actions_[k], &QAction::triggered, this, [this, kind, k] {
       const QStringList files = QFileDialog::getOpenFileNames(
           this, QString("Import %1").arg(QString(kListTitles[k]).toLower()), import_folder_,
-          kImportFilters[k]);
+          QString::fromStdString(ImportFilter(kind)));
       if (!files.isEmpty()) ImportFiles(kind, files);
     });
   }

@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include "assets/avatar_import.h"
@@ -185,6 +187,44 @@ TEST_F(ImportTest, BadFilesAreNamedWithWhatIsWrongAndNothingIsImported) {
   missing.kind = Kind::kAnimation;
   missing.files = {(root_ / "missing.bvh").string()};
   EXPECT_TRUE(Contains(ImportError(missing), "missing.bvh"));
+}
+
+// The GUI's file dialog offers ImportExtensions: each must be read as its kind's entry (a
+// garbage file is refused for what is in it, not for its extension), and each the refusal
+// of an unknown extension names as allowed must be offered.
+TEST_F(ImportTest, TheExtensionsOfferedAreTheOnesTheImportReads) {
+  const std::regex named(R"(\.([a-z]+))");
+  for (Kind kind : {Kind::kAvatar, Kind::kGarment, Kind::kAnimation}) {
+    const std::vector<std::string> offered = ImportExtensions(kind);
+    auto is_offered = [&](const std::string& e) {
+      return std::find(offered.begin(), offered.end(), e) != offered.end();
+    };
+    for (const std::string& e : offered) {
+      ImportRequest request;
+      request.kind = kind;
+      request.files = {Write("junk." + e, "\x01 not a file of any kind \x02")};
+      if (kind == Kind::kAvatar && (e == "mhskel" || e == "mhw")) {
+        request.files = {Write("junk.obj", "garbage"), Write("junk.mhskel", "garbage"),
+                         Write("junk.mhw", "garbage")};
+      }
+      const std::string message = ImportError(request);
+      EXPECT_FALSE(message.empty()) << KindName(kind) << " ." << e;
+      EXPECT_FALSE(Contains(message, "format: allowed are")) << KindName(kind) << " ." << e << ": "
+                                                             << message;
+      EXPECT_TRUE(Contains(message, "junk.")) << message;
+    }
+    ImportRequest unknown;
+    unknown.kind = kind;
+    unknown.files = {Write("shape.xyz", "1 2 3")};
+    const std::string message = ImportError(unknown);
+    const std::string allowed = message.substr(message.find("allowed are"));
+    int count = 0;
+    for (std::sregex_iterator m(allowed.begin(), allowed.end(), named), end; m != end; ++m) {
+      EXPECT_TRUE(is_offered((*m)[1])) << KindName(kind) << ": ." << (*m)[1] << " in " << message;
+      ++count;
+    }
+    EXPECT_GE(count, 3) << message;
+  }
 }
 
 TEST_F(ImportTest, OneBadFileStopsTheWholeBatch) {

@@ -951,6 +951,27 @@ TEST(ImportArguments, GiveAMakeHumanGarmentsBodyAsOptions) {
             (QStringList{"--kind", "garment", "--root", "/g", "--", "/g/-x.toml"}));
 }
 
+// The dialog's filters are the import's extensions; each file of the MakeHuman body its
+// second garment filter offers is passed as that body's option, not as a garment.
+TEST(ImportFilter, OffersTheImportsExtensionsAndTheBodyFilesBecomeOptions) {
+  const QString avatars = QString::fromStdString(ImportFilter(EntryKind::kAvatar));
+  for (const char* e : {"*.glb", "*.vrm", "*.obj", "*.mhskel", "*.mhw"}) {
+    EXPECT_TRUE(avatars.contains(e)) << avatars.toStdString() << " lacks " << e;
+  }
+  const QStringList garments = QString::fromStdString(ImportFilter(EntryKind::kCostume)).split(";;");
+  ASSERT_EQ(garments.size(), 2);
+  const QRegularExpression pattern(R"(\*\.(\w+))");
+  QStringList picked;
+  for (const QRegularExpressionMatch& m : pattern.globalMatch(garments[1])) {
+    picked << "/mh/f/x." + m.captured(1);
+  }
+  ASSERT_TRUE(picked.contains("/mh/f/x.mhclo")) << garments[1].toStdString();
+  const QStringList arguments = ImportArguments("garment", picked);
+  const QStringList entries = arguments.mid(arguments.indexOf("--") + 1);
+  EXPECT_EQ(entries, QStringList{"/mh/f/x.mhclo"}) << arguments.join(' ').toStdString();
+  EXPECT_TRUE(QString::fromStdString(ImportFilter(EntryKind::kAnimation)).contains("*.bvh"));
+}
+
 }  // namespace
 }  // namespace costume::frontend
 #endif
