@@ -1,10 +1,9 @@
 #include "process/limited_child.h"
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
-#include <sys/mman.h>
 #include <sys/resource.h>
-#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -61,23 +60,50 @@ bool WriteAll(int fd, const char* data, std::size_t size) {
   return true;
 }
 
-std::string ReadAll(int fd) {
-  std::string bytes;
-  char buffer[65536];
-  for (;;) {
-    const ssize_t got = read(fd, buffer, sizeof buffer);
-    if (got < 0 && errno == EINTR) continue;
-    if (got <= 0) return bytes;
-    bytes.append(buffer, static_cast<std::size_t>(got));
+/// What the child writes to its standard error, as it comes, its last kKept bytes only: a
+/// child that prints without end costs this process no more than that (held in a file in
+/// memory until it ended, 2 GB printed in a second would have been 2 GB of the machine's
+/// memory).
+class ErrorTail {
+ public:
+  static constexpr std::size_t kKept = std::size_t{1} << 16;
+  void Append(const char* data, std::size_t size) {
+    text_.append(data, size);
+    if (text_.size() > 2 * kKept) text_.erase(0, text_.size() - kKept);
   }
-}
+  std::string Text() const {
+    return text_.size() > kKept ? text_.substr(text_.size() - kKept) : text_;
+  }
 
-/// The last `bytes` bytes of the file `fd` (the child's standard error).
-std::string Tail(int fd, off_t bytes) {
-  struct stat info {};
-  if (fstat(fd, &info) != 0) return "";
-  if (lseek(fd, std::max<off_t>(0, info.st_size - bytes), SEEK_SET) < 0) return "";
-  return ReadAll(fd);
+ private:
+  std::string text_;
+};
+
+/// Reads the child's result pipe and its standard error (`error_fd`, -1 when it has none of
+/// its own) until both end, side by side, so that neither pipe fills and stops the child.
+void ReadChild(int result_fd, int error_fd, std::string& result, ErrorTail& errors) {
+  pollfd fds[2] = {{result_fd, POLLIN, 0}, {error_fd, POLLIN, 0}};  // poll skips fd -1
+  int open = error_fd >= 0 ? 2 : 1;
+  char buffer[65536];
+  while (open > 0) {
+    if (poll(fds, 2, -1) < 0) {
+      if (errno == EINTR) continue;
+      return;
+    }
+    for (int k = 0; k < 2; ++k) {
+      if (fds[k].fd < 0 || fds[k].revents == 0) continue;
+      const ssize_t got = read(fds[k].fd, buffer, sizeof buffer);
+      if (got < 0 && errno == EINTR) continue;
+      if (got <= 0) {
+        fds[k].fd = -1;
+        --open;
+      } else if (k == 0) {
+        result.append(buffer, static_cast<std::size_t>(got));
+      } else {
+        errors.Append(buffer, static_cast<std::size_t>(got));
+      }
+    }
+  }
 }
 
 /// The last line of `text` that holds more than blanks, trimmed, its last `most` characters.
@@ -139,17 +165,10 @@ ChildResult Interpret(const std::string& bytes, int status, const rusage& usage,
   return result;
 }
 
-/// Where the child's standard error is held until it ends: a file in memory (-1 when none
-/// could be made: the child then writes where this process does).
-int MakeErrorFile() { return memfd_create("limited-child-stderr", MFD_CLOEXEC); }
-
 /// After the child ended: its standard error to this process's when the work returned or
 /// threw, else its last line to `result`.
-void HandOnErrors(int error_file, ChildResult& result) {
-  if (error_file < 0) return;
-  // A child that printed without end is cut to its last 64 KB.
-  const std::string text = Tail(error_file, off_t{1} << 16);
-  close(error_file);
+void HandOnErrors(const ErrorTail& errors, ChildResult& result) {
+  const std::string text = errors.Text();
   if (result.ending == ChildEnding::kReturned || result.ending == ChildEnding::kThrew) {
     WriteAll(STDERR_FILENO, text.data(), text.size());
   } else {
@@ -164,30 +183,42 @@ ChildResult RunLimited(const std::function<std::string()>& work, const ChildLimi
   if (pipe2(fds, O_CLOEXEC) != 0) {
     return {ChildEnding::kNotStarted, std::string("pipe: ") + std::strerror(errno), 0, ""};
   }
+  // Without a pipe for its standard error, the child writes where this process does.
+  int error_pipe[2] = {-1, -1};
+  if (pipe2(error_pipe, O_CLOEXEC) != 0) error_pipe[0] = error_pipe[1] = -1;
+  auto close_all = [&] {
+    for (int fd : {fds[0], fds[1], error_pipe[0], error_pipe[1]}) {
+      if (fd >= 0) close(fd);
+    }
+  };
   std::fflush(stderr);
-  const int error_file = MakeErrorFile();
   const pid_t pid = fork();
   if (pid < 0) {
     const std::string why = std::string("fork: ") + std::strerror(errno);
-    close(fds[0]);
-    close(fds[1]);
-    if (error_file >= 0) close(error_file);
+    close_all();
     return {ChildEnding::kNotStarted, why, 0, ""};
   }
   if (pid == 0) {
     close(fds[0]);
-    if (error_file >= 0) dup2(error_file, STDERR_FILENO);  // the copy is not close-on-exec
+    if (error_pipe[1] >= 0) {
+      close(error_pipe[0]);
+      dup2(error_pipe[1], STDERR_FILENO);  // the copy is not close-on-exec
+    }
     RunChild(fds[1], work, limits);
   }
   close(fds[1]);
-  const std::string bytes = ReadAll(fds[0]);
+  if (error_pipe[1] >= 0) close(error_pipe[1]);
+  std::string bytes;
+  ErrorTail errors;
+  ReadChild(fds[0], error_pipe[0], bytes, errors);
   close(fds[0]);
+  if (error_pipe[0] >= 0) close(error_pipe[0]);
   int status = 0;
   rusage usage{};
   while (wait4(pid, &status, 0, &usage) < 0 && errno == EINTR) {
   }
   ChildResult result = Interpret(bytes, status, usage, limits);
-  HandOnErrors(error_file, result);
+  HandOnErrors(errors, result);
   return result;
 }
 

@@ -6,11 +6,15 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "tests/support/sanitizer.h"
@@ -161,6 +165,53 @@ TEST(RunLimited, WhatAReturningChildWritesToStandardErrorIsPassedOn) {
   EXPECT_EQ(result.output, "done");
   EXPECT_TRUE(result.last_words.empty());
   EXPECT_EQ(passed_on, "a warning\n");
+}
+
+/// The machine's shared memory, files in memory included [kB] (-1 when /proc cannot tell).
+long SharedMemoryKb() {
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key;
+  long kb = -1;
+  while (meminfo >> key >> kb) {
+    if (key == "Shmem:") return kb;
+    meminfo.ignore(64, '\n');
+  }
+  return -1;
+}
+
+// 1 GiB written to standard error: this process keeps its last 64 KB, and the machine's
+// memory does not hold the rest meanwhile (sampled while the child writes).
+TEST(RunLimited, AChildThatPrintsWithoutEndCostsOnlyItsLastWords) {
+  if (SharedMemoryKb() < 0) GTEST_SKIP() << "no Shmem in /proc/meminfo";
+  constexpr std::size_t kChunk = 1 << 20;
+  constexpr int kChunks = 1024;
+  std::atomic<bool> running{true};
+  std::atomic<long> most_kb{0};
+  const long before_kb = SharedMemoryKb();
+  std::thread sampler([&] {
+    while (running) {
+      most_kb = std::max(most_kb.load(), SharedMemoryKb() - before_kb);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  ::testing::internal::CaptureStderr();
+  const ChildResult result = RunLimited(
+      [] {
+        const std::string line(kChunk - 1, 'x');
+        for (int k = 0; k < kChunks; ++k) std::fprintf(stderr, "%s\n", line.c_str());
+        std::fputs("the end\n", stderr);
+        return std::string("done");
+      },
+      {});
+  const std::string passed_on = ::testing::internal::GetCapturedStderr();
+  running = false;
+  sampler.join();
+  EXPECT_EQ(result.ending, ChildEnding::kReturned);
+  EXPECT_EQ(result.output, "done");
+  EXPECT_EQ(passed_on.size(), std::size_t{1} << 16);
+  EXPECT_TRUE(passed_on.ends_with("x\nthe end\n"));
+  // Other programs on the machine may change it a little; the child wrote 1,048,576 kB.
+  EXPECT_LT(most_kb.load(), 200 * 1024) << "the machine's shared memory grew by that [kB]";
 }
 
 TEST(RunLimited, AChildThatExitsWithoutAResultIsNotTakenForSuccess) {
