@@ -210,7 +210,7 @@ std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_fram
 }
 
 void SimServer::Rebuild(const sim::SceneDescription& scene) {
-  auto rebuilt = sim::Simulation::Build(scene, &arm_spreads_);  // throws before anything changes
+  auto rebuilt = sim::Simulation::Build(scene, &arm_spreads_, &colliders_);  // throws before anything changes
   if (grabbing()) ReleaseGrab();
   simulation_ = std::move(rebuilt);
   simulation_->SetAvatarFrozen(mode_ == Mode::kEditing);
@@ -347,7 +347,7 @@ void SimServer::SetSolver(const costume_lcm::solver_parameters& solver) {
 void SimServer::SetCollision(const costume_lcm::collision_parameters& collision) {
   try {
     const sim::CollisionSettings settings = bus::FromMessage(collision);
-    simulation_->SetCollision(settings);
+    simulation_->SetCollision(settings, &colliders_);
     sim::ApplyCollisionSettings(settings, scene_);
     if (!scene_.avatar) {
       Warn("command SET_COLLISION: the scene has no avatar; only self_collision applied");

@@ -216,8 +216,10 @@ class SimServer {
   sim::SceneDescription scene_;
   SimServerOptions options_;
   std::unique_ptr<SceneCatalog> catalog_;  ///< opened lazily (OpenCatalog)
-  /// The arms' spread chosen for the scene's clip, kept across rebuilds (STOP, a fabric).
+  /// Kept across rebuilds (STOP, a fabric, a costume on the same body): the arms' spread
+  /// chosen for the scene's clip, and the avatar's superquadric collider with its drawings.
   sim::ArmSpreadMemo arm_spreads_;
+  sim::ColliderMemo colliders_;
   std::unique_ptr<sim::Simulation> simulation_;
 
   bus::Publisher<costume_lcm::cloth_frame> frame_publisher_;

@@ -622,6 +622,14 @@ void SuperquadricCollider::RefreshAllMaps() {
   }
 }
 
+void SuperquadricCollider::Restart() {
+  // Update takes the pose it is given next without a velocity, moves every segment's skin
+  // (MoveSkin: reach, shell box) and marks every map stale; that is all the state a step
+  // reads besides what construction made.
+  has_pose_ = false;
+  stats_ = {};
+}
+
 void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_world,
                                   const Points& skinned_vertices, double dt) {
   const bool usable =

@@ -338,6 +338,13 @@ class SuperquadricCollider : public BodyCollider {
 
   BodyCollisionStats stats() const override { return stats_; }
 
+  /// Forgets where the body was, as a collider just built for the same avatar: the next
+  /// Update sets the pose with zero velocity, and every map is redrawn or reused from the
+  /// store before it is read. What the collider is built from stays: the fit, the maps'
+  /// grids and the stored drawings, which are what a simulation built again for the same
+  /// avatar keeps it for (ColliderMemo, sim_core/scene/body_colliders.h). Never throws.
+  void Restart();
+
   /// The segments that got a superquadric. Their maps are those of the last refresh (a
   /// segment not needed since the last Update keeps an older one).
   const std::vector<SuperquadricSegment>& segments() const { return segments_; }

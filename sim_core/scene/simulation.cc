@@ -7,8 +7,6 @@
 #include "sim_core/avatar/garment_patterns.h"
 #include "sim_core/cloth/lattice_panel.h"
 #include "sim_core/cloth/mesh_cloth.h"
-#include "sim_core/collision/mesh_collider.h"
-#include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/hierarchy/step_solvers.h"
 #include "sim_core/scene/garment_fit.h"
@@ -175,15 +173,19 @@ void Append(ClothModelData& whole, const ClothModelData& part) {
   }
 }
 
-/// The collider the scene's avatar asks for, following the avatar where it stands now
-/// (`h` [s]: the step its skin velocities are taken over until the next Update).
-std::unique_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
-                                                 const AvatarMotion& avatar, double h) {
+/// The collider the scene's avatar asks for (`memo`'s when it keeps one for it, when not
+/// null), following the avatar where it stands now (`h` [s]: the step its skin velocities
+/// are taken over until the next Update).
+std::shared_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
+                                                 const AvatarMotion& avatar, double h,
+                                                 ColliderMemo* memo) {
   const AvatarSpec& spec = *scene.avatar;
   BodyCollisionSettings contact;
   contact.thickness = spec.thickness;
   contact.friction = scene.effects.friction ? spec.friction : 0.0;
-  auto body = MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
+  std::shared_ptr<BodyCollider> body =
+      memo ? memo->Find(spec.collision, spec.avatar, contact, spec.superquadric_map_mb)
+           : MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
   body->Update(avatar.joint_world(), avatar.vertices(), h);
   return body;
 }
@@ -258,24 +260,6 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
   return ClothModel::Create(std::move(whole));
 }
 
-std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
-                                               std::shared_ptr<const Avatar> avatar,
-                                               const BodyCollisionSettings& settings,
-                                               double map_memory_mb) {
-  if (method == BodyCollisionMethod::kMesh) {
-    // The collider's default search reach (5 cm below the skin). 1.5 cm cut the method's
-    // time by half but lost cloth that the kicking leg drove 2.6 cm deep in one step
-    // (garment_collision_test); 3 cm held on the kick but leaves little margin.
-    return std::make_unique<MeshCollider>(std::move(avatar), settings);
-  }
-  // The skin's own normal (stored in the distance map) rather than the superquadric's
-  // gradient, which is up to 23° off at the rounded ends of limbs (docs/collision.md).
-  SuperquadricColliderOptions options;
-  options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
-  options.map_cache_bytes = static_cast<std::size_t>(std::max(0.0, map_memory_mb) * 1048576.0);
-  return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
-}
-
 StepperSettings StepperSettingsOf(const SceneDescription& scene) {
   StepperSettings settings;
   settings.method = scene.solver.method;
@@ -289,7 +273,8 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene) {
 }
 
 std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene,
-                                              ArmSpreadMemo* arm_spreads) {
+                                              ArmSpreadMemo* arm_spreads,
+                                              ColliderMemo* colliders) {
   ValidateScene(scene);
   std::vector<GarmentRange> garments;
   std::vector<BodyAttachment> attachments;
@@ -299,12 +284,13 @@ std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene,
   return std::unique_ptr<Simulation>(new Simulation(scene, std::move(model), std::move(garments),
                                                     std::move(attachments),
                                                     StepperSettingsOf(scene),
-                                                    arm_spreads ? *arm_spreads : once));
+                                                    arm_spreads ? *arm_spreads : once, colliders));
 }
 
 Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
                        std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
-                       const StepperSettings& settings, ArmSpreadMemo& arm_spreads)
+                       const StepperSettings& settings, ArmSpreadMemo& arm_spreads,
+                       ColliderMemo* colliders)
     : scene_(std::move(scene)),
       model_(std::move(model)),
       garments_(std::move(garments)),
@@ -321,7 +307,7 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     const AvatarSpec& spec = *scene_.avatar;
     const AvatarMotionSettings motion = PlayedMotion(spec, arm_spreads, arm_spread_);
     avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, motion);
-    body_ = MakeAvatarCollider(scene_, *avatar_, step());
+    body_ = MakeAvatarCollider(scene_, *avatar_, step(), colliders);
     attachments_ = std::move(attachments);
   }
   fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
@@ -620,14 +606,14 @@ void Simulation::SetSolver(const SolverSettings& solver) {
   for (std::vector<std::shared_ptr<const ClothModel>>& revision : undo_) revision.resize(1);
 }
 
-void Simulation::SetCollision(const CollisionSettings& settings) {
+void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* colliders) {
   SceneDescription scene = scene_;
   ApplyCollisionSettings(settings, scene);
   ValidateScene(scene);  // throws before anything changes
   // Built before anything is replaced, so a failure leaves the old colliders in place.
-  std::unique_ptr<BodyCollider> body;
+  std::shared_ptr<BodyCollider> body;
   if (avatar_ && !SameCollider(*scene.avatar, *scene_.avatar, scene.effects, scene_.effects)) {
-    body = MakeAvatarCollider(scene, *avatar_, step());
+    body = MakeAvatarCollider(scene, *avatar_, step(), colliders);
   }
   const bool self_changed =
       scene.effects.self_collision != scene_.effects.self_collision ||

@@ -16,6 +16,7 @@
 #include "sim_core/collision/sphere_contacts.h"
 #include "sim_core/hierarchy/quincunx_pyramid.h"
 #include "sim_core/scene/arm_spread.h"
+#include "sim_core/scene/body_colliders.h"
 #include "sim_core/scene/grab.h"
 #include "sim_core/scene/scene_description.h"
 #include "sim_core/solver/implicit_stepper.h"
@@ -89,9 +90,12 @@ class Simulation {
   /// Builds the engine for `scene` (validated first). Throws InputError naming the scene
   /// source, the field, the value and the allowed range. `arm_spreads` (when not null)
   /// remembers the arms' spread chosen for the avatar's clip, so that rebuilding the same
-  /// scene does not search again (a server's STOP, a new fabric).
+  /// scene does not search again (a server's STOP, a new fabric); `colliders` (when not
+  /// null) keeps the avatar's superquadric collider for the next simulation built for it,
+  /// which then shares it: step only the last one built (body_colliders.h).
   static std::unique_ptr<Simulation> Build(const SceneDescription& scene,
-                                           ArmSpreadMemo* arm_spreads = nullptr);
+                                           ArmSpreadMemo* arm_spreads = nullptr,
+                                           ColliderMemo* colliders = nullptr);
 
   /// Advances one frame (1/frame_rate s, in solver.substeps steps, or more where the avatar's
   /// skin near the cloth moves farther than AvatarSpec::max_skin_travel within a step;
@@ -141,9 +145,10 @@ class Simulation {
   /// builds a new collider around the avatar where it stands (the superquadric method fits
   /// its segments again: 0.5–0.8 s; its stored drawings are dropped); self-collision
   /// switched on is built, switched off freed. Without an avatar only self-collision
-  /// applies. Throws InputError (ValidateScene) and changes nothing for settings the scene
-  /// would refuse.
-  void SetCollision(const CollisionSettings& settings);
+  /// applies. `colliders` (when not null) gives a new collider as for Build, and keeps it
+  /// for the next build. Throws InputError (ValidateScene) and changes nothing for settings
+  /// the scene would refuse.
+  void SetCollision(const CollisionSettings& settings, ColliderMemo* colliders = nullptr);
 
   /// Edits that UndoEdit can still take back.
   int num_undoable_edits() const { return static_cast<int>(undo_.size()); }
@@ -196,7 +201,8 @@ class Simulation {
  private:
   Simulation(SceneDescription scene, std::shared_ptr<const ClothModel> model,
              std::vector<GarmentRange> garments, std::vector<BodyAttachment> attachments,
-             const StepperSettings& settings, ArmSpreadMemo& arm_spreads);
+             const StepperSettings& settings, ArmSpreadMemo& arm_spreads,
+             ColliderMemo* colliders);
   /// Steps for the coming frame: solver.substeps, or as many as keep the skin near the
   /// cloth within AvatarSpec::max_skin_travel a step. Measuring poses the avatar at the
   /// frame's end (`posed_at_end`); a split frame's first step poses it again.
@@ -237,7 +243,8 @@ class Simulation {
   ClothState state_;
   std::vector<SphereObstacle> spheres_;
   std::unique_ptr<AvatarMotion> avatar_;
-  std::unique_ptr<BodyCollider> body_;
+  /// Shared with a ColliderMemo, when built with one.
+  std::shared_ptr<BodyCollider> body_;
   std::vector<BodyAttachment> attachments_;
   ArmSpreadFit arm_spread_;
   /// Built only when the scene switches self-collision on (off costs nothing).
@@ -295,13 +302,5 @@ StepperSettings StepperSettingsOf(const SceneDescription& scene);
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
                                                   std::vector<GarmentRange>* garments,
                                                   std::vector<BodyAttachment>* attachments);
-
-/// The collider `method` builds around `avatar` (superquadric_collider.h, mesh_collider.h);
-/// the superquadric one keeps up to `map_memory_mb` [MB] of its maps' drawings for reuse
-/// (SuperquadricColliderOptions::map_cache_bytes).
-std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
-                                               std::shared_ptr<const Avatar> avatar,
-                                               const BodyCollisionSettings& settings,
-                                               double map_memory_mb);
 
 }  // namespace costume::sim

@@ -1,0 +1,54 @@
+#pragma once
+/// @file
+/// The colliders a scene's avatar gets (superquadric_collider.h, mesh_collider.h), and the
+/// one kept for the next simulation built for the same avatar.
+
+#include <memory>
+
+#include "sim_core/avatar/avatar.h"
+#include "sim_core/collision/body_collider.h"
+#include "sim_core/scene/scene_description.h"
+
+namespace costume::sim {
+
+class SuperquadricCollider;
+
+/// The collider `method` builds around `avatar` (superquadric_collider.h, mesh_collider.h);
+/// the superquadric one keeps up to `map_memory_mb` [MB] of its maps' drawings for reuse
+/// (SuperquadricColliderOptions::map_cache_bytes).
+std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
+                                               std::shared_ptr<const Avatar> avatar,
+                                               const BodyCollisionSettings& settings,
+                                               double map_memory_mb);
+
+/// The superquadric collider last built, kept for the next simulation built for the same
+/// avatar with the same settings: a server's STOP, a new fabric or another costume on the
+/// same body rebuilds the simulation from its scene. Building the collider takes 0.5 s on
+/// the built-in humanoid and 0.8 s on MakeHuman's body, and a new one has no drawings stored,
+/// so a looping clip's first pass, slower than real time on MakeHuman, came again after each
+/// rebuild (docs/collision.md, "Kept across rebuilds"). A mesh collider is not kept: it is
+/// built in about 0.05 s and draws nothing.
+///
+/// The simulations built with one memo share its collider: only the last one built may step
+/// (a server replaces its simulation with each one it builds).
+class ColliderMemo {
+ public:
+  /// The kept collider, restarted (SuperquadricCollider::Restart), when it was built for
+  /// `avatar` with `settings` and `map_memory_mb`; else MakeBodyCollider's, kept when it is
+  /// a superquadric one (the one kept before is let go). Throws what MakeBodyCollider throws.
+  std::shared_ptr<BodyCollider> Find(BodyCollisionMethod method,
+                                     const std::shared_ptr<const Avatar>& avatar,
+                                     const BodyCollisionSettings& settings,
+                                     double map_memory_mb);
+  /// Colliders built since construction [-].
+  int num_builds() const { return num_builds_; }
+
+ private:
+  std::shared_ptr<SuperquadricCollider> kept_;
+  std::shared_ptr<const Avatar> avatar_;
+  BodyCollisionSettings settings_;
+  double map_memory_mb_ = 0.0;
+  int num_builds_ = 0;
+};
+
+}  // namespace costume::sim

@@ -1,0 +1,109 @@
+// ColliderMemo: a simulation built again for the same avatar (a server's STOP, a new fabric)
+// keeps the superquadric collider, with the drawings of its maps, instead of fitting it and
+// drawing every map again. Oracle: a simulation built without the memo, which must step
+// exactly as the one that reuses the kept collider.
+#include "sim_core/scene/body_colliders.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "assets/scene_file.h"
+#include "sim_core/scene/simulation.h"
+
+namespace costume::sim {
+namespace {
+
+/// The built-in skirt on the built-in humanoid walking, superquadric collision.
+SceneDescription WalkingSkirt() {
+  SceneDescription scene = assets::LoadBuiltInScene("garment");
+  scene.avatar->collision = BodyCollisionMethod::kSuperquadric;
+  return scene;
+}
+
+/// Maps drawn over `frames` frames of `simulation` (the last step of each: the walk takes
+/// one step a frame).
+int MapsDrawn(Simulation& simulation, int frames) {
+  int drawn = 0;
+  for (int f = 0; f < frames; ++f) {
+    simulation.AdvanceFrame();
+    drawn += simulation.body_collider()->stats().num_maps_drawn;
+  }
+  return drawn;
+}
+
+// Over the fit and the walk's first pass a new collider draws every map a frame needs; one
+// kept from a simulation that played them draws almost none, and the cloth moves exactly as
+// with the new collider (the drawings it reads are the ones it would draw).
+TEST(ColliderMemo, ARebuiltSimulationKeepsTheColliderAndStepsAsANewOne) {
+  const SceneDescription scene = WalkingSkirt();
+  // The fit (0.5 s) and one pass of the walk (1.1 s), at 60 Hz.
+  const int frames = 30 + 66 + 2;
+  ColliderMemo memo;
+  auto first = Simulation::Build(scene, nullptr, &memo);
+  MapsDrawn(*first, frames + 5);
+  auto rebuilt = Simulation::Build(scene, nullptr, &memo);
+  first.reset();
+  EXPECT_EQ(memo.num_builds(), 1);
+  auto fresh = Simulation::Build(scene);
+  int drawn_kept = 0, drawn_fresh = 0;
+  double largest_difference = 0.0;
+  for (int f = 0; f < frames; ++f) {
+    drawn_kept += MapsDrawn(*rebuilt, 1);
+    drawn_fresh += MapsDrawn(*fresh, 1);
+    largest_difference = std::max(
+        largest_difference,
+        (rebuilt->state().positions - fresh->state().positions).cwiseAbs().maxCoeff());
+  }
+  EXPECT_GT(drawn_fresh, 500);
+  EXPECT_LT(drawn_kept, drawn_fresh / 20) << drawn_kept << " against " << drawn_fresh;
+  EXPECT_EQ(largest_difference, 0.0);
+}
+
+// A collider built for new collision settings while the scene runs (the server's
+// SET_COLLISION) is kept for the rebuild that follows (a STOP in those settings).
+TEST(ColliderMemo, ACollisionChangeKeepsItsColliderForTheNextBuild) {
+  SceneDescription scene = WalkingSkirt();
+  ColliderMemo memo;
+  auto running = Simulation::Build(scene, nullptr, &memo);
+  running->AdvanceFrame();
+  CollisionSettings thicker = CollisionSettingsOf(scene);
+  thicker.thickness = 0.008;
+  running->SetCollision(thicker, &memo);
+  EXPECT_EQ(memo.num_builds(), 2);
+  ApplyCollisionSettings(thicker, scene);
+  const BodyCollider* in_use = running->body_collider();
+  running.reset();
+  auto stopped = Simulation::Build(scene, nullptr, &memo);
+  EXPECT_EQ(memo.num_builds(), 2);
+  EXPECT_EQ(stopped->body_collider(), in_use);
+}
+
+// Only the same avatar with the same settings gets the kept collider; a mesh collider is
+// built each time and not kept.
+TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
+  const SceneDescription scene = WalkingSkirt();
+  const std::shared_ptr<const Avatar> avatar = scene.avatar->avatar;
+  const BodyCollisionSettings settings;
+  ColliderMemo memo;
+  const std::shared_ptr<BodyCollider> kept =
+      memo.Find(BodyCollisionMethod::kSuperquadric, avatar, settings, 64.0);
+  EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, settings, 64.0), kept);
+  EXPECT_EQ(memo.num_builds(), 1);
+  BodyCollisionSettings thicker = settings;
+  thicker.thickness = 0.008;
+  EXPECT_NE(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, thicker, 64.0), kept);
+  EXPECT_EQ(memo.num_builds(), 2);
+  EXPECT_NE(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, thicker, 32.0), kept);
+  EXPECT_EQ(memo.num_builds(), 3);
+  const std::shared_ptr<const Avatar> other = Avatar::Create(avatar->data());
+  EXPECT_NE(memo.Find(BodyCollisionMethod::kSuperquadric, other, thicker, 32.0), kept);
+  EXPECT_EQ(memo.num_builds(), 4);
+  const std::shared_ptr<BodyCollider> mesh =
+      memo.Find(BodyCollisionMethod::kMesh, avatar, settings, 64.0);
+  EXPECT_NE(memo.Find(BodyCollisionMethod::kMesh, avatar, settings, 64.0), mesh);
+  EXPECT_EQ(memo.num_builds(), 6);
+}
+
+}  // namespace
+}  // namespace costume::sim
