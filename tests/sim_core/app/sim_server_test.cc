@@ -900,6 +900,13 @@ TEST_F(PostureTest, SetCollisionChangesTheMethodInPlaceAndRefusesBadValues) {
   EXPECT_EQ(server_->simulation().body_collider(), collider);
   EXPECT_EQ(server_->scene().avatar->thickness, 0.004);
   EXPECT_EQ(server_->ignored().commands_refused, 1);
+  // A STOP rebuilds around the superquadric collider SET_COLLISION built (sim::ColliderMemo:
+  // its fit and drawings are kept); a mesh one is built anew.
+  SendKind(command::KIND_STOP);
+  Step();
+  EXPECT_EQ(received_.frame, 0);
+  EXPECT_EQ(server_->simulation().body_collider() == collider,
+            wanted == sim::BodyCollisionMethod::kSuperquadric);
 }
 
 TEST_F(SimServerTest, SetPostureWithoutAnAvatarIsRefused) {
