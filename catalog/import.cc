@@ -299,10 +299,6 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-}  // namespace
-
-namespace {
-
 /// The formats of the files ImportFiles reads itself (not through assimp), by extension.
 const std::vector<std::pair<std::string, std::string>>& OwnFormats(Kind kind) {
   static const std::vector<std::pair<std::string, std::string>> avatar;

@@ -61,9 +61,8 @@ bool WriteAll(int fd, const char* data, std::size_t size) {
 }
 
 /// What the child writes to its standard error, as it comes, its last kKept bytes only: a
-/// child that prints without end costs this process no more than that (held in a file in
-/// memory until it ended, 2 GB printed in a second would have been 2 GB of the machine's
-/// memory).
+/// child that prints without end costs this process no more than that. (Held whole in a file
+/// in memory until the child ended, 1 GiB printed took 1 GB of the machine's memory.)
 class ErrorTail {
  public:
   static constexpr std::size_t kKept = std::size_t{1} << 16;

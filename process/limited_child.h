@@ -46,10 +46,10 @@ struct ChildResult {
 
 /// Runs `work` in a forked child under `limits` and waits for it. Only `work`'s return value or
 /// exception message comes back (through a pipe); whatever else it changes stays in the child. What
-/// the child writes to its standard error is held until it ends, its last 64 KB (a child that
-/// prints without end costs no more): written to this process's standard error when the work
-/// returned or threw, else kept as ChildResult::last_words (so a dying
-/// library's complaint does not land in the middle of the caller's own output). An exception whose
+/// the child writes to its standard error is held until it ends, its last 64 KB only (a child
+/// that prints without end costs no more): written to this process's standard error when the
+/// work returned or threw, else kept as ChildResult::last_words (so a dying library's complaint
+/// does not land in the middle of the caller's own output). An exception whose
 /// message names std::bad_alloc counts as out of memory, as libraries that catch their own
 /// exceptions (assimp) report it that way. The child has only the calling thread: `work` must not
 /// need locks that other threads of this process may hold (plain parsing and computing is fine;

@@ -196,7 +196,6 @@ FloorFigures SuperquadricFloor(const sim::SuperquadricCollider& collider, const 
   return floor;
 }
 
-/// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 double MsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
       .count();
@@ -225,6 +224,7 @@ RebuildFigures Rebuild(const sim::SceneDescription& scene, sim::ColliderMemo& me
   return figures;
 }
 
+/// Runs one scene and measures it; the penetration oracle is the skinned mesh itself.
 json Measure(const std::string& avatar_name, const sim::SceneDescription& scene) {
   sim::ColliderMemo memo;
   const auto build_start = std::chrono::steady_clock::now();

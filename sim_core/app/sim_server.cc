@@ -210,7 +210,8 @@ std::int64_t SimServer::Run(const std::atomic<bool>& stop, std::int64_t max_fram
 }
 
 void SimServer::Rebuild(const sim::SceneDescription& scene) {
-  auto rebuilt = sim::Simulation::Build(scene, &arm_spreads_, &colliders_);  // throws before anything changes
+  // Throws before anything changes.
+  auto rebuilt = sim::Simulation::Build(scene, &arm_spreads_, &colliders_);
   if (grabbing()) ReleaseGrab();
   simulation_ = std::move(rebuilt);
   simulation_->SetAvatarFrozen(mode_ == Mode::kEditing);

@@ -1,5 +1,6 @@
 #include "sim_core/collision/skin_map_cache.h"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <string>
@@ -96,6 +97,13 @@ StoredMapDrawing* SkinMapCache::Reserve(std::uint64_t key, int num_nodes,
   stats_.bytes_used = arena_.size() * sizeof(StoredMapNode) + drawings_.size() * sizeof(StoredMapDrawing);
   nodes = arena_.data() + drawing.offset;
   return &drawings_.back();
+}
+
+void SkinMapCache::Clear() {
+  arena_.clear();  // the capacity stays reserved
+  drawings_.clear();
+  std::fill(table_.begin(), table_.end(), 0);
+  stats_.bytes_used = 0;
 }
 
 }  // namespace costume::sim

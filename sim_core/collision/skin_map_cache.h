@@ -99,6 +99,10 @@ class SkinMapCache {
   /// (nothing is stored then). Never throws or allocates.
   StoredMapDrawing* Reserve(std::uint64_t key, int num_nodes, StoredMapNode*& nodes);
 
+  /// Forgets every stored drawing; the reserved memory stays for new ones. The nodes handed
+  /// out before must not be read again. Never throws or allocates.
+  void Clear();
+
   const SkinMapCacheStats& stats() const { return stats_; }
 
  private:

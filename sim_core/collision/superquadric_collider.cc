@@ -628,6 +628,12 @@ void SuperquadricCollider::Restart() {
   // reads besides what construction made.
   has_pose_ = false;
   stats_ = {};
+  // The store never evicts (skin_map_cache.h): kept full, it would store nothing of the
+  // next simulation's motion. One clip's loop takes 40–100 MB of the 256 MB default, so a
+  // store up to half full keeps the drawings of the clip played again after a STOP and has
+  // room for another clip's.
+  const SkinMapCacheStats& store = map_cache_.stats();
+  if (2 * store.bytes_used > store.budget_bytes) map_cache_.Clear();
 }
 
 void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_world,

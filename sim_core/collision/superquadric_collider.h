@@ -342,7 +342,9 @@ class SuperquadricCollider : public BodyCollider {
   /// Update sets the pose with zero velocity, and every map is redrawn or reused from the
   /// store before it is read. What the collider is built from stays: the fit, the maps'
   /// grids and the stored drawings, which are what a simulation built again for the same
-  /// avatar keeps it for (ColliderMemo, sim_core/scene/body_colliders.h). Never throws.
+  /// avatar keeps it for (ColliderMemo, sim_core/scene/body_colliders.h); the drawings only
+  /// while they fill at most half the store's budget (else they are forgotten, so that the
+  /// next motion can be stored: the store evicts nothing). Never throws or allocates.
   void Restart();
 
   /// The segments that got a superquadric. Their maps are those of the last refresh (a

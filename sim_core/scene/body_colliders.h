@@ -30,7 +30,8 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
 /// built in about 0.05 s and draws nothing.
 ///
 /// The simulations built with one memo share its collider: only the last one built may step
-/// (a server replaces its simulation with each one it builds).
+/// (a server replaces its simulation with each one it builds). A build that throws leaves
+/// the kept collider as it was, so the simulation before it may go on.
 class ColliderMemo {
  public:
   /// The kept collider, restarted (SuperquadricCollider::Restart), when it was built for

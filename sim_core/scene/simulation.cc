@@ -307,7 +307,6 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     const AvatarSpec& spec = *scene_.avatar;
     const AvatarMotionSettings motion = PlayedMotion(spec, arm_spreads, arm_spread_);
     avatar_ = std::make_unique<AvatarMotion>(spec.avatar, spec.clip, motion);
-    body_ = MakeAvatarCollider(scene_, *avatar_, step(), colliders);
     attachments_ = std::move(attachments);
   }
   fabric_friction_ = FabricFriction(scene_, garments_, model_->num_particles());
@@ -316,6 +315,9 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   if (self_collision_) start_positions_ = state_.positions;
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
+  // Last, as nothing may throw after it: a collider the memo kept is the one the simulation
+  // built before is still stepping with, and moving it here would move that one's body too.
+  if (avatar_) body_ = MakeAvatarCollider(scene_, *avatar_, step(), colliders);
 }
 
 int Simulation::num_frames() const {

@@ -217,6 +217,7 @@ TEST_F(ImportTest, TheExtensionsOfferedAreTheOnesTheImportReads) {
     unknown.kind = kind;
     unknown.files = {Write("shape.xyz", "1 2 3")};
     const std::string message = ImportError(unknown);
+    ASSERT_NE(message.find("allowed are"), std::string::npos) << message;
     const std::string allowed = message.substr(message.find("allowed are"));
     int count = 0;
     for (std::sregex_iterator m(allowed.begin(), allowed.end(), named), end; m != end; ++m) {

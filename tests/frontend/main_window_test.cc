@@ -958,7 +958,8 @@ TEST(ImportFilter, OffersTheImportsExtensionsAndTheBodyFilesBecomeOptions) {
   for (const char* e : {"*.glb", "*.vrm", "*.obj", "*.mhskel", "*.mhw"}) {
     EXPECT_TRUE(avatars.contains(e)) << avatars.toStdString() << " lacks " << e;
   }
-  const QStringList garments = QString::fromStdString(ImportFilter(EntryKind::kCostume)).split(";;");
+  const QStringList garments =
+      QString::fromStdString(ImportFilter(EntryKind::kCostume)).split(";;");
   ASSERT_EQ(garments.size(), 2);
   const QRegularExpression pattern(R"(\*\.(\w+))");
   QStringList picked;

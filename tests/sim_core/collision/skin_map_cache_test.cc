@@ -71,6 +71,22 @@ TEST(SkinMapCache, StoresNothingBeyondItsBudget) {
   EXPECT_GE(cache.stats().bytes_used, kNodes * sizeof(StoredMapNode));
 }
 
+TEST(SkinMapCache, ClearedItFindsNothingAndHasItsWholeBudgetAgain) {
+  constexpr int kNodes = 100;
+  SkinMapCache cache(kNodes * sizeof(StoredMapNode), kQuantum);
+  StoredMapNode* nodes = nullptr;
+  ASSERT_NE(cache.Reserve(1, 70, nodes), nullptr);
+  EXPECT_EQ(cache.Reserve(2, 70, nodes), nullptr);
+  cache.Clear();
+  EXPECT_EQ(cache.stats().bytes_used, 0u);
+  EXPECT_EQ(cache.Find(1), nullptr);
+  ASSERT_NE(cache.Reserve(2, 70, nodes), nullptr);
+  nodes[69].radius = 7;
+  ASSERT_NE(cache.Find(2), nullptr);
+  EXPECT_EQ(cache.Nodes(*cache.Find(2))[69].radius, 7);
+  EXPECT_NE(cache.Reserve(3, 30, nodes), nullptr);  // exactly the rest
+}
+
 TEST(SkinMapCache, ADisabledCacheStoresNothing) {
   SkinMapCache cache(0, kQuantum);
   EXPECT_FALSE(cache.enabled());

@@ -466,6 +466,25 @@ TEST_F(Fixture, ARestartedColliderTakesTheNextPoseWithoutVelocity) {
   EXPECT_NEAR(velocities.row(0).norm(), 0.0, 1e-9);
 }
 
+// Restarted, the collider keeps its stored drawings while they fill at most half the
+// store, so the same skin is not drawn again; beyond half they are forgotten, so that
+// another motion's drawings find room.
+TEST_F(Fixture, ARestartKeepsTheDrawingsOfAStoreAtMostHalfFull) {
+  const std::size_t rest_bytes = collider.map_cache_stats().bytes_used;  // the rest pose's
+  ASSERT_GT(rest_bytes, 0u);
+  const auto drawn_after_restart = [&](std::size_t budget) {
+    SuperquadricColliderOptions options;
+    options.map_cache_bytes = budget;
+    SuperquadricCollider kept(avatar, settings, options);
+    kept.Restart();
+    kept.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+    kept.RefreshAllMaps();
+    return kept.stats().num_maps_drawn;
+  };
+  EXPECT_EQ(drawn_after_restart(4 * rest_bytes), 0);
+  EXPECT_EQ(drawn_after_restart(rest_bytes * 3 / 2), 1);
+}
+
 TEST_F(Fixture, SegmentsFarFromTheClothAreNotTested) {
   collider.Update(avatar->skeleton().rest_world(), unused_skin, 0.01);
   Points far = Points::Constant(4, 3, 10.0);
