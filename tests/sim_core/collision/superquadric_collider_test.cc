@@ -157,6 +157,13 @@ struct Fixture : ::testing::Test {
   SuperquadricCollider collider{avatar, settings};
   Eigen::Isometry3d arm = avatar->skeleton().rest_world()[1];
   Points unused_skin;
+
+  /// The joint frames with the arm moved `distance` [m] along its own x axis from rest.
+  std::vector<Eigen::Isometry3d> ArmMovedAlongX(double distance) const {
+    std::vector<Eigen::Isometry3d> world = avatar->skeleton().rest_world();
+    world[1] = Eigen::Translation3d(distance * arm.linear().col(0)) * world[1];
+    return world;
+  }
 };
 
 TEST_F(Fixture, FitsTheCapsuleAndSkipsTheSegmentWithTooFewVertices) {
@@ -397,12 +404,11 @@ TEST_F(Fixture, AParticleFiveCentimetresOutsideGetsNoContactAndStays) {
 }
 
 TEST_F(Fixture, ContactsFollowTheMovingBodyAndCarryItsNormalVelocity) {
-  std::vector<Eigen::Isometry3d> world = avatar->skeleton().rest_world();
-  collider.Update(world, unused_skin, 0.01);
+  collider.Update(avatar->skeleton().rest_world(), unused_skin, 0.01);
   // The arm moves 2 cm along its own x axis in dt = h = 10 ms: body velocity 2 m/s.
   const double dt = 0.01, h = 0.01;
   const Eigen::Vector3d axis_x = arm.linear().col(0);
-  world[1] = Eigen::Translation3d(0.02 * axis_x) * world[1];
+  const std::vector<Eigen::Isometry3d> world = ArmMovedAlongX(0.02);
   collider.Update(world, unused_skin, dt);
   // Particle 0: 1 cm outside the old skin on the +x side, so 1 cm inside the new one.
   // Particle 1: 5 mm inside the old skin on the −x side, left 4.5 cm behind by a body that
@@ -441,13 +447,12 @@ TEST_F(Fixture, ContactsFollowTheMovingBodyAndCarryItsNormalVelocity) {
 // Restarted, the collider forgets the pose before: the arm moved 2 cm, as above, has no
 // velocity now, and a particle within its shell is only pushed onto the shell.
 TEST_F(Fixture, ARestartedColliderTakesTheNextPoseWithoutVelocity) {
-  std::vector<Eigen::Isometry3d> world = avatar->skeleton().rest_world();
-  collider.Update(world, unused_skin, 0.01);
-  const double dt = 0.01, h = 0.01;
+  collider.Update(avatar->skeleton().rest_world(), unused_skin, 0.01);
+  const double h = 0.01;
   const Eigen::Vector3d axis_x = arm.linear().col(0);
-  world[1] = Eigen::Translation3d(0.02 * axis_x) * world[1];
+  const std::vector<Eigen::Isometry3d> world = ArmMovedAlongX(0.02);
   collider.Restart();
-  collider.Update(world, unused_skin, dt);
+  collider.Update(world, unused_skin, 0.01);
   // 2 mm outside the moved skin on the +x side: 2 mm inside the 4 mm shell.
   Points positions = At({SidePoint(0.0, 0.0, 0.002)}, world[1]);
   Points velocities = Points::Zero(1, 3);
