@@ -67,6 +67,11 @@ class BodyCollider {
   virtual double ProjectOut(Points& positions, Points& velocities) = 0;
 
   virtual BodyCollisionStats stats() const = 0;
+
+  /// Sets the Coulomb coefficient the contacts found from now on carry [-] >= 0 (the caller
+  /// validates it): friction is only passed on, so nothing else is rebuilt for it. Never
+  /// throws.
+  virtual void SetFriction(double friction) = 0;
 };
 
 }  // namespace costume::sim

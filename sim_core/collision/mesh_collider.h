@@ -179,6 +179,7 @@ class MeshCollider : public BodyCollider {
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
+  void SetFriction(double friction) override { settings_.friction = friction; }
 
   /// Regions after merging, and before it (the base regions of about N×N triangles).
   int num_regions() const;

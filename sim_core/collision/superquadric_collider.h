@@ -337,6 +337,7 @@ class SuperquadricCollider : public BodyCollider {
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
+  void SetFriction(double friction) override { settings_.friction = friction; }
 
   /// Forgets where the body was, as a collider just built for the same avatar: the next
   /// Update sets the pose with zero velocity, and every map is redrawn or reused from the

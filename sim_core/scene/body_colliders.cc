@@ -31,10 +31,10 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
                                                  double map_memory_mb) {
   // The kept collider holds its avatar, so an avatar at the same address is the same one.
   const bool same = kept_ && method == BodyCollisionMethod::kSuperquadric && avatar == avatar_ &&
-                    settings.thickness == settings_.thickness &&
-                    settings.friction == settings_.friction && map_memory_mb == map_memory_mb_;
+                    settings.thickness == thickness_ && map_memory_mb == map_memory_mb_;
   if (same) {
     kept_->Restart();
+    kept_->SetFriction(settings.friction);  // only passed on to contacts
     return kept_;
   }
   // Let go first, so that the memo never holds two stores of drawings.
@@ -45,7 +45,7 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
   if (method == BodyCollisionMethod::kSuperquadric) {
     kept_ = std::static_pointer_cast<SuperquadricCollider>(built);
     avatar_ = avatar;
-    settings_ = settings;
+    thickness_ = settings.thickness;
     map_memory_mb_ = map_memory_mb;
   }
   return built;

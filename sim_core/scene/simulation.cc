@@ -173,6 +173,12 @@ void Append(ClothModelData& whole, const ClothModelData& part) {
   }
 }
 
+/// The skin's friction coefficient the scene's contacts carry (before the fabric's is mixed
+/// in): none when the scene switches friction off.
+double SkinFriction(const SceneDescription& scene) {
+  return scene.effects.friction ? scene.avatar->friction : 0.0;
+}
+
 /// The collider the scene's avatar asks for (`memo`'s when it keeps one for it, when not
 /// null), following the avatar where it stands now (`h` [s]: the step its skin velocities
 /// are taken over until the next Update).
@@ -182,7 +188,7 @@ std::shared_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
   const AvatarSpec& spec = *scene.avatar;
   BodyCollisionSettings contact;
   contact.thickness = spec.thickness;
-  contact.friction = scene.effects.friction ? spec.friction : 0.0;
+  contact.friction = SkinFriction(scene);
   std::shared_ptr<BodyCollider> body =
       memo ? memo->Find(spec.collision, spec.avatar, contact, spec.superquadric_map_mb)
            : MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
@@ -225,12 +231,12 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
   return std::make_unique<SelfCollision>(std::move(model), self);
 }
 
-/// Whether colliders built for `a` and for `b` are alike: they differ only in what a
-/// collider is built with (the skin's travel per step is the simulation's own).
-bool SameCollider(const AvatarSpec& a, const AvatarSpec& b, const Effects& ea,
-                  const Effects& eb) {
+/// Whether colliders built for `a` and for `b` are alike but for their friction, which a
+/// collider only passes on (BodyCollider::SetFriction; the skin's travel per step is the
+/// simulation's own).
+bool SameCollider(const AvatarSpec& a, const AvatarSpec& b) {
   return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb &&
-         a.thickness == b.thickness && a.friction == b.friction && ea.friction == eb.friction;
+         a.thickness == b.thickness;
 }
 
 }  // namespace
@@ -614,7 +620,7 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
   ValidateScene(scene);  // throws before anything changes
   // Built before anything is replaced, so a failure leaves the old colliders in place.
   std::shared_ptr<BodyCollider> body;
-  if (avatar_ && !SameCollider(*scene.avatar, *scene_.avatar, scene.effects, scene_.effects)) {
+  if (avatar_ && !SameCollider(*scene.avatar, *scene_.avatar)) {
     body = MakeAvatarCollider(scene, *avatar_, step(), colliders);
   }
   const bool self_changed =
@@ -623,6 +629,8 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
   std::unique_ptr<SelfCollision> self =
       self_changed ? MakeSelfCollision(scene, model_, fabric_friction_) : nullptr;
   if (body) body_ = std::move(body);
+  // A friction alone changes in place: nothing is refitted or redrawn for it.
+  if (body_) body_->SetFriction(SkinFriction(scene));
   if (self_changed) {
     self_collision_ = std::move(self);
     if (self_collision_) start_positions_ = state_.positions;

@@ -79,8 +79,9 @@ TEST(ColliderMemo, ACollisionChangeKeepsItsColliderForTheNextBuild) {
   EXPECT_EQ(stopped->body_collider(), in_use);
 }
 
-// Only the same avatar with the same settings gets the kept collider; a mesh collider is
-// built each time and not kept.
+// Only the same avatar with the same thickness and map memory gets the kept collider (with
+// the friction asked for, which it only passes on); a mesh collider is built each time and
+// not kept.
 TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
   const SceneDescription scene = WalkingSkirt();
   const std::shared_ptr<const Avatar> avatar = scene.avatar->avatar;
@@ -89,6 +90,9 @@ TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
   const std::shared_ptr<BodyCollider> kept =
       memo.Find(BodyCollisionMethod::kSuperquadric, avatar, settings, 64.0);
   EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, settings, 64.0), kept);
+  BodyCollisionSettings grippy = settings;
+  grippy.friction = 1.5;
+  EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, grippy, 64.0), kept);
   EXPECT_EQ(memo.num_builds(), 1);
   BodyCollisionSettings thicker = settings;
   thicker.thickness = 0.008;

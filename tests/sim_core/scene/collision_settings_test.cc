@@ -141,6 +141,37 @@ TEST(CollisionSettings, RefusedSettingsChangeNothingAndTheSplitNeedsNoNewCollide
   refused(bad, "avatar.friction = -1");
 }
 
+// A new skin friction changes in place, with either method: the collider stays, and the
+// cloth moves bit for bit as in a scene built with that friction. (Oracle: the scene built
+// with it; and the scene with the old friction moves otherwise, so friction matters here.)
+TEST(CollisionSettings, ANewFrictionTakesEffectWithoutANewCollider) {
+  for (BodyCollisionMethod method :
+       {BodyCollisionMethod::kMesh, BodyCollisionMethod::kSuperquadric}) {
+    SceneDescription slippery = Skirt(true);
+    slippery.avatar->collision = method;
+    slippery.avatar->friction = 0.05;
+    SceneDescription grippy = slippery;
+    grippy.avatar->friction = 1.5;
+    auto changed = Simulation::Build(slippery);
+    const BodyCollider* collider = changed->body_collider();
+    CollisionSettings settings = CollisionSettingsOf(grippy);
+    changed->SetCollision(settings);
+    EXPECT_EQ(changed->body_collider(), collider) << BodyCollisionMethodName(method);
+    auto built = Simulation::Build(grippy);
+    auto unchanged = Simulation::Build(slippery);
+    for (int f = 0; f < 60; ++f) {
+      changed->AdvanceFrame();
+      built->AdvanceFrame();
+      unchanged->AdvanceFrame();
+    }
+    const Points& x = changed->state().positions;
+    EXPECT_EQ((x - built->state().positions).cwiseAbs().maxCoeff(), 0.0)
+        << BodyCollisionMethodName(method);
+    EXPECT_GT((x - unchanged->state().positions).cwiseAbs().maxCoeff(), 1e-6)
+        << BodyCollisionMethodName(method);
+  }
+}
+
 // Without an avatar only self-collision applies: switched on it is built and takes time
 // each step, switched off it costs nothing again.
 TEST(CollisionSettings, SelfCollisionSwitchedOnIsBuiltAndOffCostsNothing) {
