@@ -72,6 +72,10 @@ class BodyCollider {
   /// validates it): friction is only passed on, so nothing else is rebuilt for it. Never
   /// throws.
   virtual void SetFriction(double friction) = 0;
+
+  /// Keeps cloth `thickness` [m] >= 0 off the surface from the next Update on (the caller
+  /// validates it), without building anything the thickness does not enter. Never throws.
+  virtual void SetThickness(double thickness) = 0;
 };
 
 }  // namespace costume::sim

@@ -180,6 +180,9 @@ class MeshCollider : public BodyCollider {
 
   BodyCollisionStats stats() const override { return stats_; }
   void SetFriction(double friction) override { settings_.friction = friction; }
+  /// See BodyCollider. The regions' boxes are fattened by the thickness at every Update, and
+  /// the queries add it as they search: nothing else holds it.
+  void SetThickness(double thickness) override { settings_.thickness = thickness; }
 
   /// Regions after merging, and before it (the base regions of about N×N triangles).
   int num_regions() const;

@@ -34,9 +34,10 @@ struct StoredMapDrawing {
   /// Offset of its nodes in the cache's arena; its node count.
   std::size_t offset = 0;
   int num_nodes = 0;
-  /// The shell's bounds at the drawing (SuperquadricSegment).
-  Eigen::AlignedBox3d shell_box;
-  double bounding_radius = 0.0;
+  /// The skin's bounds at the drawing, without the thickness (SuperquadricSegment::
+  /// drawn_skin_box, drawn_skin_farthest).
+  Eigen::AlignedBox3d skin_box;
+  double skin_farthest = 0.0;
 };
 
 /// One node of a drawing as stored and read, 8 bytes: the skin's radius along the node's

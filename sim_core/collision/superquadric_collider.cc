@@ -573,30 +573,36 @@ void SuperquadricCollider::MoveSkin(const Points& skinned) {
     for (std::size_t k = 0; k < skin.vertices.size(); ++k) {
       skin.local[k] = to_local * skinned.row(skin.vertices[k]).transpose();
     }
-    // The reach follows the skin the segment holds: bending a knee carries the skin at its
-    // front away from both the thigh's and the calf's centres.
-    double farthest = 0.0;
-    for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
-    segment.reach = std::sqrt(farthest) + kReachMargin;
     skin.corners_current = false;
-    // Until the map is redrawn, the shell is known to lie within the reach and within the
-    // box of the skin the rays can stop at (corners within the reach and an edge), grown by
-    // the thickness term and a node spacing for the caps filled at open ends.
-    const double grow = settings_.thickness / kMinSkinCosine + segment.map.spacing;
-    const double near = segment.reach + skin.longest_edge;
-    Eigen::AlignedBox3d box;
-    for (const Eigen::Vector3d& q : skin.local) {
-      if (q.squaredNorm() <= near * near) box.extend(q);
-    }
-    const Eigen::Vector3d cube = Eigen::Vector3d::Constant(segment.reach);
-    segment.shell_box =
-        box.isEmpty() ? Eigen::AlignedBox3d(-cube, cube)
-                      : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
-    segment.shell_box.min().array() -= grow;
-    segment.shell_box.max().array() += grow;
-    segment.bounding_radius = segment.reach + grow;
-    stale_[s] = 1;
+    BoundShell(static_cast<int>(s));
   }
+}
+
+void SuperquadricCollider::BoundShell(int s) {
+  SuperquadricSegment& segment = segments_[s];
+  const SegmentSkin& skin = segment.skin;
+  // The reach follows the skin the segment holds: bending a knee carries the skin at its
+  // front away from both the thigh's and the calf's centres.
+  double farthest = 0.0;
+  for (int k : skin.held) farthest = std::max(farthest, skin.local[k].squaredNorm());
+  segment.reach = std::sqrt(farthest) + kReachMargin;
+  // Until the map is redrawn, the shell is known to lie within the reach and within the
+  // box of the skin the rays can stop at (corners within the reach and an edge), grown by
+  // the thickness term and a node spacing for the caps filled at open ends.
+  const double grow = settings_.thickness / kMinSkinCosine + segment.map.spacing;
+  const double near = segment.reach + skin.longest_edge;
+  Eigen::AlignedBox3d box;
+  for (const Eigen::Vector3d& q : skin.local) {
+    if (q.squaredNorm() <= near * near) box.extend(q);
+  }
+  const Eigen::Vector3d cube = Eigen::Vector3d::Constant(segment.reach);
+  segment.shell_box =
+      box.isEmpty() ? Eigen::AlignedBox3d(-cube, cube)
+                    : Eigen::AlignedBox3d(box.min().cwiseMax(-cube), box.max().cwiseMin(cube));
+  segment.shell_box.min().array() -= grow;
+  segment.shell_box.max().array() += grow;
+  segment.bounding_radius = segment.reach + grow;
+  stale_[s] = 1;
 }
 
 void SuperquadricCollider::RefreshMap(int s) {
@@ -604,7 +610,7 @@ void SuperquadricCollider::RefreshMap(int s) {
   stale_[s] = 0;
   const std::uint64_t key = map_cache_.enabled() ? map_cache_.Key(s, segment.skin.local) : 0;
   if (const StoredMapDrawing* stored = map_cache_.Find(key)) {
-    UseDrawing(*stored, map_cache_.Nodes(*stored), segment);
+    UseDrawing(*stored, map_cache_.Nodes(*stored), segment, settings_.thickness);
     ++stats_.num_maps_reused;
     return;
   }
@@ -633,7 +639,19 @@ void SuperquadricCollider::Restart() {
   // store up to half full keeps the drawings of the clip played again after a STOP and has
   // room for another clip's.
   const SkinMapCacheStats& store = map_cache_.stats();
-  if (2 * store.bytes_used > store.budget_bytes) map_cache_.Clear();
+  if (2 * store.bytes_used > store.budget_bytes) {
+    map_cache_.Clear();
+    // A map reused from the store points into it: none may be read before it is redrawn.
+    std::fill(stale_.begin(), stale_.end(), 1);
+  }
+}
+
+void SuperquadricCollider::SetThickness(double thickness) {
+  if (thickness == settings_.thickness) return;
+  settings_.thickness = thickness;
+  // The maps hold the skin, and the stored drawings too: each map is only bounded again,
+  // and its shell's box set for the thickness when it is next read.
+  for (std::size_t s = 0; s < segments_.size(); ++s) BoundShell(static_cast<int>(s));
 }
 
 void SuperquadricCollider::Update(const std::vector<Eigen::Isometry3d>& joint_world,

@@ -262,6 +262,11 @@ struct SuperquadricSegment {
   /// while the map is stale, the reach and the box of the skin corners within it.
   double bounding_radius = 0.0;
   Eigen::AlignedBox3d shell_box;
+  /// The box and the farthest radius of the skin at the last drawing of the map, in the
+  /// superquadric's frame [m]: the shell's bounds without the thickness, as a stored drawing
+  /// keeps them, so that it serves any thickness.
+  Eigen::AlignedBox3d drawn_skin_box;
+  double drawn_skin_farthest = 0.0;
   /// RMS radial distance of the skin vertices from the superquadric [m].
   double fit_rms = 0.0;
   /// How far the superquadric was moved from its fit so that its centre, where the map's
@@ -338,6 +343,9 @@ class SuperquadricCollider : public BodyCollider {
 
   BodyCollisionStats stats() const override { return stats_; }
   void SetFriction(double friction) override { settings_.friction = friction; }
+  /// See BodyCollider. Nothing is fitted or drawn again: a map holds the skin, and a stored
+  /// drawing serves any thickness. Never allocates.
+  void SetThickness(double thickness) override;
 
   /// Forgets where the body was, as a collider just built for the same avatar: the next
   /// Update sets the pose with zero velocity, and every map is redrawn or reused from the
@@ -389,6 +397,9 @@ class SuperquadricCollider : public BodyCollider {
                     double reach);
   /// Moves every segment's skin corners into its end-of-step frame and marks its map stale.
   void MoveSkin(const Points& skinned);
+  /// Bounds segment `s`'s shell (reach, box, bounding radius) by the skin corners it holds
+  /// and the thickness, until its map is redrawn, and marks the map stale.
+  void BoundShell(int s);
   /// Brings the map of segment `s` up to its skin corners: a stored drawing of the same
   /// skin, or a new drawing (stored while the cache has room).
   void RefreshMap(int s);

@@ -513,6 +513,19 @@ SkinDistanceMap MakeMapGrid(const Superquadric& sq, const Eigen::Vector3d& exten
   return map;
 }
 
+namespace {
+
+/// The shell's box and bounding radius from the skin's at the drawing: the shell lies within
+/// `thickness` [m] over the least cosine of the skin points.
+void BoundDrawnShell(SuperquadricSegment& segment, double thickness) {
+  const double shell = thickness / kMinSkinCosine;
+  const Eigen::AlignedBox3d& box = segment.drawn_skin_box;
+  segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
+  segment.bounding_radius = segment.drawn_skin_farthest + shell;
+}
+
+}  // namespace
+
 void DrawMap(SuperquadricSegment& segment, double thickness) {
   SkinDistanceMap& map = segment.map;
   SegmentSkin& skin = segment.skin;
@@ -571,16 +584,15 @@ void DrawMap(SuperquadricSegment& segment, double thickness) {
     }
   }
   FillMissedNodes(map, skin, segment.reach);
-  // The shell lies within thickness over the least cosine of the skin points.
   Eigen::AlignedBox3d box(Eigen::Vector3d::Zero());
   double farthest = 0.0;
   for (int node = 0; node < map.num_nodes(); ++node) {
     box.extend(skin.radius[node] * map.ray[node]);
     farthest = std::max(farthest, skin.radius[node]);
   }
-  const double shell = thickness / kMinSkinCosine;
-  segment.shell_box = Eigen::AlignedBox3d(box.min().array() - shell, box.max().array() + shell);
-  segment.bounding_radius = farthest + shell;
+  segment.drawn_skin_box = box;
+  segment.drawn_skin_farthest = farthest;
+  BoundDrawnShell(segment, thickness);
 }
 
 void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
@@ -608,12 +620,12 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes) {
 }
 
 void RecordDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored) {
-  stored.shell_box = segment.shell_box;
-  stored.bounding_radius = segment.bounding_radius;
+  stored.skin_box = segment.drawn_skin_box;
+  stored.skin_farthest = segment.drawn_skin_farthest;
 }
 
 void UseDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
-                SuperquadricSegment& segment) {
+                SuperquadricSegment& segment, double thickness) {
   // A stored drawing was last read a whole pass ago and has left the caches: fetched in one
   // sweep here it streams in, where the queries' scattered reads would each wait for memory.
   constexpr int kNodesPerLine = 64 / sizeof(StoredMapNode);
@@ -621,8 +633,9 @@ void UseDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
     __builtin_prefetch(nodes + node);
   }
   segment.nodes = nodes;
-  segment.shell_box = stored.shell_box;
-  segment.bounding_radius = stored.bounding_radius;
+  segment.drawn_skin_box = stored.skin_box;
+  segment.drawn_skin_farthest = stored.skin_farthest;
+  BoundDrawnShell(segment, thickness);
 }
 
 void ProbeShell(const SuperquadricSegment& segment, const Eigen::Vector3d& q, double thickness,

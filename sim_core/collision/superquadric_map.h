@@ -39,9 +39,11 @@ void PackDrawing(SuperquadricSegment& segment, StoredMapNode* nodes);
 /// The record of the drawing `segment` reads, for storing it.
 void RecordDrawing(const SuperquadricSegment& segment, StoredMapDrawing& stored);
 
-/// Points the queries of `segment` at a stored drawing of its current skin.
+/// Points the queries of `segment` at a stored drawing of its current skin, and sets the
+/// shell's box and bounding radius for `thickness` [m]: a drawing holds the skin, so it
+/// serves any thickness.
 void UseDrawing(const StoredMapDrawing& stored, const StoredMapNode* nodes,
-                SuperquadricSegment& segment);
+                SuperquadricSegment& segment, double thickness);
 
 /// Allocates the scratch a drawing of the segment's map works in, once, so that drawing
 /// never allocates.

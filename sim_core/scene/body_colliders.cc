@@ -31,10 +31,11 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
                                                  double map_memory_mb) {
   // The kept collider holds its avatar, so an avatar at the same address is the same one.
   const bool same = kept_ && method == BodyCollisionMethod::kSuperquadric && avatar == avatar_ &&
-                    settings.thickness == thickness_ && map_memory_mb == map_memory_mb_;
+                    map_memory_mb == map_memory_mb_;
   if (same) {
     kept_->Restart();
-    kept_->SetFriction(settings.friction);  // only passed on to contacts
+    kept_->SetThickness(settings.thickness);
+    kept_->SetFriction(settings.friction);
     return kept_;
   }
   // Let go first, so that the memo never holds two stores of drawings.
@@ -45,7 +46,6 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
   if (method == BodyCollisionMethod::kSuperquadric) {
     kept_ = std::static_pointer_cast<SuperquadricCollider>(built);
     avatar_ = avatar;
-    thickness_ = settings.thickness;
     map_memory_mb_ = map_memory_mb;
   }
   return built;

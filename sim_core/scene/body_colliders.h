@@ -22,7 +22,7 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                double map_memory_mb);
 
 /// The superquadric collider last built, kept for the next simulation built for the same
-/// avatar with the same thickness and map memory: a server's STOP, a new fabric or another costume on the
+/// avatar with the same map memory: a server's STOP, a new fabric or another costume on the
 /// same body rebuilds the simulation from its scene. Building the collider takes 0.5 s on
 /// the built-in humanoid and 0.8 s on MakeHuman's body, and a new one has no drawings stored,
 /// so a looping clip's first pass, slower than real time on MakeHuman, came again after each
@@ -34,10 +34,10 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
 /// the kept collider as it was, so the simulation before it may go on.
 class ColliderMemo {
  public:
-  /// The kept collider, restarted (SuperquadricCollider::Restart) and with `settings`'
-  /// friction, when it was built for `avatar` with `settings`' thickness and with
-  /// `map_memory_mb`; else MakeBodyCollider's, kept when it is a superquadric one (the one
-  /// kept before is let go). Throws what MakeBodyCollider throws.
+  /// The kept collider, restarted (SuperquadricCollider::Restart) and given `settings`
+  /// (SetThickness, SetFriction), when it was built for `avatar` with `map_memory_mb`; else
+  /// MakeBodyCollider's, kept when it is a superquadric one (the one kept before is let go).
+  /// Throws what MakeBodyCollider throws.
   std::shared_ptr<BodyCollider> Find(BodyCollisionMethod method,
                                      const std::shared_ptr<const Avatar>& avatar,
                                      const BodyCollisionSettings& settings,
@@ -48,7 +48,6 @@ class ColliderMemo {
  private:
   std::shared_ptr<SuperquadricCollider> kept_;
   std::shared_ptr<const Avatar> avatar_;
-  double thickness_ = 0.0;
   double map_memory_mb_ = 0.0;
   int num_builds_ = 0;
 };

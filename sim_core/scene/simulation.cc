@@ -231,12 +231,11 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
   return std::make_unique<SelfCollision>(std::move(model), self);
 }
 
-/// Whether colliders built for `a` and for `b` are alike but for their friction, which a
-/// collider only passes on (BodyCollider::SetFriction; the skin's travel per step is the
-/// simulation's own).
+/// Whether colliders built for `a` and for `b` are alike but for their thickness and
+/// friction, which a collider takes in place (BodyCollider::SetThickness, SetFriction; the
+/// skin's travel per step is the simulation's own).
 bool SameCollider(const AvatarSpec& a, const AvatarSpec& b) {
-  return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb &&
-         a.thickness == b.thickness;
+  return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb;
 }
 
 }  // namespace
@@ -629,8 +628,11 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
   std::unique_ptr<SelfCollision> self =
       self_changed ? MakeSelfCollision(scene, model_, fabric_friction_) : nullptr;
   if (body) body_ = std::move(body);
-  // A friction alone changes in place: nothing is refitted or redrawn for it.
-  if (body_) body_->SetFriction(SkinFriction(scene));
+  // Thickness and friction change in place: nothing is fitted again for them.
+  if (body_) {
+    body_->SetThickness(scene.avatar->thickness);
+    body_->SetFriction(SkinFriction(scene));
+  }
   if (self_changed) {
     self_collision_ = std::move(self);
     if (self_collision_) start_positions_ = state_.positions;

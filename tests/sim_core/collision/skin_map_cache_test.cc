@@ -45,11 +45,11 @@ TEST(SkinMapCache, FindsWhatWasStoredAndCountsHitsAndMisses) {
   ASSERT_NE(stored, nullptr);
   ASSERT_NE(nodes, nullptr);
   for (int n = 0; n < 10; ++n) nodes[n].radius = static_cast<std::int16_t>(100 * n);
-  stored->bounding_radius = 0.25;
+  stored->skin_farthest = 0.25;
   const StoredMapDrawing* found = cache.Find(key);
   ASSERT_NE(found, nullptr);
   EXPECT_EQ(found->num_nodes, 10);
-  EXPECT_EQ(found->bounding_radius, 0.25);
+  EXPECT_EQ(found->skin_farthest, 0.25);
   EXPECT_EQ(cache.Nodes(*found)[7].radius, 700);
   EXPECT_EQ(cache.Find(key + 1), nullptr);
   EXPECT_EQ(cache.stats().num_hits, 1);

@@ -474,6 +474,40 @@ TEST_F(Fixture, ARestartedColliderTakesTheNextPoseWithoutVelocity) {
 // Restarted, the collider keeps its stored drawings while they fill at most half the
 // store, so the same skin is not drawn again; beyond half they are forgotten, so that
 // another motion's drawings find room.
+// A thickness set on a collider gives the contacts and corrections of one built with it,
+// though it reads the drawings it stored before (a drawing holds the skin, its shell's
+// bounds are set for the thickness of the reading).
+TEST_F(Fixture, ANewThicknessActsAsAColliderBuiltWithIt) {
+  const std::vector<Eigen::Isometry3d>& rest = avatar->skeleton().rest_world();
+  collider.Update(rest, avatar->rest_vertices(), 0.01);
+  collider.RefreshAllMaps();
+  collider.SetThickness(0.015);
+  SuperquadricCollider built(avatar, {0.015, settings.friction});
+  built.Update(rest, avatar->rest_vertices(), 0.01);  // the same history of poses
+  const auto step = [&](SuperquadricCollider& c, Points& x, std::vector<Contact>& contacts) {
+    c.Update(rest, avatar->rest_vertices(), 0.01);
+    Points v = Points::Zero(x.rows(), 3);
+    c.FindContacts(x, v, 0.01, 0.001, contacts);
+    c.ProjectOut(x, v);
+  };
+  const Points start = At({SidePoint(0.0, 0.0, 0.005), SidePoint(0.02, 1.3, 0.012),
+                           SidePoint(-0.03, 2.6, 0.002), SidePoint(0.01, 4.0, 0.03)},
+                          arm);
+  Points set_x = start, built_x = start;
+  std::vector<Contact> set_contacts, built_contacts;
+  step(collider, set_x, set_contacts);
+  step(built, built_x, built_contacts);
+  EXPECT_GT(collider.map_cache_stats().num_hits, 0);
+  ASSERT_EQ(set_contacts.size(), 3u);  // the three within 15 mm of the skin
+  ASSERT_EQ(built_contacts.size(), set_contacts.size());
+  for (std::size_t c = 0; c < set_contacts.size(); ++c) {
+    EXPECT_EQ(set_contacts[c].target_normal_velocity, built_contacts[c].target_normal_velocity);
+  }
+  EXPECT_EQ(set_x, built_x);
+  // On the new shell: 15 mm off the capsule.
+  EXPECT_NEAR(CapsuleDistance(arm.inverse() * set_x.row(0).transpose()), 0.015, 0.001);
+}
+
 TEST_F(Fixture, ARestartKeepsTheDrawingsOfAStoreAtMostHalfFull) {
   const std::size_t rest_bytes = collider.map_cache_stats().bytes_used;  // the rest pose's
   ASSERT_GT(rest_bytes, 0u);

@@ -55,24 +55,36 @@ double LeastClearance(const Simulation& simulation, MeshDistance& skin) {
 }
 
 // The skirt rests on the hips 4 mm off the skin (the scene's thickness); set to 15 mm, every
-// free particle stands at least that far off the true skin a second later.
+// free particle stands that far off the true skin a second later, with either method, on
+// the collider it had (the thickness is taken in place: nothing is fitted again). The
+// superquadric shell, read from maps with a node spacing, may stand up to 2 mm short of it,
+// as it does at 4 mm (2.4 mm here); the mesh method's within 0.5 mm.
 TEST(CollisionSettings, ThickerClothStandsFartherOffTheSkin) {
-  auto simulation = Simulation::Build(Skirt(false));
-  MeshDistance skin = SkinOf(*simulation);
-  for (int f = 0; f < 60; ++f) simulation->AdvanceFrame();
-  const double before = LeastClearance(*simulation, skin);
-  CollisionSettings settings = CollisionSettingsOf(simulation->scene());
-  ASSERT_DOUBLE_EQ(settings.thickness, 0.004);
-  settings.thickness = 0.015;
-  simulation->SetCollision(settings);
-  EXPECT_EQ(simulation->scene().avatar->thickness, 0.015);
-  for (int f = 0; f < 60; ++f) simulation->AdvanceFrame();
-  const double after = LeastClearance(*simulation, skin);
-  std::printf("least clearance of the free cloth from the skin: %.2f mm at 4 mm thickness, "
-              "%.2f mm at 15 mm\n", 1000 * before, 1000 * after);
-  EXPECT_GT(before, -0.002);  // within the 2 mm
-  EXPECT_LT(before, 0.006);   // resting on the skin: the test can see a change
-  EXPECT_GT(after, 0.0145);
+  for (BodyCollisionMethod method :
+       {BodyCollisionMethod::kMesh, BodyCollisionMethod::kSuperquadric}) {
+    SceneDescription scene = Skirt(false);
+    scene.avatar->collision = method;
+    auto simulation = Simulation::Build(scene);
+    const BodyCollider* collider = simulation->body_collider();
+    MeshDistance skin = SkinOf(*simulation);
+    for (int f = 0; f < 60; ++f) simulation->AdvanceFrame();
+    const double before = LeastClearance(*simulation, skin);
+    CollisionSettings settings = CollisionSettingsOf(simulation->scene());
+    ASSERT_DOUBLE_EQ(settings.thickness, 0.004);
+    settings.thickness = 0.015;
+    simulation->SetCollision(settings);
+    EXPECT_EQ(simulation->scene().avatar->thickness, 0.015);
+    EXPECT_EQ(simulation->body_collider(), collider);
+    for (int f = 0; f < 60; ++f) simulation->AdvanceFrame();
+    const double after = LeastClearance(*simulation, skin);
+    std::printf("%s: least clearance of the free cloth from the skin: %.2f mm at 4 mm "
+                "thickness, %.2f mm at 15 mm\n",
+                BodyCollisionMethodName(method), 1000 * before, 1000 * after);
+    const double short_by = method == BodyCollisionMethod::kMesh ? 0.0005 : 0.002;
+    EXPECT_GT(before, 0.004 - short_by) << BodyCollisionMethodName(method);
+    EXPECT_LT(before, 0.006);  // resting on the skin: the test can see a change
+    EXPECT_GT(after, 0.015 - short_by) << BodyCollisionMethodName(method);
+  }
 }
 
 // Mesh to superquadrics one second into the walk: the positions are those before the switch
