@@ -30,9 +30,20 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
                                                  const BodyCollisionSettings& settings,
                                                  double map_memory_mb) {
   // The kept collider holds its avatar, so an avatar at the same address is the same one.
-  const bool same = kept_ && method == BodyCollisionMethod::kSuperquadric && avatar == avatar_ &&
-                    map_memory_mb == map_memory_mb_;
-  if (same) {
+  // Another avatar's is let go, whatever the method: its store is no use to this one.
+  if (kept_ && avatar != avatar_) {
+    kept_.reset();
+    avatar_.reset();
+  }
+  if (method == BodyCollisionMethod::kMesh) {
+    // The kept one stays through a mesh collider's time: a designer comparing the methods
+    // switches back to it without a refit.
+    std::shared_ptr<BodyCollider> mesh =
+        MakeBodyCollider(method, avatar, settings, map_memory_mb);
+    ++num_builds_;
+    return mesh;
+  }
+  if (kept_ && map_memory_mb == map_memory_mb_) {
     kept_->Restart();
     kept_->SetThickness(settings.thickness);
     kept_->SetFriction(settings.friction);
@@ -40,14 +51,11 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
   }
   // Let go first, so that the memo never holds two stores of drawings.
   kept_.reset();
-  avatar_.reset();
   std::shared_ptr<BodyCollider> built = MakeBodyCollider(method, avatar, settings, map_memory_mb);
   ++num_builds_;
-  if (method == BodyCollisionMethod::kSuperquadric) {
-    kept_ = std::static_pointer_cast<SuperquadricCollider>(built);
-    avatar_ = avatar;
-    map_memory_mb_ = map_memory_mb;
-  }
+  kept_ = std::static_pointer_cast<SuperquadricCollider>(built);
+  avatar_ = avatar;
+  map_memory_mb_ = map_memory_mb;
   return built;
 }
 

@@ -27,16 +27,18 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
 /// the built-in humanoid and 0.8 s on MakeHuman's body, and a new one has no drawings stored,
 /// so a looping clip's first pass, slower than real time on MakeHuman, came again after each
 /// rebuild (docs/collision.md, "Kept across rebuilds"). A mesh collider is not kept: it is
-/// built in about 0.05 s and draws nothing.
+/// built in about 0.05 s and draws nothing. The superquadric one stays kept while a mesh
+/// collider is used for the same avatar, so switching back to it costs no refit.
 ///
 /// The simulations built with one memo share its collider: only the last one built may step
 /// (a server replaces its simulation with each one it builds). A build that throws leaves
 /// the kept collider as it was, so the simulation before it may go on.
 class ColliderMemo {
  public:
-  /// The kept collider, restarted (SuperquadricCollider::Restart) and given `settings`
-  /// (SetThickness, SetFriction), when it was built for `avatar` with `map_memory_mb`; else
-  /// MakeBodyCollider's, kept when it is a superquadric one (the one kept before is let go).
+  /// For the superquadric method, the kept collider, restarted (SuperquadricCollider::
+  /// Restart) and given `settings` (SetThickness, SetFriction), when it was built for
+  /// `avatar` with `map_memory_mb`; else a new one, kept (the one kept before is let go).
+  /// For the mesh method, a new one (the kept one is let go when it is another avatar's).
   /// Throws what MakeBodyCollider throws.
   std::shared_ptr<BodyCollider> Find(BodyCollisionMethod method,
                                      const std::shared_ptr<const Avatar>& avatar,

@@ -109,5 +109,22 @@ TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
   EXPECT_EQ(memo.num_builds(), 5);
 }
 
+// A designer comparing the methods on one avatar: back from the mesh method, the
+// superquadric collider is the one kept, not fitted again; another avatar's is let go even
+// when a mesh collider is asked for.
+TEST(ColliderMemo, TheSuperquadricColliderStaysThroughAMeshCollidersTime) {
+  const std::shared_ptr<const Avatar> avatar = WalkingSkirt().avatar->avatar;
+  ColliderMemo memo;
+  const std::shared_ptr<BodyCollider> kept =
+      memo.Find(BodyCollisionMethod::kSuperquadric, avatar, {}, 64.0);
+  memo.Find(BodyCollisionMethod::kMesh, avatar, {}, 64.0);
+  EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, {}, 64.0), kept);
+  EXPECT_EQ(memo.num_builds(), 2);
+  const std::weak_ptr<BodyCollider> watched = kept;
+  const std::shared_ptr<const Avatar> other = Avatar::Create(avatar->data());
+  memo.Find(BodyCollisionMethod::kMesh, other, {}, 64.0);
+  EXPECT_EQ(watched.use_count(), 1);  // only `kept` here holds it now
+}
+
 }  // namespace
 }  // namespace costume::sim
