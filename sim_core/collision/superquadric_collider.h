@@ -342,6 +342,8 @@ class SuperquadricCollider : public BodyCollider {
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
+  /// The avatar it was built for.
+  const std::shared_ptr<const Avatar>& avatar() const { return avatar_; }
   void SetFriction(double friction) override { settings_.friction = friction; }
   /// See BodyCollider. Nothing is fitted or drawn again: a map holds the skin, and a stored
   /// drawing serves any thickness. Never allocates.

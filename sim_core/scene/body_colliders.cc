@@ -6,6 +6,15 @@
 #include "sim_core/collision/superquadric_collider.h"
 
 namespace costume::sim {
+namespace {
+
+/// The store of drawings a map memory of `map_memory_mb` [MB] gives
+/// (SuperquadricColliderOptions::map_cache_bytes).
+std::size_t MapCacheBytes(double map_memory_mb) {
+  return static_cast<std::size_t>(std::max(0.0, map_memory_mb) * 1048576.0);
+}
+
+}  // namespace
 
 std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                std::shared_ptr<const Avatar> avatar,
@@ -21,7 +30,7 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
   // gradient, which is up to 23° off at the rounded ends of limbs (docs/collision.md).
   SuperquadricColliderOptions options;
   options.contact_normal = SuperquadricColliderOptions::ContactNormal::kSkin;
-  options.map_cache_bytes = static_cast<std::size_t>(std::max(0.0, map_memory_mb) * 1048576.0);
+  options.map_cache_bytes = MapCacheBytes(map_memory_mb);
   return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
 }
 
@@ -31,10 +40,7 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
                                                  double map_memory_mb) {
   // The kept collider holds its avatar, so an avatar at the same address is the same one.
   // Another avatar's is let go, whatever the method: its store is no use to this one.
-  if (kept_ && avatar != avatar_) {
-    kept_.reset();
-    avatar_.reset();
-  }
+  if (kept_ && avatar != kept_->avatar()) kept_.reset();
   if (method == BodyCollisionMethod::kMesh) {
     // The kept one stays through a mesh collider's time: a designer comparing the methods
     // switches back to it without a refit.
@@ -43,7 +49,7 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
     ++num_builds_;
     return mesh;
   }
-  if (kept_ && map_memory_mb == map_memory_mb_) {
+  if (kept_ && kept_->map_cache_stats().budget_bytes == MapCacheBytes(map_memory_mb)) {
     kept_->Restart();
     kept_->SetThickness(settings.thickness);
     kept_->SetFriction(settings.friction);
@@ -54,8 +60,6 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
   std::shared_ptr<BodyCollider> built = MakeBodyCollider(method, avatar, settings, map_memory_mb);
   ++num_builds_;
   kept_ = std::static_pointer_cast<SuperquadricCollider>(built);
-  avatar_ = avatar;
-  map_memory_mb_ = map_memory_mb;
   return built;
 }
 

@@ -48,9 +48,8 @@ class ColliderMemo {
   int num_builds() const { return num_builds_; }
 
  private:
+  /// Its avatar and store size are the key (SuperquadricCollider::avatar, map_cache_stats).
   std::shared_ptr<SuperquadricCollider> kept_;
-  std::shared_ptr<const Avatar> avatar_;
-  double map_memory_mb_ = 0.0;
   int num_builds_ = 0;
 };
 
