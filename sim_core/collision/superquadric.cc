@@ -87,6 +87,52 @@ Eigen::Vector2d ParametricAngles(const Superquadric& s, const Eigen::Vector3d& p
   return {eta, omega};
 }
 
+namespace {
+
+/// x·ln x, continued by its limit 0 at x = 0.
+double XLogX(double x) { return x > 0.0 ? x * std::log(x) : 0.0; }
+
+}  // namespace
+
+double SuperquadricFitResidual(const Superquadric& s, const Eigen::Vector3d& p,
+                               SuperquadricFitGradient* gradient) {
+  // F = V + Z with V = U^(e2/e1), U = X + Y, X = (|x|/a1)^(2/e2), Y = (|y|/a2)^(2/e2),
+  // Z = (|z|/a3)^(2/e1); G = F^e1 and the residual is w·(G − 1), w = sqrt(a1 a2 a3). Each
+  // power b^(c/e) has ∂/∂e = −(1/e)·b^(c/e)·ln b^(c/e), and ∂/∂b = (c/e)·b^(c/e)/b.
+  const double x = std::pow(std::abs(p.x()) / s.a1, 2.0 / s.e2);
+  const double y = std::pow(std::abs(p.y()) / s.a2, 2.0 / s.e2);
+  const double z = std::pow(std::abs(p.z()) / s.a3, 2.0 / s.e1);
+  const double u = x + y;
+  const double v = u > 0.0 ? std::pow(u, s.e2 / s.e1) : 0.0;
+  const double f = v + z;
+  const double g = std::pow(f, s.e1);
+  const double w = std::sqrt(s.a1 * s.a2 * s.a3);
+  const double residual = w * (g - 1.0);
+  if (gradient == nullptr) return residual;
+  gradient->setZero();
+  if (!(f > 0.0)) return residual;  // the centre: no direction to move it by
+  const double dg_df = s.e1 * g / f;
+  const double df_du = u > 0.0 ? (s.e2 / s.e1) * v / u : 0.0;
+  const Eigen::Vector3d dg_dp(
+      p.x() != 0.0 ? dg_df * df_du * (2.0 / s.e2) * x / p.x() : 0.0,
+      p.y() != 0.0 ? dg_df * df_du * (2.0 / s.e2) * y / p.y() : 0.0,
+      p.z() != 0.0 ? dg_df * (2.0 / s.e1) * z / p.z() : 0.0);
+  const double dg_da[3] = {-dg_df * df_du * (2.0 / s.e2) * x / s.a1,
+                           -dg_df * df_du * (2.0 / s.e2) * y / s.a2,
+                           -dg_df * (2.0 / s.e1) * z / s.a3};
+  const double a[3] = {s.a1, s.a2, s.a3};
+  for (int k = 0; k < 3; ++k) (*gradient)[k] = w * dg_da[k] + residual / (2.0 * a[k]);
+  const double df_de1 = -(XLogX(v) + XLogX(z)) / s.e1;
+  (*gradient)[3] = w * (g * std::log(f) + dg_df * df_de1);
+  const double df_de2 = u > 0.0 ? (v / s.e1) * (std::log(u) - (XLogX(x) + XLogX(y)) / u) : 0.0;
+  (*gradient)[4] = w * dg_df * df_de2;
+  // p = Rᵀ(q − t) for the point q in the parent's frame: ∂p/∂t = −Rᵀ. An increment ω,
+  // R ← R·exp([ω]×), moves p to p + p × ω.
+  gradient->segment<3>(5) = -w * (s.frame.linear() * dg_dp);
+  gradient->segment<3>(8) = w * dg_dp.cross(p);
+  return residual;
+}
+
 // ---- fitting ------------------------------------------------------------------------------
 namespace {
 
@@ -145,17 +191,10 @@ constexpr double kEndSlack = 0.1;
 /// residual [-].
 constexpr double kEndWeight = 10.0;
 
-/// Residuals of the fit: per point the Solina–Bajcsy residual sqrt(a1 a2 a3)·(F^e1 − 1),
-/// then per axis and end how far the superquadric reaches beyond the points' extent along
-/// its axis plus the slack (kNumEndResiduals). The points of a limb's skin form an open
-/// tube, which says nothing of where the superquadric ends: without the ends' residuals a
-/// tapering limb is fitted best by the wide half of an ellipsoid twice its length, centred
-/// at its thick end (MakeHuman's thighs and forearms were fitted so, their other halves
-/// through the pelvis and the upper arm), whose centre then sees the skin of the body
-/// around it, not the limb's (docs/collision.md, "The fit of an open tube").
-void Residuals(const FitState& state, const Points& points, Eigen::VectorXd& residuals) {
-  const Superquadric s = ToSuperquadric(state);
-  const double weight = std::sqrt(s.a1 * s.a2 * s.a3);
+/// The ends' residuals, the last kNumEndResiduals of `residuals` (Residuals); `weight` is
+/// the points' sqrt(a1 a2 a3).
+void EndResiduals(const FitState& state, const Points& points, double weight,
+                  Eigen::VectorXd& residuals) {
   const Eigen::Matrix3d rt = state.rotation.transpose();
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
   const Eigen::Index n = points.rows();
@@ -163,7 +202,6 @@ void Residuals(const FitState& state, const Points& points, Eigen::VectorXd& res
     const Eigen::Vector3d local = rt * (points.row(i).transpose() - state.translation);
     lo = lo.cwiseMin(local);
     hi = hi.cwiseMax(local);
-    residuals[i] = weight * (std::pow(InsideOutside(s, local), s.e1) - 1.0);
   }
   // Each end weighs as much as all points together would with residuals of kEndWeight times
   // the end's relative excess.
@@ -176,10 +214,43 @@ void Residuals(const FitState& state, const Points& points, Eigen::VectorXd& res
   }
 }
 
-/// Forward-difference Jacobian of the residuals with respect to the increment parameters.
-void Jacobian(const FitState& state, const Points& points, const Eigen::VectorXd& residuals,
-              double scale, const Bounds& bounds, Eigen::MatrixXd& jacobian,
-              Eigen::VectorXd& scratch) {
+/// Residuals of the fit: per point the Solina–Bajcsy residual sqrt(a1 a2 a3)·(F^e1 − 1),
+/// then per axis and end how far the superquadric reaches beyond the points' extent along
+/// its axis plus the slack (kNumEndResiduals). The points of a limb's skin form an open
+/// tube, which says nothing of where the superquadric ends: without the ends' residuals a
+/// tapering limb is fitted best by the wide half of an ellipsoid twice its length, centred
+/// at its thick end (MakeHuman's thighs and forearms were fitted so, their other halves
+/// through the pelvis and the upper arm), whose centre then sees the skin of the body
+/// around it, not the limb's (docs/collision.md, "The fit of an open tube").
+void Residuals(const FitState& state, const Points& points, Eigen::VectorXd& residuals) {
+  const Superquadric s = ToSuperquadric(state);
+  const Eigen::Matrix3d rt = state.rotation.transpose();
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    residuals[i] =
+        SuperquadricFitResidual(s, rt * (points.row(i).transpose() - state.translation));
+  }
+  EndResiduals(state, points, std::sqrt(s.a1 * s.a2 * s.a3), residuals);
+}
+
+/// The Jacobian of the residuals with respect to the increment parameters: the points' rows
+/// in closed form (SuperquadricFitResidual), the ends' by forward differences. The ends
+/// depend on the points only through their extremes, which take no power, so their eleven
+/// differences cost little. The points' differences took eleven evaluations of F (five
+/// powers each) per point and iteration: most of a superquadric collider's construction.
+void Jacobian(const FitState& state, const Points& points, double scale, const Bounds& bounds,
+              Eigen::MatrixXd& jacobian, Eigen::VectorXd& scratch) {
+  const Superquadric s = ToSuperquadric(state);
+  const Eigen::Matrix3d rt = state.rotation.transpose();
+  const Eigen::Index n = points.rows();
+  SuperquadricFitGradient gradient;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Eigen::Vector3d local = rt * (points.row(i).transpose() - state.translation);
+    SuperquadricFitResidual(s, local, &gradient);
+    jacobian.row(i) = gradient.transpose();
+  }
+  const double weight = std::sqrt(s.a1 * s.a2 * s.a3);
+  EndResiduals(state, points, weight, scratch);
+  const Eigen::Matrix<double, kNumEndResiduals, 1> ends = scratch.tail<kNumEndResiduals>();
   for (int k = 0; k < kNumParameters; ++k) {
     const bool length = k < 3 || (k >= 5 && k < 8);
     double step = length ? 1e-7 * scale : 1e-7;
@@ -187,8 +258,9 @@ void Jacobian(const FitState& state, const Points& points, const Eigen::VectorXd
     if (k >= 3 && k < 5 && state.e[k - 3] + step > kMaxSuperquadricExponent) step = -step;
     ParameterVector delta = ParameterVector::Zero();
     delta[k] = step;
-    Residuals(Apply(state, delta, bounds), points, scratch);
-    jacobian.col(k) = (scratch - residuals) / step;
+    const FitState moved = Apply(state, delta, bounds);
+    EndResiduals(moved, points, std::sqrt(moved.a.prod()), scratch);
+    jacobian.block<kNumEndResiduals, 1>(n, k) = (scratch.tail<kNumEndResiduals>() - ends) / step;
   }
 }
 
@@ -272,7 +344,7 @@ SuperquadricFit FitSuperquadric(const Points& all_points, const std::string& nam
   double lambda = 1e-3;
   int iteration = 0;
   for (; iteration < options.max_iterations; ++iteration) {
-    Jacobian(state, points, residuals, extent, bounds, jacobian, scratch);
+    Jacobian(state, points, extent, bounds, jacobian, scratch);
     NormalMatrix normal = jacobian.transpose() * jacobian;
     ParameterVector gradient = jacobian.transpose() * residuals;
     FreezeActiveBounds(state, bounds, normal, gradient);

@@ -98,11 +98,23 @@ struct SuperquadricFit {
   int num_iterations = 0;
 };
 
+/// Derivatives of a point's fit residual (FitSuperquadric) by a1, a2, a3, e1, e2, the
+/// frame's translation (3) and a rotation increment ω applied as R ← R·exp([ω]×) (3).
+using SuperquadricFitGradient = Eigen::Matrix<double, 11, 1>;
+
+/// The residual FitSuperquadric gives the point whose superquadric coordinates are `p`:
+/// sqrt(a1·a2·a3)·(F(p)^e1 − 1) [m^1.5], and, unless `gradient` is null, its derivatives in
+/// closed form, holding the point fixed in the superquadric's parent frame (0 at the centre,
+/// where F has no direction). Never throws.
+double SuperquadricFitResidual(const Superquadric& superquadric, const Eigen::Vector3d& p,
+                               SuperquadricFitGradient* gradient = nullptr);
+
 /// Fits a superquadric to `points` (n×3) [m] after Solina & Bajcsy 1990: minimises
 ///   Σ_i (sqrt(a1·a2·a3)·(F(p_i)^e1 − 1))² + Σ_ends (w·max(0, reach beyond the ends))²
 /// over the sizes, the exponents and the pose (position and rotation, 11 parameters) by
-/// Levenberg–Marquardt with a forward-difference Jacobian. The rotation is updated
-/// multiplicatively (R ← R·exp([δω]×)) so it needs no angle parameterisation. The exponents
+/// Levenberg–Marquardt, the points' Jacobian in closed form (SuperquadricFitResidual), the
+/// ends' by forward differences. The rotation is updated multiplicatively
+/// (R ← R·exp([δω]×)) so it needs no angle parameterisation. The exponents
 /// are kept in [0.1, 2] and the sizes above 1e-4·(the points' extent) by projection, a
 /// parameter on its bound whose descent direction points out of the box being frozen for
 /// that iteration. Start: the points' centroid and principal axes (largest spread → z,
