@@ -36,7 +36,7 @@ std::uint64_t Avalanche(std::uint64_t hash) {
 }  // namespace
 
 SkinMapCache::SkinMapCache(std::size_t budget_bytes, double quantum)
-    : budget_bytes_(budget_bytes) {
+    : budget_bytes_(budget_bytes), quantum_(quantum) {
   if (!(quantum > 0.0) || !std::isfinite(quantum)) {
     throw InputError("skin map cache: quantum " + std::to_string(quantum) +
                      " m must be positive and finite");

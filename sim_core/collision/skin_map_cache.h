@@ -82,6 +82,8 @@ class SkinMapCache {
   explicit SkinMapCache(std::size_t budget_bytes = 0, double quantum = 1e-5);
 
   bool enabled() const { return budget_bytes_ > 0; }
+  /// The rounding of the keys' corners [m].
+  double quantum() const { return quantum_; }
 
   /// The key of segment `segment`'s skin `corners` (its frame) [m]. Never throws or
   /// allocates.
@@ -108,6 +110,7 @@ class SkinMapCache {
 
  private:
   std::size_t budget_bytes_ = 0;
+  double quantum_ = 1e-5;
   double inverse_quantum_ = 1e5;
   /// Node data of every stored drawing, back to back (capacity: the budget).
   std::vector<StoredMapNode> arena_;

@@ -646,6 +646,15 @@ void SuperquadricCollider::Restart() {
   }
 }
 
+void SuperquadricCollider::SetMapMemory(std::size_t bytes) {
+  if (bytes == map_cache_.stats().budget_bytes) return;
+  const double quantum = map_cache_.quantum();
+  map_cache_ = SkinMapCache(0, quantum);  // never two stores reserved at once
+  // A map reused from the store points into it: none may be read before it is redrawn.
+  std::fill(stale_.begin(), stale_.end(), 1);
+  map_cache_ = SkinMapCache(bytes, quantum);
+}
+
 void SuperquadricCollider::SetThickness(double thickness) {
   if (thickness == settings_.thickness) return;
   settings_.thickness = thickness;

@@ -358,6 +358,13 @@ class SuperquadricCollider : public BodyCollider {
   /// next motion can be stored: the store evicts nothing). Never throws or allocates.
   void Restart();
 
+  /// Gives the store of drawings `bytes` (SuperquadricColliderOptions::map_cache_bytes),
+  /// as a collider built with them: a new budget forgets every stored drawing, and each map
+  /// is drawn again, or found in the new store, before it is read. The fit, the maps'
+  /// grids and the pose stay. The old store's memory is given back before the new one is
+  /// reserved; if that reservation throws (std::bad_alloc), the collider stores nothing.
+  void SetMapMemory(std::size_t bytes);
+
   /// The segments that got a superquadric. Their maps are those of the last refresh (a
   /// segment not needed since the last Update keeps an older one).
   const std::vector<SuperquadricSegment>& segments() const { return segments_; }

@@ -34,6 +34,12 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
   return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
 }
 
+void SetMapMemory(BodyCollider& collider, double map_memory_mb) {
+  if (auto* superquadrics = dynamic_cast<SuperquadricCollider*>(&collider)) {
+    superquadrics->SetMapMemory(MapCacheBytes(map_memory_mb));
+  }
+}
+
 std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
                                                  const std::shared_ptr<const Avatar>& avatar,
                                                  const BodyCollisionSettings& settings,
@@ -49,14 +55,13 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
     ++num_builds_;
     return mesh;
   }
-  if (kept_ && kept_->map_cache_stats().budget_bytes == MapCacheBytes(map_memory_mb)) {
+  if (kept_) {
     kept_->Restart();
+    kept_->SetMapMemory(MapCacheBytes(map_memory_mb));
     kept_->SetThickness(settings.thickness);
     kept_->SetFriction(settings.friction);
     return kept_;
   }
-  // Let go first, so that the memo never holds two stores of drawings.
-  kept_.reset();
   std::shared_ptr<BodyCollider> built = MakeBodyCollider(method, avatar, settings, map_memory_mb);
   ++num_builds_;
   kept_ = std::static_pointer_cast<SuperquadricCollider>(built);

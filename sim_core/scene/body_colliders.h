@@ -21,12 +21,17 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                const BodyCollisionSettings& settings,
                                                double map_memory_mb);
 
+/// Gives a superquadric collider a store of `map_memory_mb` [MB] for its drawings
+/// (SuperquadricCollider::SetMapMemory; nothing is fitted again); other colliders store
+/// none, and are left as they are. Throws std::bad_alloc when the store cannot be reserved.
+void SetMapMemory(BodyCollider& collider, double map_memory_mb);
+
 /// The superquadric collider last built, kept for the next simulation built for the same
-/// avatar with the same map memory: a server's STOP, a new fabric or another costume on the
-/// same body rebuilds the simulation from its scene. Building the collider takes 0.5 s on
-/// the built-in humanoid and 0.8 s on MakeHuman's body, and a new one has no drawings stored,
-/// so a looping clip's first pass, slower than real time on MakeHuman, came again after each
-/// rebuild (docs/collision.md, "Kept across rebuilds"). A mesh collider is not kept: it is
+/// avatar: a server's STOP, a new fabric or another costume on the same body rebuilds the
+/// simulation from its scene. Building the collider takes 0.4 s on the built-in humanoid
+/// and 0.65 s on MakeHuman's body, and a new one has no drawings stored, so a looping
+/// clip's first pass, slower than real time on MakeHuman, came again after each rebuild
+/// (docs/collision.md, "Kept across rebuilds"). A mesh collider is not kept: it is
 /// built in about 0.05 s and draws nothing. The superquadric one stays kept while a mesh
 /// collider is used for the same avatar, so switching back to it costs no refit.
 ///
@@ -36,8 +41,9 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
 class ColliderMemo {
  public:
   /// For the superquadric method, the kept collider, restarted (SuperquadricCollider::
-  /// Restart) and given `settings` (SetThickness, SetFriction), when it was built for
-  /// `avatar` with `map_memory_mb`; else a new one, kept (the one kept before is let go).
+  /// Restart) and given `map_memory_mb` and `settings` (SetMapMemory, SetThickness,
+  /// SetFriction), when it was built for `avatar`; else a new one, kept (the one kept
+  /// before, another avatar's, is let go first).
   /// For the mesh method, a new one (the kept one is let go when it is another avatar's).
   /// Throws what MakeBodyCollider throws.
   std::shared_ptr<BodyCollider> Find(BodyCollisionMethod method,
@@ -48,7 +54,7 @@ class ColliderMemo {
   int num_builds() const { return num_builds_; }
 
  private:
-  /// Its avatar and store size are the key (SuperquadricCollider::avatar, map_cache_stats).
+  /// Its avatar is the key (SuperquadricCollider::avatar).
   std::shared_ptr<SuperquadricCollider> kept_;
   int num_builds_ = 0;
 };

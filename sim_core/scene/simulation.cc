@@ -234,10 +234,6 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
 /// Whether colliders built for `a` and for `b` are alike but for their thickness and
 /// friction, which a collider takes in place (BodyCollider::SetThickness, SetFriction; the
 /// skin's travel per step is the simulation's own).
-bool SameCollider(const AvatarSpec& a, const AvatarSpec& b) {
-  return a.collision == b.collision && a.superquadric_map_mb == b.superquadric_map_mb;
-}
-
 }  // namespace
 
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
@@ -619,7 +615,7 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
   ValidateScene(scene);  // throws before anything changes
   // Built before anything is replaced, so a failure leaves the old colliders in place.
   std::shared_ptr<BodyCollider> body;
-  if (avatar_ && !SameCollider(*scene.avatar, *scene_.avatar)) {
+  if (avatar_ && scene.avatar->collision != scene_.avatar->collision) {
     body = MakeAvatarCollider(scene, *avatar_, step(), colliders);
   }
   const bool self_changed =
@@ -627,8 +623,10 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
       (scene.avatar && scene.avatar->thickness != scene_.avatar->thickness);
   std::unique_ptr<SelfCollision> self =
       self_changed ? MakeSelfCollision(scene, model_, fabric_friction_) : nullptr;
+  // Map memory, thickness and friction change in place: nothing is fitted again for them
+  // (a new collider has them already). The store first: the one change here that may fail.
+  if (body_ && !body) SetMapMemory(*body_, scene.avatar->superquadric_map_mb);
   if (body) body_ = std::move(body);
-  // Thickness and friction change in place: nothing is fitted again for them.
   if (body_) {
     body_->SetThickness(scene.avatar->thickness);
     body_->SetFriction(SkinFriction(scene));

@@ -141,14 +141,15 @@ class Simulation {
   /// Changes how cloth collides (CollisionSettings: the avatar's method, thickness, friction,
   /// skin travel per step and map memory, and self-collision) in place, as SetSolver does:
   /// the state, the edits, the undo history, the grab and the avatar's clock are kept, and
-  /// the next step uses the new settings. A new method or map memory builds a new collider
-  /// around the avatar where it stands (the superquadric method fits its segments again:
-  /// 0.5–0.8 s; its stored drawings are dropped); a new thickness or friction is given to
-  /// the collider there is (BodyCollider::SetThickness, SetFriction); self-collision
-  /// switched on is built, switched off freed. Without an avatar only self-collision
-  /// applies. `colliders` (when not null) gives a new collider as for Build, and keeps it
-  /// for the next build. Throws InputError (ValidateScene) and changes nothing for settings
-  /// the scene would refuse.
+  /// the next step uses the new settings. A new method builds a new collider around the
+  /// avatar where it stands (the superquadric method fits its segments: 0.4–0.9 s, unless
+  /// `colliders` kept one for the avatar); a new thickness, friction or map memory is given
+  /// to the collider there is (BodyCollider::SetThickness, SetFriction; SetMapMemory in
+  /// body_colliders.h, which drops the stored drawings); self-collision switched on is
+  /// built, switched off freed. Without an avatar only self-collision applies. `colliders`
+  /// (when not null) gives a new collider as for Build, and keeps it for the next build.
+  /// Throws InputError (ValidateScene) and changes nothing for settings the scene would
+  /// refuse.
   void SetCollision(const CollisionSettings& settings, ColliderMemo* colliders = nullptr);
 
   /// Edits that UndoEdit can still take back.

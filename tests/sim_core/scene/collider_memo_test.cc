@@ -9,6 +9,7 @@
 #include <algorithm>
 
 #include "assets/scene_file.h"
+#include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/scene/simulation.h"
 
 namespace costume::sim {
@@ -64,14 +65,15 @@ TEST(ColliderMemo, ARebuiltSimulationKeepsTheColliderAndStepsAsANewOne) {
 // SET_COLLISION) is kept for the rebuild that follows (a STOP in those settings).
 TEST(ColliderMemo, ACollisionChangeKeepsItsColliderForTheNextBuild) {
   SceneDescription scene = WalkingSkirt();
+  scene.avatar->collision = BodyCollisionMethod::kMesh;
   ColliderMemo memo;
   auto running = Simulation::Build(scene, nullptr, &memo);
   running->AdvanceFrame();
-  CollisionSettings smaller = CollisionSettingsOf(scene);
-  smaller.superquadric_map_mb = 32.0;  // a new store: a new collider
-  running->SetCollision(smaller, &memo);
+  CollisionSettings fast = CollisionSettingsOf(scene);
+  fast.method = BodyCollisionMethod::kSuperquadric;  // a new method: a new collider
+  running->SetCollision(fast, &memo);
   EXPECT_EQ(memo.num_builds(), 2);
-  ApplyCollisionSettings(smaller, scene);
+  ApplyCollisionSettings(fast, scene);
   const BodyCollider* in_use = running->body_collider();
   running.reset();
   auto stopped = Simulation::Build(scene, nullptr, &memo);
@@ -79,10 +81,39 @@ TEST(ColliderMemo, ACollisionChangeKeepsItsColliderForTheNextBuild) {
   EXPECT_EQ(stopped->body_collider(), in_use);
 }
 
-// Only the same avatar with the same map memory gets the kept collider (with the thickness
-// and friction asked for, which it takes in place); a mesh collider is built each time and
-// not kept.
-TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
+// A new map memory mid-walk is given to the running collider: nothing is fitted, the store
+// starts empty with the new budget, and the body keeps its motion, so the cloth moves bit
+// for bit as in a simulation built with that memory from the start. (A new collider would
+// take the next pose without a velocity, and the cloth would move otherwise.)
+TEST(ColliderMemo, ANewMapMemoryIsGivenToTheRunningCollider) {
+  SceneDescription scene = WalkingSkirt();
+  ColliderMemo memo;
+  auto running = Simulation::Build(scene, nullptr, &memo);
+  for (int f = 0; f < 40; ++f) running->AdvanceFrame();  // into the walk, past the fit
+  const BodyCollider* in_use = running->body_collider();
+  CollisionSettings smaller = CollisionSettingsOf(scene);
+  smaller.superquadric_map_mb = 32.0;
+  running->SetCollision(smaller, &memo);
+  EXPECT_EQ(memo.num_builds(), 1);
+  ASSERT_EQ(running->body_collider(), in_use);
+  const auto& store = dynamic_cast<const SuperquadricCollider&>(*in_use).map_cache_stats();
+  EXPECT_EQ(store.budget_bytes, std::size_t{32} << 20);
+  EXPECT_EQ(store.bytes_used, 0u);
+  ApplyCollisionSettings(smaller, scene);
+  auto built = Simulation::Build(scene);
+  for (int f = 0; f < 40; ++f) built->AdvanceFrame();
+  for (int f = 0; f < 20; ++f) {
+    running->AdvanceFrame();
+    built->AdvanceFrame();
+  }
+  EXPECT_GT(store.bytes_used, 0u);
+  EXPECT_EQ((running->state().positions - built->state().positions).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Only another avatar builds a new superquadric collider: friction, thickness and map
+// memory are given to the kept one, which then has the new store's budget, empty. A mesh
+// collider is built each time and not kept.
+TEST(ColliderMemo, AnotherAvatarBuildsAnewOtherSettingsAreGivenToTheKeptCollider) {
   const SceneDescription scene = WalkingSkirt();
   const std::shared_ptr<const Avatar> avatar = scene.avatar->avatar;
   const BodyCollisionSettings settings;
@@ -98,15 +129,19 @@ TEST(ColliderMemo, AnotherAvatarOrOtherSettingsBuildAnew) {
   thicker.thickness = 0.008;
   EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, thicker, 64.0), kept);
   EXPECT_EQ(memo.num_builds(), 1);
-  EXPECT_NE(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, thicker, 32.0), kept);
-  EXPECT_EQ(memo.num_builds(), 2);
+  const auto& superquadrics = dynamic_cast<const SuperquadricCollider&>(*kept);
+  ASSERT_GT(superquadrics.map_cache_stats().bytes_used, 0u);  // the rest pose's drawings
+  EXPECT_EQ(memo.Find(BodyCollisionMethod::kSuperquadric, avatar, thicker, 32.0), kept);
+  EXPECT_EQ(memo.num_builds(), 1);
+  EXPECT_EQ(superquadrics.map_cache_stats().budget_bytes, std::size_t{32} << 20);
+  EXPECT_EQ(superquadrics.map_cache_stats().bytes_used, 0u);
   const std::shared_ptr<const Avatar> other = Avatar::Create(avatar->data());
   EXPECT_NE(memo.Find(BodyCollisionMethod::kSuperquadric, other, thicker, 32.0), kept);
-  EXPECT_EQ(memo.num_builds(), 3);
+  EXPECT_EQ(memo.num_builds(), 2);
   const std::shared_ptr<BodyCollider> mesh =
       memo.Find(BodyCollisionMethod::kMesh, avatar, settings, 64.0);
   EXPECT_NE(memo.Find(BodyCollisionMethod::kMesh, avatar, settings, 64.0), mesh);
-  EXPECT_EQ(memo.num_builds(), 5);
+  EXPECT_EQ(memo.num_builds(), 4);
 }
 
 // A designer comparing the methods on one avatar: back from the mesh method, the
