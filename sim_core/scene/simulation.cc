@@ -231,9 +231,6 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
   return std::make_unique<SelfCollision>(std::move(model), self);
 }
 
-/// Whether colliders built for `a` and for `b` are alike but for their thickness and
-/// friction, which a collider takes in place (BodyCollider::SetThickness, SetFriction; the
-/// skin's travel per step is the simulation's own).
 }  // namespace
 
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,

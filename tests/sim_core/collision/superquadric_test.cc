@@ -1,6 +1,7 @@
 // Superquadrics: the inside-outside function against closed forms, its gradient and the
-// fit's Jacobian against finite differences, and the Solina–Bajcsy fit recovering a known superquadric from noisy
-// samples in an arbitrary pose and fitting an open tube along its length.
+// fit's Jacobian against finite differences, and the Solina–Bajcsy fit recovering a known
+// superquadric from noisy samples in an arbitrary pose and fitting an open tube along its
+// length.
 #include "sim_core/collision/superquadric.h"
 
 #include <gtest/gtest.h>
