@@ -629,8 +629,8 @@ void MainWindow::ConnectSignals() {
           [this](const sim::CollisionSettings& s) {
             sender_->SetCollision(s);
             ForEachMirror([&s](SceneMirror& mirror) { mirror.SetCollision(s); });
-            Log("collision sent: the server changes it in place (a new method, thickness or "
-                "friction builds a new collider: superquadrics take about a second)");
+            Log("collision sent: the server changes it in place (only a new method builds a "
+                "new collider: superquadrics take about half a second, once per avatar)");
           });
   connect(posture_, &PosturePanel::postureRequested, this,
           [this](const std::vector<JointAngles>& joints, double heading,
