@@ -256,8 +256,8 @@ std::vector<Candidate> Collect(const ImportRequest& request, const fs::path& roo
                                : request.kind == Kind::kAnimation
                                    ? ".bvh, " + ListFormats(AnimationFileFormats(), ".") +
                                          ", DeepMimic .txt/.json"
-                                   : std::string(".toml (one [[garment]]), MakeHuman's .mhclo, .cdgarment "
-                                     "(edited garment)")));
+                                   : std::string(".toml (one [[garment]]), MakeHuman's "
+                                                 ".mhclo, .cdgarment (edited garment)")));
       }
       if (format == "deepmimic") {
         // Resolved from the real motion path (a symbolic link on the way is followed), named
@@ -332,7 +332,12 @@ std::vector<std::string> ImportExtensions(Kind kind) {
   std::vector<std::string> extensions;
   for (const auto& own : OwnFormats(kind)) extensions.push_back(own.first);
   for (const std::string& format : AssimpFormats(kind)) extensions.push_back(format);
-  if (kind == Kind::kAvatar) extensions.insert(extensions.end(), {"mhskel", "mhw"});
+  if (kind == Kind::kAvatar) {
+    // A MakeHuman body is picked whole: its .obj, .mhskel and .mhw.
+    for (const std::string& e : MakeHumanBodyExtensions()) {
+      if (!HasFormat(extensions, e)) extensions.push_back(e);
+    }
+  }
   return extensions;
 }
 

@@ -310,12 +310,13 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     }
   }
   // The measured frames in order: the clip's first pass, then the later passes.
-  const auto first_pass_end =
-      collision_ms.begin() + std::min<std::ptrdiff_t>(first_pass_frames, collision_ms.size());
-  const std::vector<double> first_pass_collision_ms(collision_ms.begin(), first_pass_end);
-  const std::vector<double> later_passes_collision_ms(first_pass_end, collision_ms.end());
-  const std::vector<double> first_pass_total_ms(
-      total_ms.begin(), total_ms.begin() + (first_pass_end - collision_ms.begin()));
+  const std::ptrdiff_t first_pass =
+      std::min<std::ptrdiff_t>(first_pass_frames, collision_ms.size());
+  const std::vector<double> first_pass_collision_ms(collision_ms.begin(),
+                                                    collision_ms.begin() + first_pass);
+  const std::vector<double> later_passes_collision_ms(collision_ms.begin() + first_pass,
+                                                      collision_ms.end());
+  const std::vector<double> first_pass_total_ms(total_ms.begin(), total_ms.begin() + first_pass);
   const auto over_budget = std::count_if(total_ms.begin(), total_ms.end(),
                                          [](double ms) { return ms >= 1000.0 / 60.0; });
   const auto& s = scene.avatar.value();

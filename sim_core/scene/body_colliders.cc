@@ -34,10 +34,13 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
   return std::make_unique<SuperquadricCollider>(std::move(avatar), settings, options);
 }
 
-void SetMapMemory(BodyCollider& collider, double map_memory_mb) {
+void ApplyColliderSettings(BodyCollider& collider, const BodyCollisionSettings& settings,
+                           double map_memory_mb) {
   if (auto* superquadrics = dynamic_cast<SuperquadricCollider*>(&collider)) {
     superquadrics->SetMapMemory(MapCacheBytes(map_memory_mb));
   }
+  collider.SetThickness(settings.thickness);
+  collider.SetFriction(settings.friction);
 }
 
 std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
@@ -57,9 +60,7 @@ std::shared_ptr<BodyCollider> ColliderMemo::Find(BodyCollisionMethod method,
   }
   if (kept_) {
     kept_->Restart();
-    kept_->SetMapMemory(MapCacheBytes(map_memory_mb));
-    kept_->SetThickness(settings.thickness);
-    kept_->SetFriction(settings.friction);
+    ApplyColliderSettings(*kept_, settings, map_memory_mb);
     return kept_;
   }
   std::shared_ptr<BodyCollider> built = MakeBodyCollider(method, avatar, settings, map_memory_mb);

@@ -21,10 +21,13 @@ std::unique_ptr<BodyCollider> MakeBodyCollider(BodyCollisionMethod method,
                                                const BodyCollisionSettings& settings,
                                                double map_memory_mb);
 
-/// Gives a superquadric collider a store of `map_memory_mb` [MB] for its drawings
-/// (SuperquadricCollider::SetMapMemory; nothing is fitted again); other colliders store
-/// none, and are left as they are. Throws std::bad_alloc when the store cannot be reserved.
-void SetMapMemory(BodyCollider& collider, double map_memory_mb);
+/// Gives `collider` in place what MakeBodyCollider would build one with: a superquadric
+/// collider's store of `map_memory_mb` [MB] for its drawings (SuperquadricCollider::
+/// SetMapMemory, which forgets them when the budget changes; other colliders store none),
+/// then `settings` (BodyCollider::SetThickness, SetFriction). Nothing is fitted again.
+/// Throws std::bad_alloc, before anything else changes, when the store cannot be reserved.
+void ApplyColliderSettings(BodyCollider& collider, const BodyCollisionSettings& settings,
+                           double map_memory_mb);
 
 /// The superquadric collider last built, kept for the next simulation built for the same
 /// avatar: a server's STOP, a new fabric or another costume on the same body rebuilds the
@@ -41,9 +44,9 @@ void SetMapMemory(BodyCollider& collider, double map_memory_mb);
 class ColliderMemo {
  public:
   /// For the superquadric method, the kept collider, restarted (SuperquadricCollider::
-  /// Restart) and given `map_memory_mb` and `settings` (SetMapMemory, SetThickness,
-  /// SetFriction), when it was built for `avatar`; else a new one, kept (the one kept
-  /// before, another avatar's, is let go first).
+  /// Restart) and given `settings` and `map_memory_mb` (ApplyColliderSettings), when it was
+  /// built for `avatar`; else a new one, kept (the one kept before, another avatar's, is
+  /// let go first).
   /// For the mesh method, a new one (the kept one is let go when it is another avatar's).
   /// Throws what MakeBodyCollider throws.
   std::shared_ptr<BodyCollider> Find(BodyCollisionMethod method,

@@ -173,10 +173,14 @@ void Append(ClothModelData& whole, const ClothModelData& part) {
   }
 }
 
-/// The skin's friction coefficient the scene's contacts carry (before the fabric's is mixed
-/// in): none when the scene switches friction off.
-double SkinFriction(const SceneDescription& scene) {
-  return scene.effects.friction ? scene.avatar->friction : 0.0;
+/// What the scene's avatar collider is built with, or given in place: the thickness, and
+/// the skin's friction coefficient the contacts carry (before the fabric's is mixed in),
+/// none when the scene switches friction off.
+BodyCollisionSettings ContactSettings(const SceneDescription& scene) {
+  BodyCollisionSettings contact;
+  contact.thickness = scene.avatar->thickness;
+  contact.friction = scene.effects.friction ? scene.avatar->friction : 0.0;
+  return contact;
 }
 
 /// The collider the scene's avatar asks for (`memo`'s when it keeps one for it, when not
@@ -186,9 +190,7 @@ std::shared_ptr<BodyCollider> MakeAvatarCollider(const SceneDescription& scene,
                                                  const AvatarMotion& avatar, double h,
                                                  ColliderMemo* memo) {
   const AvatarSpec& spec = *scene.avatar;
-  BodyCollisionSettings contact;
-  contact.thickness = spec.thickness;
-  contact.friction = SkinFriction(scene);
+  const BodyCollisionSettings contact = ContactSettings(scene);
   std::shared_ptr<BodyCollider> body =
       memo ? memo->Find(spec.collision, spec.avatar, contact, spec.superquadric_map_mb)
            : MakeBodyCollider(spec.collision, spec.avatar, contact, spec.superquadric_map_mb);
@@ -621,13 +623,12 @@ void Simulation::SetCollision(const CollisionSettings& settings, ColliderMemo* c
   std::unique_ptr<SelfCollision> self =
       self_changed ? MakeSelfCollision(scene, model_, fabric_friction_) : nullptr;
   // Map memory, thickness and friction change in place: nothing is fitted again for them
-  // (a new collider has them already). The store first: the one change here that may fail.
-  if (body_ && !body) SetMapMemory(*body_, scene.avatar->superquadric_map_mb);
-  if (body) body_ = std::move(body);
-  if (body_) {
-    body_->SetThickness(scene.avatar->thickness);
-    body_->SetFriction(SkinFriction(scene));
+  // (a new collider was built with them). Before anything is replaced, as the store's
+  // reservation is the one thing here that may fail.
+  if (body_ && !body) {
+    ApplyColliderSettings(*body_, ContactSettings(scene), scene.avatar->superquadric_map_mb);
   }
+  if (body) body_ = std::move(body);
   if (self_changed) {
     self_collision_ = std::move(self);
     if (self_collision_) start_positions_ = state_.positions;

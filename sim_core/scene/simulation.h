@@ -144,12 +144,11 @@ class Simulation {
   /// the next step uses the new settings. A new method builds a new collider around the
   /// avatar where it stands (the superquadric method fits its segments: 0.4–0.9 s, unless
   /// `colliders` kept one for the avatar); a new thickness, friction or map memory is given
-  /// to the collider there is (BodyCollider::SetThickness, SetFriction; SetMapMemory in
-  /// body_colliders.h, which drops the stored drawings); self-collision switched on is
-  /// built, switched off freed. Without an avatar only self-collision applies. `colliders`
-  /// (when not null) gives a new collider as for Build, and keeps it for the next build.
-  /// Throws InputError (ValidateScene) and changes nothing for settings the scene would
-  /// refuse.
+  /// to the collider there is (ApplyColliderSettings in body_colliders.h; a new map memory
+  /// drops the stored drawings); self-collision switched on is built, switched off freed.
+  /// Without an avatar only self-collision applies. `colliders` (when not null) gives a new
+  /// collider as for Build, and keeps it for the next build. Throws InputError
+  /// (ValidateScene) and changes nothing for settings the scene would refuse.
   void SetCollision(const CollisionSettings& settings, ColliderMemo* colliders = nullptr);
 
   /// Edits that UndoEdit can still take back.
