@@ -115,7 +115,7 @@ MeshDistance::MeshDistance(std::string name, const Points& vertices,
   }
   // A binary tree's depth-first stack never holds more than one node per leaf plus one.
   trees_->stack.reserve(num_triangles() + 2);
-  normals_.Update(vertices_, /*vertex_normals=*/false);  // as Refit
+  UpdateNormals();
 }
 
 MeshDistance::~MeshDistance() = default;
@@ -128,16 +128,29 @@ bool MeshDistance::Update(const Points& vertices) {
 }
 
 void MeshDistance::Refit(const Points& vertices) {
-  for (btDbvtNode* node : trees_->bottom_up) {
+  // Bullet allocates its nodes one by one, so the list visits them scattered over memory
+  // the size of the caches or more (MakeHuman's 52 k nodes: about 4 MB): fetching a few
+  // ahead lets their loads overlap instead of each waiting in turn.
+  constexpr std::size_t kAhead = 16;
+  const std::vector<btDbvtNode*>& order = trees_->bottom_up;
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    if (i + kAhead < order.size()) __builtin_prefetch(order[i + kAhead], 1);
+    btDbvtNode* node = order[i];
     if (node->isleaf()) {
       node->volume = TriangleBox(vertices, normals_.triangles()[LeafTriangle(node)]);
     } else {
       Merge(node->childs[0]->volume, node->childs[1]->volume, node->volume);
     }
   }
+  normals_current_ = false;
+}
+
+void MeshDistance::UpdateNormals() const {
+  if (normals_current_) return;
   // Vertex pseudonormals (three arc tangents a triangle, most of the cost) are computed
   // for the few closest points that land on a vertex.
-  normals_.Update(vertices, /*vertex_normals=*/false);
+  normals_.Update(vertices_, /*vertex_normals=*/false);
+  normals_current_ = true;
 }
 
 void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
@@ -186,6 +199,7 @@ void MeshDistance::NearestInPiece(int piece, const Eigen::Vector3d& point, doubl
 SurfaceDistance MeshDistance::Query(const Eigen::Vector3d& point, double max_radius) const {
   SurfaceDistance best;
   if (!(max_radius >= 0.0) || !point.allFinite()) return best;
+  UpdateNormals();
   for (int piece = 0; piece < num_pieces(); ++piece) {
     NearestInPiece(piece, point, max_radius, best);
   }

@@ -64,14 +64,15 @@ class MeshDistance {
   MeshDistance& operator=(const MeshDistance&) = delete;
 
   /// Moves the mesh to `vertices` (n×3) [m], same topology: refits the trees' boxes bottom
-  /// up (their structure stays that of the first pose) and recomputes the face normals.
-  /// Returns false, doing nothing, when the row count differs from the mesh's. Never
-  /// throws; never allocates.
+  /// up (their structure stays that of the first pose); the face normals follow at the
+  /// next Query (Inside needs none: the arm-spread search asks only that). Returns false,
+  /// doing nothing, when the row count differs from the mesh's. Never throws; never
+  /// allocates.
   bool Update(const Points& vertices);
 
   /// The surface point closest to `point` [m] within `max_radius` [m] >= 0, with its
   /// signed distance and normal. Never throws; never allocates after the first call. Not
-  /// thread-safe (one scratch stack per object).
+  /// thread-safe (one scratch stack per object; the face normals brought up to date).
   SurfaceDistance Query(const Eigen::Vector3d& point, double max_radius) const;
 
   /// Query(point, max_radius).signed_distance.
@@ -116,6 +117,8 @@ class MeshDistance {
   struct Trees;  // the Bullet trees, kept out of this header (Bullet links privately)
 
   void Refit(const Points& vertices);
+  /// The face normals for the current vertices, computed once after each Update.
+  void UpdateNormals() const;
   void NearestInPiece(int piece, const Eigen::Vector3d& point, double max_radius,
                       SurfaceDistance& best) const;
   /// The signed crossings of the ray from `point` along `direction` with piece `piece`
@@ -127,7 +130,9 @@ class MeshDistance {
   std::string name_;
   int num_vertices_ = 0;
   Points vertices_;
-  SurfacePseudonormals normals_;
+  /// Mutable: Query brings the normals up to date (UpdateNormals), like its scratch stack.
+  mutable SurfacePseudonormals normals_;
+  mutable bool normals_current_ = false;
   std::unique_ptr<Trees> trees_;
 };
 

@@ -59,7 +59,7 @@ class NearnessProbe {
       boxes_[segments[v] ? static_cast<int>(*segments[v]) : kNumHAnimJoints].extend(
           x.row(v).transpose());
     }
-    surface_.Update(x, /*vertex_normals=*/false);  // the few needed come from VertexNormal
+    surface_current_ = false;
     body_current_ = false;
   }
 
@@ -69,6 +69,14 @@ class NearnessProbe {
   /// those alone.
   bool Near(int v, int side) {
     const Points& x = motion_->vertices();
+    // The pushed point lies within the clearance of the vertex (the normal is a unit
+    // vector): a vertex that far from every other box needs no normal, which is most of
+    // them in most frames.
+    if (!InOtherBox(x.row(v).transpose(), side, kBoxSlack * kArmClearance)) return false;
+    if (!surface_current_) {
+      surface_.Update(x, /*vertex_normals=*/false);  // the few needed come from VertexNormal
+      surface_current_ = true;
+    }
     const Eigen::Vector3d p =
         x.row(v).transpose() + kArmClearance * surface_.VertexNormal(v, x);
     if (!InOtherBox(p, side)) return false;
@@ -78,7 +86,12 @@ class NearnessProbe {
   }
 
  private:
-  bool InOtherBox(const Eigen::Vector3d& p, int side) const {
+  /// Room for the rounding of a point pushed the clearance along a unit normal [-].
+  static constexpr double kBoxSlack = 1.001;
+
+  /// Whether `p` lies within `margin` [m] of the box of a segment's skin other than the
+  /// arm's own.
+  bool InOtherBox(const Eigen::Vector3d& p, int side, double margin = 0.0) const {
     const std::array<HAnimJoint, 3> own =
         side == 0
             ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
@@ -88,7 +101,10 @@ class NearnessProbe {
           std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end()) {
         continue;
       }
-      if (boxes_[s].contains(p)) return true;
+      if (margin > 0.0 ? boxes_[s].squaredExteriorDistance(p) <= margin * margin
+                       : boxes_[s].contains(p)) {
+        return true;
+      }
     }
     return false;
   }
@@ -109,6 +125,8 @@ class NearnessProbe {
   AvatarMotionSettings settings_;
   std::optional<MeshDistance> body_;
   bool body_current_ = false;
+  /// Whether `surface_`'s face normals are those of the pose (PoseAt leaves them for Near).
+  bool surface_current_ = false;
   SurfacePseudonormals& surface_;
   std::optional<AvatarMotion> motion_;
   /// Per H-Anim segment the box of its skin in the pose; the last for skin of none.

@@ -231,6 +231,28 @@ TEST(MeshDistance, RefitAfterTranslationShiftsTheDistances) {
   EXPECT_NEAR(distance.SignedDistance(kCenter + offset, 2.0), -kHalf.minCoeff(), 1e-12);
 }
 
+// The face normals follow an Update at the next query (they are computed lazily). Turned
+// half a turn about its own vertical axis, the box's triangles swap sides: a triangle now on
+// the +x side faced −x before, so a stale normal would put points outside it inside.
+TEST(MeshDistance, ARotatedMeshIsSignedByItsNewNormals) {
+  auto box = TessellatedBox(kCenter, kHalf, Eigen::Vector3i(4, 3, 5));
+  MeshDistance distance("box", box.vertices, box.triangles);
+  ASSERT_GT(distance.SignedDistance(kCenter + Eigen::Vector3d(kHalf.x() + 0.05, 0.01, 0.02), 2.0),
+            0.0);
+  Points turned = box.vertices;
+  const Eigen::Matrix3d half_turn = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).matrix();
+  for (Eigen::Index v = 0; v < turned.rows(); ++v) {
+    turned.row(v) = (half_turn * (box.vertices.row(v).transpose() - kCenter) + kCenter).transpose();
+  }
+  ASSERT_TRUE(distance.Update(turned));
+  std::mt19937 rng(12);
+  for (int i = 0; i < 1000; ++i) {
+    const Eigen::Vector3d p = RandomPoint(rng, kCenter, 0.6);
+    ASSERT_NEAR(distance.SignedDistance(p, 2.0), BoxSignedDistance(p, kCenter, kHalf), 1e-12)
+        << "at " << p.transpose();
+  }
+}
+
 TEST(MeshDistance, SeveralPiecesFormTheirUnion) {
   const Eigen::Vector3d center_b = kCenter + Eigen::Vector3d(0.4, 0.1, 0.0);  // overlaps
   const Eigen::Vector3d half_b(0.2, 0.2, 0.2);
