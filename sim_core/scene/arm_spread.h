@@ -57,15 +57,15 @@ inline constexpr double kMaxAutoArmSpread = 15.0 * 3.14159265358979323846 / 180.
 /// in a frame, those still near with the arm turned kMaxAutoArmSpread out (the arm's own
 /// folds). Costs a skinning per sampled frame and, once a point passes the segments' boxes,
 /// the body's trees (78 ms on the built-in humanoid) and a refit of them per angle tried
-/// for the frames found near: 0.02–0.2 s on the built-in clips (none near), 0.1–1.3 s on
-/// CMU's clips (docs/assets.md). Never throws.
+/// for the frames found near: 0.02–0.05 s on the built-in clips (none near), 0.1–1.1 s on
+/// CMU's clips (tools/arm_spread_bench; docs/assets.md). Never throws.
 ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
                            const std::shared_ptr<const Clip>& clip,
                            const AvatarMotionSettings& settings);
 
 /// The last spread FindArmSpread chose, kept for the next scene with the same avatar, clip
 /// and motion: a STOP or a new fabric rebuilds the simulation from its scene, and the
-/// search took 0.02–1.3 s each time. Holds the avatar and clip weakly (a freed one never
+/// search takes 0.02–1.1 s each time. Holds the avatar and clip weakly (a freed one never
 /// matches a new one at its address).
 class ArmSpreadMemo {
  public:
