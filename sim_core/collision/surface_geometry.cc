@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <numeric>
 #include <utility>
 
@@ -93,28 +92,47 @@ SurfacePseudonormals::SurfacePseudonormals(int num_vertices,
 }
 
 void SurfacePseudonormals::BuildAdjacency() {
-  // Directed edge (from, to) -> the triangles and local edges using it.
-  std::map<std::pair<int, int>, std::vector<std::pair<int, int>>> directed;
+  // Every directed edge (from, to) with the triangle and local edge using it, sorted: the
+  // users of one edge are a run, found by binary search. (A map of vectors took most of a
+  // MakeHuman body's construction in allocations.)
+  struct DirectedEdge {
+    int from, to, t, k;
+    auto operator<=>(const DirectedEdge&) const = default;
+  };
+  std::vector<DirectedEdge> directed;
+  directed.reserve(3 * triangles_.size());
   for (int t = 0; t < num_triangles(); ++t) {
     for (int k = 0; k < 3; ++k) {
-      directed[{triangles_[t][k], triangles_[t][(k + 1) % 3]}].emplace_back(t, k);
+      directed.push_back({triangles_[t][k], triangles_[t][(k + 1) % 3], t, k});
     }
   }
-  for (const auto& [edge, users] : directed) {
-    const auto twin = directed.find({edge.second, edge.first});
-    const std::size_t num_twins = twin == directed.end() ? 0 : twin->second.size();
-    if (users.size() == 1 && num_twins == 1) {
-      const auto [t, k] = users.front();
-      neighbours_[t][k] = twin->second.front().first;
+  std::sort(directed.begin(), directed.end());
+  // The run of users of edge (from, to) from `first` on: [first, last).
+  const auto run_end = [&](std::vector<DirectedEdge>::const_iterator first) {
+    auto last = first;
+    while (last != directed.end() && last->from == first->from && last->to == first->to) ++last;
+    return last;
+  };
+  for (auto first = directed.cbegin(); first != directed.cend();) {
+    const auto last = run_end(first);
+    const auto num_users = static_cast<std::size_t>(last - first);
+    const auto twin = std::lower_bound(directed.cbegin(), directed.cend(),
+                                       DirectedEdge{first->to, first->from, -1, -1});
+    const bool has_twin = twin != directed.cend() && twin->from == first->to &&
+                          twin->to == first->from;
+    const auto num_twins = has_twin ? static_cast<std::size_t>(run_end(twin) - twin) : 0;
+    const DirectedEdge edge = *first;
+    first = last;
+    if (num_users == 1 && num_twins == 1) {
+      neighbours_[edge.t][edge.k] = twin->t;
       continue;
     }
-    if (edge.first > edge.second && num_twins > 0) continue;  // reported from the twin
+    if (edge.from > edge.to && num_twins > 0) continue;  // reported from the twin
     ++num_open_edges_;
     if (first_open_edge_.empty()) {
-      first_open_edge_ = "edge (" + std::to_string(edge.first) + ", " +
-                         std::to_string(edge.second) + ") used by " +
-                         std::to_string(users.size() + num_twins) + " triangle(s), " +
-                         std::to_string(users.size()) + " in this direction";
+      first_open_edge_ = "edge (" + std::to_string(edge.from) + ", " + std::to_string(edge.to) +
+                         ") used by " + std::to_string(num_users + num_twins) +
+                         " triangle(s), " + std::to_string(num_users) + " in this direction";
     }
   }
 }
