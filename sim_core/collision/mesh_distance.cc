@@ -6,7 +6,9 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <deque>
 #include <limits>
+#include <mutex>
 #include <utility>
 #include <vector>
 
@@ -80,6 +82,102 @@ void AppendBottomUp(btDbvtNode* node, std::vector<btDbvtNode*>& order) {
 
 }  // namespace
 
+bool SameBox(const btDbvtVolume& a, const btDbvtVolume& b) {
+  return a.Mins() == b.Mins() && a.Maxs() == b.Maxs();
+}
+
+/// A copy of `from` in the empty `to`, node for node; false (`to` then unusable) when the
+/// copy turns out not to be one. Bullet's clone (3.24) walks the tree with a stack and gives
+/// each node's children the slots of their stack positions' parity: the children of a node
+/// popped from an odd position come out swapped. They are put back by the same walk, since
+/// the order in which queries visit children decides between exactly equally near
+/// triangles; the walk also checks every node's box and every leaf's triangle, so a Bullet
+/// that clones otherwise is caught, not trusted. (Its clone also calls the leaf callback it
+/// is given without checking for none.)
+bool CloneTree(const btDbvt& from, btDbvt& to) {
+  btDbvt::IClone keep_leaves;  // leaves carry a triangle index: nothing to copy
+  from.clone(to, &keep_leaves);
+  if (from.m_root == nullptr) return to.m_root == nullptr;
+  std::vector<std::pair<const btDbvtNode*, btDbvtNode*>> stack{{from.m_root, to.m_root}};
+  while (!stack.empty()) {
+    const std::size_t position = stack.size() - 1;
+    const auto [original, copy] = stack.back();
+    stack.pop_back();
+    if (copy == nullptr || copy->isleaf() != original->isleaf() ||
+        !SameBox(copy->volume, original->volume)) {
+      return false;
+    }
+    if (original->isleaf()) {
+      if (copy->data != original->data) return false;
+      continue;
+    }
+    if (position % 2 == 1) std::swap(copy->childs[0], copy->childs[1]);
+    stack.emplace_back(original->childs[0], copy->childs[0]);
+    stack.emplace_back(original->childs[1], copy->childs[1]);
+  }
+  return true;
+}
+
+/// The trees of the last large meshes built, cloned when the same mesh (the same vertices and
+/// triangles, compared in full) is built again: a scene's build makes the avatar's rest body
+/// for the garments' fit, the arm-spread search and the superquadric collider, and Bullet's
+/// optimizeTopDown takes 180 ms of each for MakeHuman's 26 k triangles, a clone a few. The
+/// trees' structure depends only on the mesh, and a clone has the same, so it answers every
+/// query as a build would, bit for bit. Process-wide, behind a mutex; two meshes of about
+/// 5 MB each.
+class TreeStore {
+ public:
+  /// Meshes smaller than this build in a few milliseconds and are not kept [triangles].
+  static constexpr std::size_t kMinTriangles = 2000;
+
+  static TreeStore& Instance() {
+    static TreeStore store;
+    return store;
+  }
+
+  /// Fills `pieces` (empty) with clones of the trees kept for this mesh; false when none are.
+  bool CloneInto(const Points& vertices, const std::vector<Eigen::Vector3i>& triangles,
+                 std::vector<std::unique_ptr<btDbvt>>& pieces) {
+    const std::lock_guard lock(mutex_);
+    for (const Entry& entry : entries_) {
+      if (entry.triangles != triangles || entry.vertices != vertices) continue;
+      for (const auto& tree : entry.pieces) {
+        pieces.push_back(std::make_unique<btDbvt>());
+        if (!CloneTree(*tree, *pieces.back())) {
+          pieces.clear();
+          return false;
+        }
+      }
+      return true;
+    }
+    return false;
+  }
+
+  /// Keeps clones of `pieces`, built for this mesh, forgetting the oldest beyond kKept.
+  void Keep(const Points& vertices, const std::vector<Eigen::Vector3i>& triangles,
+            const std::vector<std::unique_ptr<btDbvt>>& pieces) {
+    if (triangles.size() < kMinTriangles) return;
+    Entry entry{vertices, triangles, {}};
+    for (const auto& tree : pieces) {
+      entry.pieces.push_back(std::make_unique<btDbvt>());
+      if (!CloneTree(*tree, *entry.pieces.back())) return;
+    }
+    const std::lock_guard lock(mutex_);
+    entries_.push_front(std::move(entry));
+    if (entries_.size() > kKept) entries_.pop_back();
+  }
+
+ private:
+  static constexpr std::size_t kKept = 2;
+  struct Entry {
+    Points vertices;
+    std::vector<Eigen::Vector3i> triangles;
+    std::vector<std::unique_ptr<btDbvt>> pieces;
+  };
+  std::mutex mutex_;
+  std::deque<Entry> entries_;
+};
+
 struct MeshDistance::Trees {
   /// One tree per piece, so each piece's closest point (and thus its sign) is found.
   std::vector<std::unique_ptr<btDbvt>> pieces;
@@ -102,15 +200,9 @@ MeshDistance::MeshDistance(std::string name, const Points& vertices,
                      std::to_string(normals_.num_open_edges()) +
                      " such edges; allowed: every edge used by two triangles, once each way)");
   }
-  trees_->pieces.resize(num_pieces());
-  for (auto& tree : trees_->pieces) tree = std::make_unique<btDbvt>();
-  for (int t = 0; t < num_triangles(); ++t) {
-    trees_->pieces[normals_.piece_of(t)]->insert(
-        TriangleBox(vertices_, normals_.triangles()[t]),
-        reinterpret_cast<void*>(static_cast<std::intptr_t>(t)));
-  }
+  reused_trees_ = TreeStore::Instance().CloneInto(vertices_, normals_.triangles(), trees_->pieces);
+  if (!reused_trees_) BuildTrees();
   for (auto& tree : trees_->pieces) {
-    tree->optimizeTopDown();
     if (tree->m_root != nullptr) AppendBottomUp(tree->m_root, trees_->bottom_up);
   }
   // A binary tree's depth-first stack never holds more than one node per leaf plus one.
@@ -119,6 +211,18 @@ MeshDistance::MeshDistance(std::string name, const Points& vertices,
 }
 
 MeshDistance::~MeshDistance() = default;
+
+void MeshDistance::BuildTrees() {
+  trees_->pieces.resize(num_pieces());
+  for (auto& tree : trees_->pieces) tree = std::make_unique<btDbvt>();
+  for (int t = 0; t < num_triangles(); ++t) {
+    trees_->pieces[normals_.piece_of(t)]->insert(
+        TriangleBox(vertices_, normals_.triangles()[t]),
+        reinterpret_cast<void*>(static_cast<std::intptr_t>(t)));
+  }
+  for (auto& tree : trees_->pieces) tree->optimizeTopDown();
+  TreeStore::Instance().Keep(vertices_, normals_.triangles(), trees_->pieces);
+}
 
 bool MeshDistance::Update(const Points& vertices) {
   if (vertices.rows() != num_vertices_) return false;

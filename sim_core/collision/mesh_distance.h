@@ -110,12 +110,19 @@ class MeshDistance {
   }
 
   int num_vertices() const { return num_vertices_; }
+  /// Whether the trees are clones of those of an earlier MeshDistance of the same mesh (the
+  /// same vertices and triangles), kept when it was built (meshes of 2,000 triangles and
+  /// more; the last two): they answer as if built here.
+  bool reused_trees() const { return reused_trees_; }
   int num_triangles() const { return normals_.num_triangles(); }
   int num_pieces() const { return normals_.num_pieces(); }
 
  private:
   struct Trees;  // the Bullet trees, kept out of this header (Bullet links privately)
 
+  /// Builds the trees over the current vertices and keeps a copy for a later build of the
+  /// same mesh.
+  void BuildTrees();
   void Refit(const Points& vertices);
   /// The face normals for the current vertices, computed once after each Update.
   void UpdateNormals() const;
@@ -134,6 +141,7 @@ class MeshDistance {
   mutable SurfacePseudonormals normals_;
   mutable bool normals_current_ = false;
   std::unique_ptr<Trees> trees_;
+  bool reused_trees_ = false;
 };
 
 }  // namespace costume::sim

@@ -253,6 +253,47 @@ TEST(MeshDistance, ARotatedMeshIsSignedByItsNewNormals) {
   }
 }
 
+// A large mesh built a second time takes copies of the first build's trees (MeshDistance
+// keeps them): it answers every query as the first, to the bit, the nearest triangle named
+// included, and it is its own, moved without moving the first.
+TEST(MeshDistance, AMeshBuiltAgainReusesTheTreesAndIsItsOwn) {
+  const Eigen::Vector3d half(0.31, 0.17, 0.23);  // a box no other test builds
+  auto box = TessellatedBox(kCenter, half, Eigen::Vector3i(21, 19, 17));
+  ASSERT_GE(box.triangles.size(), 2000u);
+  const MeshDistance first("box", box.vertices, box.triangles);
+  EXPECT_FALSE(first.reused_trees());
+  MeshDistance second("box", box.vertices, box.triangles);
+  EXPECT_TRUE(second.reused_trees());
+  // Random points, and points 1 cm out from each grid vertex, whose nearest point is that
+  // vertex in every triangle around it: which triangle is named depends on the order the
+  // trees are walked in.
+  std::vector<Eigen::Vector3d> points;
+  std::mt19937 rng(13);
+  for (int i = 0; i < 3000; ++i) points.push_back(RandomPoint(rng, kCenter, 0.5));
+  for (Eigen::Index v = 0; v < box.vertices.rows(); ++v) {
+    const Eigen::Vector3d q = box.vertices.row(v).transpose() - kCenter;
+    Eigen::Index axis = 0;
+    (q.cwiseAbs() - half).maxCoeff(&axis);  // a face the vertex lies on
+    points.push_back(box.vertices.row(v).transpose() +
+                     0.01 * std::copysign(1.0, q[axis]) * Eigen::Vector3d::Unit(axis));
+  }
+  for (const Eigen::Vector3d& p : points) {
+    const SurfaceDistance a = first.Query(p, 2.0), b = second.Query(p, 2.0);
+    ASSERT_EQ(a.signed_distance, b.signed_distance) << "at " << p.transpose();
+    ASSERT_EQ(a.triangle, b.triangle) << "at " << p.transpose();
+    ASSERT_EQ(a.closest_point, b.closest_point);
+    ASSERT_EQ(first.Inside(p), second.Inside(p));
+  }
+  const Eigen::Vector3d offset(0.4, -0.1, 0.2);
+  ASSERT_TRUE(second.Update(test::Translated(box, offset).vertices));
+  for (int i = 0; i < 1000; ++i) {
+    const Eigen::Vector3d p = RandomPoint(rng, kCenter + 0.5 * offset, 0.7);
+    ASSERT_NEAR(second.SignedDistance(p, 2.0), BoxSignedDistance(p, kCenter + offset, half),
+                1e-12);
+    ASSERT_NEAR(first.SignedDistance(p, 2.0), BoxSignedDistance(p, kCenter, half), 1e-12);
+  }
+}
+
 TEST(MeshDistance, SeveralPiecesFormTheirUnion) {
   const Eigen::Vector3d center_b = kCenter + Eigen::Vector3d(0.4, 0.1, 0.0);  // overlaps
   const Eigen::Vector3d half_b(0.2, 0.2, 0.2);
