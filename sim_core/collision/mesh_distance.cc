@@ -80,8 +80,6 @@ void AppendBottomUp(btDbvtNode* node, std::vector<btDbvtNode*>& order) {
   order.push_back(node);
 }
 
-}  // namespace
-
 bool SameBox(const btDbvtVolume& a, const btDbvtVolume& b) {
   return a.Mins() == b.Mins() && a.Maxs() == b.Maxs();
 }
@@ -177,6 +175,8 @@ class TreeStore {
   std::mutex mutex_;
   std::deque<Entry> entries_;
 };
+
+}  // namespace
 
 struct MeshDistance::Trees {
   /// One tree per piece, so each piece's closest point (and thus its sign) is found.

@@ -3,7 +3,8 @@
 /// Exact signed distance from points to a closed, animated triangle mesh (the avatar's
 /// skin): the penetration measure of collision tests and benchmarks, and the yardstick of
 /// the fast superquadric method (paper §4). Triangles sit in Bullet btDbvt trees built on
-/// the first pose and refitted bottom up when the mesh moves. Query's sign comes from
+/// the first pose (or copied from an earlier build of the same mesh: reused_trees()) and
+/// refitted bottom up when the mesh moves. Query's sign comes from
 /// angle-weighted pseudonormals (Bærentzen & Aanæs 2005), right at edges and vertices of a
 /// mesh that does not pass through itself; the penetration measures decide inside by the
 /// winding number, which stays right where skinning folds the skin through itself.
