@@ -80,10 +80,6 @@ void AppendBottomUp(btDbvtNode* node, std::vector<btDbvtNode*>& order) {
   order.push_back(node);
 }
 
-bool SameBox(const btDbvtVolume& a, const btDbvtVolume& b) {
-  return a.Mins() == b.Mins() && a.Maxs() == b.Maxs();
-}
-
 /// A copy of `from` in the empty `to`, node for node; false (`to` then unusable) when the
 /// copy turns out not to be one. Bullet's clone (3.24) walks the tree with a stack and gives
 /// each node's children the slots of their stack positions' parity: the children of a node
@@ -102,7 +98,7 @@ bool CloneTree(const btDbvt& from, btDbvt& to) {
     const auto [original, copy] = stack.back();
     stack.pop_back();
     if (copy == nullptr || copy->isleaf() != original->isleaf() ||
-        !SameBox(copy->volume, original->volume)) {
+        NotEqual(copy->volume, original->volume)) {
       return false;
     }
     if (original->isleaf()) {
@@ -136,6 +132,7 @@ class TreeStore {
   /// Fills `pieces` (empty) with clones of the trees kept for this mesh; false when none are.
   bool CloneInto(const Points& vertices, const std::vector<Eigen::Vector3i>& triangles,
                  std::vector<std::unique_ptr<btDbvt>>& pieces) {
+    if (triangles.size() < kMinTriangles) return false;
     const std::lock_guard lock(mutex_);
     for (const Entry& entry : entries_) {
       if (entry.triangles != triangles || entry.vertices != vertices) continue;

@@ -99,6 +99,9 @@ void SurfacePseudonormals::BuildAdjacency() {
     int from, to, t, k;
     auto operator<=>(const DirectedEdge&) const = default;
   };
+  const auto edge_less = [](const DirectedEdge& a, const DirectedEdge& b) {
+    return std::pair(a.from, a.to) < std::pair(b.from, b.to);
+  };
   std::vector<DirectedEdge> directed;
   directed.reserve(3 * triangles_.size());
   for (int t = 0; t < num_triangles(); ++t) {
@@ -107,21 +110,13 @@ void SurfacePseudonormals::BuildAdjacency() {
     }
   }
   std::sort(directed.begin(), directed.end());
-  // The run of users of edge (from, to) from `first` on: [first, last).
-  const auto run_end = [&](std::vector<DirectedEdge>::const_iterator first) {
-    auto last = first;
-    while (last != directed.end() && last->from == first->from && last->to == first->to) ++last;
-    return last;
-  };
   for (auto first = directed.cbegin(); first != directed.cend();) {
-    const auto last = run_end(first);
-    const auto num_users = static_cast<std::size_t>(last - first);
-    const auto twin = std::lower_bound(directed.cbegin(), directed.cend(),
-                                       DirectedEdge{first->to, first->from, -1, -1});
-    const bool has_twin = twin != directed.cend() && twin->from == first->to &&
-                          twin->to == first->from;
-    const auto num_twins = has_twin ? static_cast<std::size_t>(run_end(twin) - twin) : 0;
     const DirectedEdge edge = *first;
+    const auto last = std::upper_bound(first, directed.cend(), edge, edge_less);
+    const auto num_users = static_cast<std::size_t>(last - first);
+    const auto [twin, twin_end] = std::equal_range(
+        directed.cbegin(), directed.cend(), DirectedEdge{edge.to, edge.from, 0, 0}, edge_less);
+    const auto num_twins = static_cast<std::size_t>(twin_end - twin);
     first = last;
     if (num_users == 1 && num_twins == 1) {
       neighbours_[edge.t][edge.k] = twin->t;
