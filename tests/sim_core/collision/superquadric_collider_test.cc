@@ -730,6 +730,9 @@ TEST(SuperquadricCollider, PushesPointsOutOfSkinMovedThroughOtherSkin) {
 // them are all pushed out of the body. The nearest point's sign alone put them outside and
 // left 1,496 of 1,596 in, up to 38 mm deep. (Shallower ones in the crease behind the knee
 // are pinched between the two shells, as in APinchedParticleEndsNoDeeperThanItStarted.)
+// Known weakness: it passes on rounding. Turning the whole body by 1e-13 rad leaves the
+// point at (−0.02987, 0.90029, −0.00393) 6.74 mm inside, read 31 µm inside a shell
+// (docs/collision.md, "The still layer, tried and not kept"); not yet followed.
 TEST(SuperquadricCollider, PushesPointsOutOfSkinFoldedThroughItsOwnPiece) {
   constexpr double kKneeHeight = 0.8, kHalfBar = 0.2, kHalfWidth = 0.04, kBlend = 0.02;
   std::vector<Joint> joints(2);
