@@ -424,7 +424,8 @@ class SuperquadricCollider : public BodyCollider {
   /// Whether `x` (world) is more than kProjectionTolerance inside a shell
   /// at the end of the step, and if so its normal gap [m], outward normal and the body's
   /// velocity there: the deepest shell (DeepestShell), or, where only uncertain readings
-  /// see it inside, the skin triangles of the deepest of those (SkinShell).
+  /// see it inside or they see it deeper than that shell, the skin triangles of the deepest
+  /// of those that put it deeper still (SkinShell).
   bool Penetration(const Eigen::Vector3d& x, double& gap, Eigen::Vector3d& normal,
                    Eigen::Vector3d& body_velocity);
   /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
