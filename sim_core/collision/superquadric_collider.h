@@ -7,8 +7,9 @@
 /// The map is redrawn every frame from the skinned triangles (lazily, when cloth first comes
 /// near the segment), so it follows linear blend skinning where it bends the skin away from
 /// the rigid segments (hips, knees, elbows); a drawing of a skin seen before (a looping clip's
-/// later passes) is reused from a store (skin_map_cache.h). docs/collision.md has the
-/// measurements.
+/// later passes) is reused from a store (skin_map_cache.h). A drawing rasterises again only
+/// the skin that moved in the segment's frame since it last did; the exits of the rest come
+/// from a still layer. docs/collision.md has the measurements.
 ///
 /// Approximations, all deliberate:
 /// - Each segment's shell is star-shaped from its superquadric's centre (moved inside the
@@ -200,6 +201,23 @@ struct SegmentSkin {
   /// point's distance from the centre (< 0: none) and its triangle.
   std::array<std::vector<double>, 6> face_hit;
   std::array<std::vector<int>, 6> face_triangle;
+  /// The still layer (DrawExits in superquadric_map.cc): the first exits of the triangles
+  /// whose corners have not moved in the segment's frame since `anchor` (where each corner
+  /// was last seen to move), drawn once into `layer_hit` and `layer_triangle` (as
+  /// face_hit, face_triangle) and copied in while they stay put, so that a drawing
+  /// rasterises only the skin that skinning moves. Per corner whether it is in the layer;
+  /// per triangle whether it is, and the role it played when the layer was drawn (0 stops
+  /// no ray, 1 an exit, 2 an entry). Per corner, scratch of a drawing: whether it lay where
+  /// it was anchored, and where it was before the drawing put it back there.
+  std::vector<Eigen::Vector3d> anchor;
+  std::vector<char> still;
+  std::vector<char> resting;
+  std::vector<Eigen::Vector3d> unsnapped;
+  std::vector<char> in_layer;
+  std::vector<char> layer_reached;
+  std::array<std::vector<double>, 6> layer_hit;
+  std::array<std::vector<int>, 6> layer_triangle;
+  bool has_layer = false;
   /// Folded rays, which enter skin before their first exit (MarkFoldedRays in
   /// superquadric_collider.cc): per face grid point its slot (-1: none) and whether its
   /// hit moved past the first exit; per slot the face and grid point, the number of
