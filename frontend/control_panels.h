@@ -143,7 +143,7 @@ class PosturePanel : public QGroupBox {
   QDoubleSpinBox* angle(const std::string& joint, int axis) const;
   QDoubleSpinBox* heading_box() const { return heading_; }
   /// The arms' spread asked for: kKeep until the designer changes the row (an automatic
-  /// spread is not searched for again at each Apply: 0.02–1.1 s), then kAuto while
+  /// spread is not searched for again at each Apply: 0.01–0.5 s), then kAuto while
   /// `auto_spread` is checked, else the two angles, left and right [rad]
   /// (sim_core/scene/arm_spread.h).
   sim::ArmSpreadRequest arm_spread() const;

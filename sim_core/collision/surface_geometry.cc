@@ -257,16 +257,36 @@ SurfaceSide SideOf(const Eigen::Vector3d& point, const Eigen::Vector3d& closest,
 }
 
 Eigen::Vector3d SurfacePseudonormals::VertexNormal(int vertex, const Points& vertices) const {
-  // Update's sum, term by term in the same order (by triangle), so the same bits.
+  return AngleWeightedNormal(vertex, vertices, /*own_faces=*/false);
+}
+
+Eigen::Vector3d SurfacePseudonormals::VertexNormalOf(int vertex, const Points& vertices) const {
+  return AngleWeightedNormal(vertex, vertices, /*own_faces=*/true);
+}
+
+Eigen::Vector3d SurfacePseudonormals::AngleWeightedNormal(int vertex, const Points& vertices,
+                                                          bool own_faces) const {
+  // Update's sum, term by term in the same order (by triangle), each face normal as
+  // Update computes it, so the same bits.
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (int j = corner_start_[vertex]; j < corner_start_[vertex + 1]; ++j) {
     const int t = corners_[j] / 3;
     const int k = corners_[j] % 3;
-    if (double_areas_[t] == 0.0) continue;
     const Eigen::Vector3i& tri = triangles_[t];
+    const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
+    Eigen::Vector3d normal = face_normals_[t];
+    if (own_faces) {
+      const Eigen::Vector3d cross =
+          (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
+      const double double_area = cross.norm();
+      if (double_area == 0.0) continue;
+      normal = cross / double_area;
+    } else if (double_areas_[t] == 0.0) {
+      continue;
+    }
     sum += CornerAngle(vertices.row(tri[k]).transpose(), vertices.row(tri[(k + 1) % 3]).transpose(),
                        vertices.row(tri[(k + 2) % 3]).transpose()) *
-           face_normals_[t];
+           normal;
   }
   return NormalisedOr(sum, Eigen::Vector3d::UnitY());
 }

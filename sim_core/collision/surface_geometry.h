@@ -123,6 +123,10 @@ class SurfacePseudonormals {
   Eigen::Vector3d Of(int triangle, TriangleFeature feature, const Points& vertices) const;
   /// The pseudonormal of vertex `vertex` for `vertices` (those of the last Update).
   Eigen::Vector3d VertexNormal(int vertex, const Points& vertices) const;
+  /// The same from `vertices` alone, its triangles' normals computed here: for the few
+  /// vertices a caller needs of a surface that moves, without an Update of all its faces.
+  /// Bit for bit what VertexNormal gives after Update(vertices).
+  Eigen::Vector3d VertexNormalOf(int vertex, const Points& vertices) const;
   const Eigen::Vector3d& face_normal(int triangle) const { return face_normals_[triangle]; }
   /// Twice the area of each triangle [m²] from the last Update.
   double double_area(int triangle) const { return double_areas_[triangle]; }
@@ -143,6 +147,9 @@ class SurfacePseudonormals {
  private:
   void BuildAdjacency();
   void BuildPieces();
+  /// VertexNormal (`own_faces` false: the face normals of the last Update) and
+  /// VertexNormalOf (true: computed from `vertices`).
+  Eigen::Vector3d AngleWeightedNormal(int vertex, const Points& vertices, bool own_faces) const;
 
   std::vector<Eigen::Vector3i> triangles_;
   std::vector<std::array<int, 3>> neighbours_;

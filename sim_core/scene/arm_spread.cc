@@ -15,6 +15,8 @@ namespace {
 
 constexpr double kSampleRate = 30.0;  // clip frames sampled per second [Hz]
 constexpr double kAngleStep = 3.0 * M_PI / 180.0;
+/// The steps of kAngleStep that reach kMaxAutoArmSpread.
+const int kLastStep = static_cast<int>(std::ceil(kMaxAutoArmSpread / kAngleStep - 1e-9));
 
 /// Per arm, the skin vertices of its forearm and hand.
 std::array<std::vector<int>, 2> ArmVertices(const Avatar& avatar) {
@@ -37,14 +39,18 @@ class NearnessProbe {
  public:
   /// `surface`: the avatar's triangles' topology, for the vertices' normals.
   NearnessProbe(std::shared_ptr<const Avatar> avatar, std::shared_ptr<const Clip> clip,
-                AvatarMotionSettings settings, SurfacePseudonormals& surface)
+                AvatarMotionSettings settings, const SurfacePseudonormals& surface)
       : avatar_(std::move(avatar)),
         clip_(std::move(clip)),
         settings_(std::move(settings)),
-        surface_(surface) {}
+        surface_(surface) {
+    BucketSkin();
+  }
 
-  /// Plays the clip with `spread` from now on.
+  /// Plays the clip with `spread` from now on. Making the motion retargets the clip, so it
+  /// is made again only when the spread changes.
   void Spread(const std::array<double, 2>& spread) {
+    if (motion_ && settings_.arm_spread == spread) return;
     settings_.arm_spread = spread;
     motion_.emplace(avatar_, clip_, settings_);
   }
@@ -53,13 +59,15 @@ class NearnessProbe {
   void PoseAt(double t) {
     motion_->Evaluate(t);
     const Points& x = motion_->vertices();
-    const std::vector<std::optional<HAnimJoint>>& segments = avatar_->vertex_segments();
-    for (Eigen::AlignedBox3d& box : boxes_) box.setEmpty();
-    for (int v = 0; v < x.rows(); ++v) {
-      boxes_[segments[v] ? static_cast<int>(*segments[v]) : kNumHAnimJoints].extend(
-          x.row(v).transpose());
+    for (std::size_t s = 0; s < boxes_.size(); ++s) {
+      const int joint = s < kNumHAnimJoints ? joints_[s] : -1;
+      boxes_[s].to_local = joint >= 0 ? motion_->joint_world()[joint].inverse()
+                                      : Eigen::Isometry3d::Identity();
+      boxes_[s].world.setEmpty();
+      boxes_[s].local.setEmpty();
     }
-    surface_current_ = false;
+    for (int v = 0; v < x.rows(); ++v) boxes_[bucket_[v]].Extend(x.row(v).transpose());
+    CollectOtherBoxes();
     body_current_ = false;
   }
 
@@ -73,12 +81,10 @@ class NearnessProbe {
     // vector): a vertex that far from every other box needs no normal, which is most of
     // them in most frames.
     if (!InOtherBox(x.row(v).transpose(), side, kBoxSlack * kArmClearance)) return false;
-    if (!surface_current_) {
-      surface_.Update(x, /*vertex_normals=*/false);  // the few needed come from VertexNormal
-      surface_current_ = true;
-    }
+    // The normals of the few vertices that get here, from their own triangles: updating
+    // every face of the body for them was a tenth of a search.
     const Eigen::Vector3d p =
-        x.row(v).transpose() + kArmClearance * surface_.VertexNormal(v, x);
+        x.row(v).transpose() + kArmClearance * surface_.VertexNormalOf(v, x);
     if (!InOtherBox(p, side)) return false;
     if (!body_current_) Body().Update(x);
     body_current_ = true;
@@ -89,24 +95,66 @@ class NearnessProbe {
   /// Room for the rounding of a point pushed the clearance along a unit normal [-].
   static constexpr double kBoxSlack = 1.001;
 
+  /// A segment's skin bounded in the world, a cheap first test, and in its joint's frame,
+  /// where a limb's box stays tight however the limb is turned (a thigh swung forward has a
+  /// world box that holds the hand swinging beside it).
+  struct SegmentBox {
+    Eigen::AlignedBox3d world, local;
+    Eigen::Isometry3d to_local = Eigen::Isometry3d::Identity();
+
+    void Extend(const Eigen::Vector3d& p) {
+      world.extend(p);
+      local.extend(to_local * p);
+    }
+    /// Whether `p` lies within `margin` [m] of both boxes.
+    bool Holds(const Eigen::Vector3d& p, double margin) const {
+      if (margin > 0.0) {
+        return world.squaredExteriorDistance(p) <= margin * margin &&
+               local.squaredExteriorDistance(to_local * p) <= margin * margin;
+      }
+      return world.contains(p) && local.contains(to_local * p);
+    }
+  };
+
   /// Whether `p` lies within `margin` [m] of the box of a segment's skin other than the
   /// arm's own.
   bool InOtherBox(const Eigen::Vector3d& p, int side, double margin = 0.0) const {
-    const std::array<HAnimJoint, 3> own =
-        side == 0
-            ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
-            : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
-    for (int s = 0; s <= kNumHAnimJoints; ++s) {
-      if (s < kNumHAnimJoints &&
-          std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end()) {
-        continue;
-      }
-      if (margin > 0.0 ? boxes_[s].squaredExteriorDistance(p) <= margin * margin
-                       : boxes_[s].contains(p)) {
-        return true;
-      }
+    for (const SegmentBox* box : other_boxes_[side]) {
+      if (box->Holds(p, margin)) return true;
     }
     return false;
+  }
+
+  /// Per skin vertex its box (its H-Anim segment, kNumHAnimJoints for none), and per
+  /// segment its joint.
+  void BucketSkin() {
+    const std::vector<std::optional<HAnimJoint>>& segments = avatar_->vertex_segments();
+    bucket_.resize(segments.size());
+    for (std::size_t v = 0; v < segments.size(); ++v) {
+      bucket_[v] = segments[v] ? static_cast<int>(*segments[v]) : kNumHAnimJoints;
+    }
+    for (int s = 0; s < kNumHAnimJoints; ++s) {
+      joints_[s] = avatar_->skeleton().Find(static_cast<HAnimJoint>(s));
+    }
+  }
+
+  /// Per arm, the boxes of the pose's skin other than the arm's own, the empty left out:
+  /// InOtherBox runs for every arm vertex of every pose.
+  void CollectOtherBoxes() {
+    for (int side = 0; side < 2; ++side) {
+      const std::array<HAnimJoint, 3> own =
+          side == 0 ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow,
+                                 HAnimJoint::kLRadiocarpal}
+                    : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow,
+                                 HAnimJoint::kRRadiocarpal};
+      other_boxes_[side].clear();
+      for (int s = 0; s <= kNumHAnimJoints; ++s) {
+        const bool owned =
+            s < kNumHAnimJoints &&
+            std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end();
+        if (!owned && !boxes_[s].world.isEmpty()) other_boxes_[side].push_back(&boxes_[s]);
+      }
+    }
   }
 
   /// The body's trees, built when a point first passes the boxes: building them is most
@@ -125,12 +173,13 @@ class NearnessProbe {
   AvatarMotionSettings settings_;
   std::optional<MeshDistance> body_;
   bool body_current_ = false;
-  /// Whether `surface_`'s face normals are those of the pose (PoseAt leaves them for Near).
-  bool surface_current_ = false;
-  SurfacePseudonormals& surface_;
+  const SurfacePseudonormals& surface_;
   std::optional<AvatarMotion> motion_;
-  /// Per H-Anim segment the box of its skin in the pose; the last for skin of none.
-  std::array<Eigen::AlignedBox3d, kNumHAnimJoints + 1> boxes_;
+  std::vector<int> bucket_;
+  std::array<int, kNumHAnimJoints> joints_{};
+  /// Per H-Anim segment the boxes of its skin in the pose; the last for skin of none.
+  std::array<SegmentBox, kNumHAnimJoints + 1> boxes_;
+  std::array<std::vector<const SegmentBox*>, 2> other_boxes_;
 };
 
 /// The search over one clip: per arm and sampled frame, which of the arm's vertices count
@@ -163,20 +212,56 @@ class SpreadSearch {
     }
   }
 
-  /// Tests, with `spread`, the frames still near for each arm `searching`, and marks those
-  /// now clear. A frame found clear is not tested again (an arm turned farther from the
-  /// body does not come nearer it): the search costs a pass over the clip, then passes
-  /// over the frames still near.
-  void MarkNear(const std::array<double, 2>& spread, const std::array<bool, 2>& searching) {
+  /// Tests, with `spread`, the frames still near, and marks those now clear.
+  void MarkNear(const std::array<double, 2>& spread) {
     probe_.Spread(spread);
     for (std::size_t i = 0; i < times_.size(); ++i) {
-      if (!(searching[0] && near_[0][i]) && !(searching[1] && near_[1][i])) continue;
+      if (!near_[0][i] && !near_[1][i]) continue;
       probe_.PoseAt(times_[i]);
       for (int side = 0; side < 2; ++side) {
-        if (searching[side] && near_[side][i]) near_[side][i] = ArmNear(side, i);
+        if (near_[side][i]) near_[side][i] = ArmNear(side, i);
       }
     }
   }
+
+  /// Per arm, the least number of kAngleStep steps that clears every frame near as
+  /// retargeted which some step up to the last clears; `stuck` gets the number of frames
+  /// none clears. An arm turned farther from the body does not come nearer it, so a frame
+  /// clear with one step is clear with more: each frame is tried from the most steps the
+  /// frames before it needed, and most are posed once. (Trying every frame near at each
+  /// step in turn posed a frame that needs the last step six times.)
+  std::array<int, 2> LeastClearSteps(std::array<int, 2>& stuck) {
+    std::array<int, 2> least{0, 0};
+    stuck = {0, 0};
+    for (std::size_t i = 0; i < times_.size(); ++i) {
+      std::array<int, 2> steps = least;
+      std::array<bool, 2> open{};
+      for (int side = 0; side < 2; ++side) {
+        open[side] = near_[side][i];
+        if (open[side]) steps[side] = std::max(steps[side], 1);  // near with none is known
+      }
+      while (open[0] || open[1]) {
+        probe_.Spread({Angle(steps[0]), Angle(steps[1])});
+        probe_.PoseAt(times_[i]);
+        for (int side = 0; side < 2; ++side) {
+          if (!open[side]) continue;
+          if (!ArmNear(side, i)) {
+            open[side] = false;
+            least[side] = std::max(least[side], steps[side]);
+          } else if (steps[side] == kLastStep) {
+            open[side] = false;
+            ++stuck[side];
+          } else {
+            ++steps[side];
+          }
+        }
+      }
+    }
+    return least;
+  }
+
+  /// The spread of `steps` steps [rad].
+  static double Angle(int steps) { return std::min(steps * kAngleStep, kMaxAutoArmSpread); }
 
   int FramesNear(int side) const {
     return static_cast<int>(std::count(near_[side].begin(), near_[side].end(), 1));
@@ -239,32 +324,16 @@ ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
     const std::vector<double> times = SampleTimes(*clip, settings);
     fit.frames_sampled = static_cast<int>(times.size());
     SpreadSearch search(probe, times, std::move(arms));
-    std::array<double, 2> spread{0.0, 0.0}, best{0.0, 0.0};
-    search.MarkNear(spread, {true, true});
+    search.MarkNear({0.0, 0.0});
     if (search.FramesNear(0) + search.FramesNear(1) > 0) {
       search.DropUnfixable();
-      search.MarkNear(spread, {true, true});  // the frames near, now without that skin
+      search.MarkNear({0.0, 0.0});  // the frames near, now without that skin
     }
-    std::array<int, 2> fewest{search.FramesNear(0), search.FramesNear(1)};
-    fit.frames_near_before = fewest;
-    // Both arms are tried together, each turned on until it is clear.
-    for (;;) {
-      std::array<bool, 2> searching{};
-      for (int side = 0; side < 2; ++side) {
-        searching[side] =
-            fewest[side] > 0 && spread[side] + kAngleStep <= kMaxAutoArmSpread + 1e-12;
-        if (searching[side]) spread[side] = std::min(spread[side] + kAngleStep, kMaxAutoArmSpread);
-      }
-      if (!searching[0] && !searching[1]) break;
-      search.MarkNear(spread, searching);
-      for (int side = 0; side < 2; ++side) {
-        if (!searching[side] || search.FramesNear(side) >= fewest[side]) continue;
-        fewest[side] = search.FramesNear(side);
-        best[side] = spread[side];
-      }
-    }
-    fit.angle = best;
-    fit.frames_near_after = fewest;
+    fit.frames_near_before = {search.FramesNear(0), search.FramesNear(1)};
+    // Where no step clears a frame, more steps than the other frames need would not make
+    // fewer frames near: the least angle with the fewest.
+    const std::array<int, 2> steps = search.LeastClearSteps(fit.frames_near_after);
+    fit.angle = {SpreadSearch::Angle(steps[0]), SpreadSearch::Angle(steps[1])};
     fit.measured = true;
   } catch (const InputError& error) {
     fit.why_not = error.what();

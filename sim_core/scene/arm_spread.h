@@ -55,17 +55,20 @@ inline constexpr double kMaxAutoArmSpread = 15.0 * 3.14159265358979323846 / 180.
 /// when the point kArmClearance outside it along its normal is inside the skinned body
 /// (winding number, MeshDistance::Inside). Vertices near in the posture do not count, nor,
 /// in a frame, those still near with the arm turned kMaxAutoArmSpread out (the arm's own
-/// folds). Costs a skinning per sampled frame and, once a point passes the segments' boxes,
-/// the body's trees (78 ms on the built-in humanoid) and a refit of them per angle tried
-/// for the frames found near: 0.02–0.05 s on the built-in clips (none near), 0.1–1.1 s on
-/// CMU's clips (tools/arm_spread_bench; docs/assets.md). Never throws.
+/// folds). Only a point within another segment's boxes, in the world and in the segment
+/// joint's frame, is counted (so a forearm pushed into its own upper arm is not, unless
+/// another segment's skin is as near). Costs a skinning per sampled frame and, once a point
+/// passes the boxes, the body's trees (78 ms on the built-in humanoid) and a refit of them
+/// per pose tried: each frame near is tried from the spread the frames before it needed,
+/// 0.01–0.02 s on the built-in clips (none near), 0.04–0.5 s on CMU's clips
+/// (tools/arm_spread_bench; docs/assets.md). Never throws.
 ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
                            const std::shared_ptr<const Clip>& clip,
                            const AvatarMotionSettings& settings);
 
 /// The last spread FindArmSpread chose, kept for the next scene with the same avatar, clip
 /// and motion: a STOP or a new fabric rebuilds the simulation from its scene, and the
-/// search takes 0.02–1.1 s each time. Holds the avatar and clip weakly (a freed one never
+/// search takes 0.01–0.5 s each time. Holds the avatar and clip weakly (a freed one never
 /// matches a new one at its address).
 class ArmSpreadMemo {
  public:

@@ -171,7 +171,7 @@ class Simulation {
   /// `transition_time` [s] >= 0 of simulated time, frozen avatar clock or not, and the cloth
   /// follows it through contacts and attachments. The scene's posture becomes `posture` (a
   /// later rebuild uses it). The arms' spread changes as `spread` asks, over the same
-  /// transition; kAuto searches for it in the new posture (FindArmSpread, 0.02–1.3 s),
+  /// transition; kAuto searches for it in the new posture (FindArmSpread, 0.01–0.5 s),
   /// unless `arm_spreads` (when not null) remembers the answer. Returns false and changes
   /// nothing without an avatar. Throws InputError for a posture of the wrong size,
   /// non-finite values, a spread out of range or a negative time.

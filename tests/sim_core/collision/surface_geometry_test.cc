@@ -1,5 +1,6 @@
 // Pseudonormals of a triangle mesh: the angle-weighted vertex normal against a box corner's
-// closed form, and the on-demand vertex normals (Update without them) against the eager ones.
+// closed form, and the on-demand vertex normals (Update without them, or none) against the
+// eager ones.
 #include "sim_core/collision/surface_geometry.h"
 
 #include <gtest/gtest.h>
@@ -52,6 +53,23 @@ TEST(SurfacePseudonormals, VertexNormalsOnDemandAreThoseOfUpdateBitForBit) {
                               TriangleFeature::kFace}) {
       EXPECT_EQ(eager.Of(t, f), lazy.Of(t, f, sphere.vertices)) << t;
     }
+  }
+  // From the vertices alone, never updated, and after a move that Update has not seen:
+  // still Update's bits for the vertices given.
+  const SurfacePseudonormals never_updated(n, sphere.triangles);
+  for (int v = 0; v < n; ++v) {
+    EXPECT_EQ(eager.VertexNormal(v, sphere.vertices),
+              never_updated.VertexNormalOf(v, sphere.vertices)) << v;
+  }
+  Points moved = sphere.vertices;
+  moved.col(0) *= 1.5;
+  // Triangle 0 made degenerate: it adds nothing to its corners' normals.
+  const Eigen::Vector3i& flat = sphere.triangles[0];
+  moved.row(flat[0]) = moved.row(flat[1]);
+  eager.Update(moved);
+  ASSERT_EQ(eager.double_area(0), 0.0);
+  for (int v = 0; v < n; ++v) {
+    EXPECT_EQ(eager.VertexNormal(v, moved), lazy.VertexNormalOf(v, moved)) << v;
   }
 }
 
