@@ -89,7 +89,12 @@ class MeshDistance {
   /// edge's pseudonormal put a point 4.9 mm inside that lay outside (docs/collision.md,
   /// "The penetration oracle"). Where skin is turned inside out (winding −1) is outside.
   /// Never throws; never allocates after the first call. Not thread-safe.
-  bool Inside(const Eigen::Vector3d& point) const;
+  bool Inside(const Eigen::Vector3d& point) const { return Inside(point, nullptr); }
+  /// The same counting only the pieces `counted` marks (num_pieces() flags; null: all).
+  bool Inside(const Eigen::Vector3d& point, const std::vector<char>* counted) const;
+  /// The piece of triangle `triangle` (its index in the triangles given), in
+  /// [0, num_pieces()).
+  int piece_of(int triangle) const { return normals_.piece_of(triangle); }
 
   /// The penetration depth of `point` [m]: its distance to the nearest surface when
   /// Inside(point), else 0. A point farther than `max_radius` [m] from every surface is

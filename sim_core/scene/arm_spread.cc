@@ -88,7 +88,7 @@ class NearnessProbe {
     if (!InOtherBox(p, side)) return false;
     if (!body_current_) Body().Update(x);
     body_current_ = true;
-    return Body().Inside(p);
+    return Body().Inside(p, &rest_pieces_[side]);
   }
 
  private:
@@ -142,19 +142,23 @@ class NearnessProbe {
   /// InOtherBox runs for every arm vertex of every pose.
   void CollectOtherBoxes() {
     for (int side = 0; side < 2; ++side) {
-      const std::array<HAnimJoint, 3> own =
-          side == 0 ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow,
-                                 HAnimJoint::kLRadiocarpal}
-                    : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow,
-                                 HAnimJoint::kRRadiocarpal};
       other_boxes_[side].clear();
       for (int s = 0; s <= kNumHAnimJoints; ++s) {
-        const bool owned =
-            s < kNumHAnimJoints &&
-            std::find(own.begin(), own.end(), static_cast<HAnimJoint>(s)) != own.end();
-        if (!owned && !boxes_[s].world.isEmpty()) other_boxes_[side].push_back(&boxes_[s]);
+        if (!OwnArm(s, side) && !boxes_[s].world.isEmpty()) {
+          other_boxes_[side].push_back(&boxes_[s]);
+        }
       }
     }
+  }
+
+  /// Whether box `bucket` (an H-Anim segment, kNumHAnimJoints for none) is of arm `side`.
+  static bool OwnArm(int bucket, int side) {
+    if (bucket >= kNumHAnimJoints) return false;
+    const std::array<HAnimJoint, 3> own =
+        side == 0
+            ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
+            : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
+    return std::find(own.begin(), own.end(), static_cast<HAnimJoint>(bucket)) != own.end();
   }
 
   /// The body's trees, built when a point first passes the boxes: building them is most
@@ -164,8 +168,26 @@ class NearnessProbe {
     if (!body_) {
       body_.emplace("avatar '" + avatar_->name() + "'", avatar_->rest_vertices(),
                     avatar_->triangles());
+      FindRestPieces();
     }
     return *body_;
+  }
+
+  /// Per arm, the body's pieces that hold skin other than the arm's: a body made of
+  /// closed pieces (the built-in humanoid's tubes) has pieces of the arm alone, and a point
+  /// inside those is inside the arm, not near the rest of the body.
+  void FindRestPieces() {
+    const std::vector<Eigen::Vector3i>& triangles = avatar_->triangles();
+    for (int side = 0; side < 2; ++side) {
+      rest_pieces_[side].assign(body_->num_pieces(), 0);
+      for (std::size_t t = 0; t < triangles.size(); ++t) {
+        for (int k = 0; k < 3; ++k) {
+          if (!OwnArm(bucket_[triangles[t][k]], side)) {
+            rest_pieces_[side][body_->piece_of(static_cast<int>(t))] = 1;
+          }
+        }
+      }
+    }
   }
 
   std::shared_ptr<const Avatar> avatar_;
@@ -177,6 +199,7 @@ class NearnessProbe {
   std::optional<AvatarMotion> motion_;
   std::vector<int> bucket_;
   std::array<int, kNumHAnimJoints> joints_{};
+  std::array<std::vector<char>, 2> rest_pieces_;
   /// Per H-Anim segment the boxes of its skin in the pose; the last for skin of none.
   std::array<SegmentBox, kNumHAnimJoints + 1> boxes_;
   std::array<std::vector<const SegmentBox*>, 2> other_boxes_;

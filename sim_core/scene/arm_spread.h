@@ -56,12 +56,13 @@ inline constexpr double kMaxAutoArmSpread = 15.0 * 3.14159265358979323846 / 180.
 /// (winding number, MeshDistance::Inside). Vertices near in the posture do not count, nor,
 /// in a frame, those still near with the arm turned kMaxAutoArmSpread out (the arm's own
 /// folds). Only a point within another segment's boxes, in the world and in the segment
-/// joint's frame, is counted (so a forearm pushed into its own upper arm is not, unless
-/// another segment's skin is as near). Costs a skinning per sampled frame and, once a point
-/// passes the boxes, the body's trees (78 ms on the built-in humanoid) and a refit of them
-/// per pose tried: each frame near is tried from the spread the frames before it needed,
-/// 0.01–0.02 s on the built-in clips (none near), 0.04–0.5 s on CMU's clips
-/// (tools/arm_spread_bench; docs/assets.md). Never throws.
+/// joint's frame, is counted, and on a body of closed pieces only its winding in the pieces
+/// with skin other than the arm's (a point inside the arm is not near the rest of the
+/// body; a body of one piece is counted whole). Costs a skinning per sampled frame and,
+/// once a point passes the boxes, the body's trees (78 ms on the built-in humanoid) and a
+/// refit of them per pose tried: each frame near is tried from the spread the frames
+/// before it needed, 0.01–0.02 s on the built-in clips (none near), 0.04–0.5 s on CMU's
+/// clips (tools/arm_spread_bench; docs/assets.md). Never throws.
 ArmSpreadFit FindArmSpread(const std::shared_ptr<const Avatar>& avatar,
                            const std::shared_ptr<const Clip>& clip,
                            const AvatarMotionSettings& settings);

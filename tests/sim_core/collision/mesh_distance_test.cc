@@ -294,7 +294,7 @@ TEST(MeshDistance, AMeshBuiltAgainReusesTheTreesAndIsItsOwn) {
   }
 }
 
-TEST(MeshDistance, SeveralPiecesFormTheirUnion) {
+TEST(MeshDistance, SeveralPiecesFormTheirUnionAndCanBeCountedApart) {
   const Eigen::Vector3d center_b = kCenter + Eigen::Vector3d(0.4, 0.1, 0.0);  // overlaps
   const Eigen::Vector3d half_b(0.2, 0.2, 0.2);
   const auto a = TessellatedBox(kCenter, kHalf, Eigen::Vector3i(4, 3, 5));
@@ -323,6 +323,23 @@ TEST(MeshDistance, SeveralPiecesFormTheirUnion) {
     }
   }
   EXPECT_GT(num_inside_both, 10);
+  // Counting only some pieces: inside exactly those boxes. Piece numbers are found from
+  // the triangles, so the test does not assume which box is piece 0.
+  const int piece_a = distance.piece_of(0);
+  const int piece_b = distance.piece_of(static_cast<int>(a.triangles.size()));
+  ASSERT_NE(piece_a, piece_b);
+  std::vector<char> only_a(2, 0), only_b(2, 0);
+  only_a[piece_a] = 1;
+  only_b[piece_b] = 1;
+  for (int i = 0; i < 3000; ++i) {
+    const Eigen::Vector3d p = RandomPoint(rng, 0.5 * (kCenter + center_b), 0.6);
+    const double da = BoxSignedDistance(p, kCenter, kHalf);
+    const double db = BoxSignedDistance(p, center_b, half_b);
+    if (std::abs(da) < 1e-9 || std::abs(db) < 1e-9) continue;  // on a face: either answer
+    ASSERT_EQ(distance.Inside(p, &only_a), da < 0.0) << p.transpose();
+    ASSERT_EQ(distance.Inside(p, &only_b), db < 0.0) << p.transpose();
+    ASSERT_EQ(distance.Inside(p, nullptr), da < 0.0 || db < 0.0) << p.transpose();
+  }
 }
 
 TEST(MeshDistance, PenetrationStatisticsCountMaximumAndP99) {
