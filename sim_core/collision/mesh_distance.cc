@@ -332,10 +332,10 @@ bool MeshDistance::WindingInPiece(int piece, const Eigen::Vector3d& point,
       });
 }
 
-bool MeshDistance::Inside(const Eigen::Vector3d& point, const std::vector<char>* counted) const {
+bool MeshDistance::Inside(const Eigen::Vector3d& point, const std::vector<char>* pieces) const {
   if (!point.allFinite()) return false;
   for (int piece = 0; piece < num_pieces(); ++piece) {
-    if (counted && !(*counted)[piece]) continue;
+    if (pieces && !(*pieces)[piece]) continue;
     int winding = 0;
     bool counted = false;
     for (const Eigen::Vector3d& direction : WindingRayDirections()) {

@@ -90,8 +90,8 @@ class MeshDistance {
   /// "The penetration oracle"). Where skin is turned inside out (winding −1) is outside.
   /// Never throws; never allocates after the first call. Not thread-safe.
   bool Inside(const Eigen::Vector3d& point) const { return Inside(point, nullptr); }
-  /// The same counting only the pieces `counted` marks (num_pieces() flags; null: all).
-  bool Inside(const Eigen::Vector3d& point, const std::vector<char>* counted) const;
+  /// The same counting only the pieces `pieces` marks (num_pieces() flags; null: all).
+  bool Inside(const Eigen::Vector3d& point, const std::vector<char>* pieces) const;
   /// The piece of triangle `triangle` (its index in the triangles given), in
   /// [0, num_pieces()).
   int piece_of(int triangle) const { return normals_.piece_of(triangle); }

@@ -46,6 +46,9 @@ class NearnessProbe {
         surface_(surface) {
     BucketSkin();
   }
+  // other_boxes_ points into boxes_.
+  NearnessProbe(const NearnessProbe&) = delete;
+  NearnessProbe& operator=(const NearnessProbe&) = delete;
 
   /// Plays the clip with `spread` from now on. Making the motion retargets the clip, so it
   /// is made again only when the spread changes.
