@@ -273,9 +273,9 @@ Eigen::Vector3d SurfacePseudonormals::AngleWeightedNormal(int vertex, const Poin
     const int t = corners_[j] / 3;
     const int k = corners_[j] % 3;
     const Eigen::Vector3i& tri = triangles_[t];
-    const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
     Eigen::Vector3d normal = face_normals_[t];
     if (own_faces) {
+      const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
       const Eigen::Vector3d cross =
           (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
       const double double_area = cross.norm();

@@ -255,7 +255,7 @@ class SpreadSearch {
   /// none clears. An arm turned farther from the body does not come nearer it, so a frame
   /// clear with one step is clear with more: each frame is tried from the most steps the
   /// frames before it needed, and most are posed once. (Trying every frame near at each
-  /// step in turn posed a frame that needs the last step six times.)
+  /// step in turn posed a frame that needs the last step at all five.)
   std::array<int, 2> LeastClearSteps(std::array<int, 2>& stuck) {
     std::array<int, 2> least{0, 0};
     stuck = {0, 0};
