@@ -24,6 +24,14 @@ double CornerAngle(const Eigen::Vector3d& at, const Eigen::Vector3d& u, const Ei
   return std::atan2(e1.cross(e2).norm(), e1.dot(e2));
 }
 
+/// The cross product of triangle `tri`'s edges from its first corner in `vertices`: its
+/// normal times twice its area. Every face normal is computed from it (Update,
+/// VertexNormalOf), so each gives the same bits.
+Eigen::Vector3d EdgeCross(const Points& vertices, const Eigen::Vector3i& tri) {
+  const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
+  return (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
+}
+
 Eigen::Vector3d NormalisedOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback) {
   const double norm = v.norm();
   return norm > 0.0 ? Eigen::Vector3d(v / norm) : fallback;
@@ -157,10 +165,7 @@ void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
   has_vertex_normals_ = vertex_normals;
   if (!vertex_normals) {
     for (int t = 0; t < num_triangles(); ++t) {
-      const Eigen::Vector3i& tri = triangles_[t];
-      const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
-      const Eigen::Vector3d cross =
-          (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
+      const Eigen::Vector3d cross = EdgeCross(vertices, triangles_[t]);
       double_areas_[t] = cross.norm();
       if (double_areas_[t] > 0.0) face_normals_[t] = cross / double_areas_[t];
     }
@@ -172,7 +177,7 @@ void SurfacePseudonormals::Update(const Points& vertices, bool vertex_normals) {
     const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
     const Eigen::Vector3d b = vertices.row(tri[1]).transpose();
     const Eigen::Vector3d c = vertices.row(tri[2]).transpose();
-    const Eigen::Vector3d cross = (b - a).cross(c - a);
+    const Eigen::Vector3d cross = EdgeCross(vertices, tri);
     double_areas_[t] = cross.norm();
     // A degenerate triangle contributes nothing to its vertices (its angles are 0 or π
     // with a meaningless normal); its own normal keeps the last good value.
@@ -275,9 +280,7 @@ Eigen::Vector3d SurfacePseudonormals::AngleWeightedNormal(int vertex, const Poin
     const Eigen::Vector3i& tri = triangles_[t];
     Eigen::Vector3d normal = face_normals_[t];
     if (own_faces) {
-      const Eigen::Vector3d a = vertices.row(tri[0]).transpose();
-      const Eigen::Vector3d cross =
-          (vertices.row(tri[1]).transpose() - a).cross(vertices.row(tri[2]).transpose() - a);
+      const Eigen::Vector3d cross = EdgeCross(vertices, tri);
       const double double_area = cross.norm();
       if (double_area == 0.0) continue;
       normal = cross / double_area;

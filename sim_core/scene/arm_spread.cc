@@ -18,16 +18,22 @@ constexpr double kAngleStep = 3.0 * M_PI / 180.0;
 /// The steps of kAngleStep that reach kMaxAutoArmSpread.
 const int kLastStep = static_cast<int>(std::ceil(kMaxAutoArmSpread / kAngleStep - 1e-9));
 
+/// Per arm (0 left, 1 right) its segments: the upper arm, then the forearm and the hand,
+/// whose skin the search keeps off the rest of the body.
+constexpr std::array<std::array<HAnimJoint, 3>, 2> kArmSegments = {{
+    {HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal},
+    {HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal},
+}};
+
 /// Per arm, the skin vertices of its forearm and hand.
 std::array<std::vector<int>, 2> ArmVertices(const Avatar& avatar) {
   std::array<std::vector<int>, 2> arms;
   const std::vector<std::optional<HAnimJoint>>& segments = avatar.vertex_segments();
   for (int v = 0; v < avatar.num_vertices(); ++v) {
-    if (segments[v] == HAnimJoint::kLElbow || segments[v] == HAnimJoint::kLRadiocarpal) {
-      arms[0].push_back(v);
-    }
-    if (segments[v] == HAnimJoint::kRElbow || segments[v] == HAnimJoint::kRRadiocarpal) {
-      arms[1].push_back(v);
+    for (int side = 0; side < 2; ++side) {
+      if (segments[v] == kArmSegments[side][1] || segments[v] == kArmSegments[side][2]) {
+        arms[side].push_back(v);
+      }
     }
   }
   return arms;
@@ -157,10 +163,7 @@ class NearnessProbe {
   /// Whether box `bucket` (an H-Anim segment, kNumHAnimJoints for none) is of arm `side`.
   static bool OwnArm(int bucket, int side) {
     if (bucket >= kNumHAnimJoints) return false;
-    const std::array<HAnimJoint, 3> own =
-        side == 0
-            ? std::array{HAnimJoint::kLShoulder, HAnimJoint::kLElbow, HAnimJoint::kLRadiocarpal}
-            : std::array{HAnimJoint::kRShoulder, HAnimJoint::kRElbow, HAnimJoint::kRRadiocarpal};
+    const std::array<HAnimJoint, 3>& own = kArmSegments[side];
     return std::find(own.begin(), own.end(), static_cast<HAnimJoint>(bucket)) != own.end();
   }
 
