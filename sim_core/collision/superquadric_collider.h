@@ -354,9 +354,12 @@ class SuperquadricCollider : public BodyCollider {
                     std::vector<Contact>& contacts) override;
 
   /// See BodyCollider. Against the body at the end of the step (the last Update): a particle
-  /// inside a segment's shell moves along that shell's normal onto it, and its velocity
-  /// into the body (relative to the body's surface velocity) is removed. Returns the deepest
-  /// normal penetration [m]. Never throws or allocates.
+  /// inside a segment's shell moves along that shell's normal onto it (a reading inside the
+  /// skin checked against the skin's triangles, Penetration), and its velocity into the
+  /// body (relative to the body's surface velocity) is removed; a few passes, for shells
+  /// overlapping at joints. A particle still inside after them goes out of a closing crease
+  /// (EscapePinch), or else back to the least deep place it went through. Returns the
+  /// deepest normal penetration [m]. Never throws or allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
 
   BodyCollisionStats stats() const override { return stats_; }
@@ -435,17 +438,36 @@ class SuperquadricCollider : public BodyCollider {
   /// than `reach` [m] plus Motion are skipped; so are blind readings inside a shell
   /// (ShellProbe) and any deeper than PlausibleDepth. Returns false when every shell was.
   /// `undecided` (when not null) gets the segments with the deepest skipped readings
-  /// inside their shells.
+  /// inside their shells; `shell` (when not null) the deepest shell's segment. Segments
+  /// marked in excluded_ are not read.
   bool DeepestShell(const Eigen::Vector3d& x, bool at_end, double reach,
                     double& gap, Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
-                    Undecided* undecided = nullptr);
+                    Undecided* undecided = nullptr, int* shell = nullptr);
   /// Whether `x` (world) is more than kProjectionTolerance inside a shell
   /// at the end of the step, and if so its normal gap [m], outward normal and the body's
   /// velocity there: the deepest shell (DeepestShell), or, where only uncertain readings
   /// see it inside or they see it deeper than that shell, the skin triangles of the deepest
-  /// of those that put it deeper still (SkinShell).
-  bool Penetration(const Eigen::Vector3d& x, double& gap, Eigen::Vector3d& normal,
-                   Eigen::Vector3d& body_velocity);
+  /// of those that put it deeper still (SkinShell). A map reading `x` deeper than
+  /// `checked_depth` [m] is checked against that segment's own triangles, which win where
+  /// they put it shallower (CheckedShell).
+  bool Penetration(const Eigen::Vector3d& x, double checked_depth, double& gap,
+                   Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity);
+  /// DeepestShell at the end of the step (the `undecided` it fills), its reading kept only
+  /// where it is no more than kProjectionTolerance inside or no deeper than
+  /// `checked_depth` [m], or where the segment's own skin triangles (SkinShell) find `x`
+  /// no shallower; where they find it shallower but inside, theirs; where outside, the
+  /// next deepest shell's, checked the same way. Whether a shell is left that holds `x`
+  /// inside.
+  bool CheckedShell(const Eigen::Vector3d& x, double checked_depth, double& gap,
+                    Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
+                    Undecided& undecided);
+  /// A particle that ProjectOut's passes threw between two shells whose last outward
+  /// normals `a` and `b` oppose (a crease closing on it) is moved from `from` (world) along
+  /// the crease's opening, a + b, to the first place within kPinchEscapeSteps steps of
+  /// kPinchEscapeStep that no shell holds. That place into `out`; false when the normals do
+  /// not oppose, their sum has no clear direction or no step gets out.
+  bool EscapePinch(const Eigen::Vector3d& from, const Eigen::Vector3d& a,
+                   const Eigen::Vector3d& b, Eigen::Vector3d& out);
   /// The shell of `segment`'s skin triangles themselves (SegmentSkin) at the end of the
   /// step at `x` (world): its normal gap [m] (signed distance minus thickness), outward
   /// normal and the velocity of the segment's body there. A point its nearest skin puts
@@ -471,6 +493,9 @@ class SuperquadricCollider : public BodyCollider {
   std::vector<Placement> end_;
   /// Per segment: its map was not drawn from the skin of the last Update.
   std::vector<char> stale_;
+  /// Per segment: not read by DeepestShell (CheckedShell's segments whose own skin found
+  /// the point outside); all 0 between calls.
+  std::vector<char> excluded_;
   /// start → end motion of each segment and its speed bound (translation of the centre plus
   /// bounding radius times rotation angle) [m].
   std::vector<Eigen::Isometry3d> motion_;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -684,6 +685,78 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
   }
 }
 
+// Maps read the skin along rays from their centres, and where skin meets skin in a crease
+// they can read a point deeper than it is (docs/collision.md, "Readings checked against the
+// skin"): MakeHuman's upper arms and its hips' and waist's joint shells read particles of
+// the suit 6–8 mm too deep, up to 15 mm. The built-in humanoid in frames of its walk and
+// kick: points 1 and 3 mm outside the true skin (MeshDistance), inside the cloth's
+// thickness, within 15 cm of a hip, the waist or a shoulder. ProjectOut must put each on
+// the shell: outside the skin, and no farther from it than the thickness and the leeway a
+// map's shell has beside the true one (a map's cell is a centimetre wide). Before readings
+// were checked against the skin, 11–26 points a pose ended farther, up to 16.6 mm from the
+// skin; points 1 to 3 mm beyond the thickness remain (8–20 a pose beyond 2 mm).
+TEST(SuperquadricCollider, PointsWithinTheThicknessGoOntoTheShellNotBeyondIt) {
+  constexpr double kLeeway = 0.005;  // [m]
+  const std::shared_ptr<const Avatar> humanoid = MakeHumanoid();
+  const Skeleton& skeleton = humanoid->skeleton();
+  const std::unique_ptr<SuperquadricCollider> owned = SimulationCollider(humanoid);
+  SuperquadricCollider& collider = *owned;
+  const std::vector<int> creases = {
+      skeleton.Find(HAnimJoint::kLHip), skeleton.Find(HAnimJoint::kRHip),
+      skeleton.Find(HAnimJoint::kSacroiliac), skeleton.Find(HAnimJoint::kLShoulder),
+      skeleton.Find(HAnimJoint::kRShoulder)};
+  int checked = 0;
+  for (const char* name : {"walk", "kick"}) {
+    const Clip clip = MakeBuiltInClip(name, humanoid->shared_skeleton());
+    for (double t : {0.2, 0.5, 0.8}) {
+      Pose pose;
+      SampleClip(clip, t, pose);
+      std::vector<Eigen::Isometry3d> world, skinning;
+      ComputeJointWorld(skeleton, pose, world);
+      Points skin;
+      SkinVertices(*humanoid, world, skinning, skin);
+      collider.Update(world, skin, 0.01);
+      collider.Update(world, skin, 0.01);  // at rest in this pose
+      const MeshDistance truth("humanoid", skin, humanoid->triangles());
+      std::vector<Eigen::Vector3d> near;
+      for (int v = 0; v < humanoid->num_vertices(); ++v) {
+        const Eigen::Vector3d x = skin.row(v).transpose();
+        if (std::none_of(creases.begin(), creases.end(), [&](int j) {
+              return (x - world[j].translation()).norm() < 0.15;
+            })) {
+          continue;
+        }
+        const SurfaceDistance on = truth.Query(x, 0.1);
+        if (std::abs(on.signed_distance) > 1e-6) continue;  // buried in another piece
+        for (double offset : {0.001, 0.003}) {
+          const Eigen::Vector3d p = x + offset * on.normal;
+          // Only where the offset is the distance: not across a crease onto other skin.
+          if (std::abs(truth.SignedDistance(p, 0.1) - offset) < 1e-4) near.push_back(p);
+        }
+      }
+      ASSERT_GT(near.size(), 1000u) << name << " at " << t << " s";
+      Points positions = At(near);
+      Points velocities = Points::Zero(positions.rows(), 3);
+      collider.ProjectOut(positions, velocities);
+      int inside = 0, beyond = 0;
+      double farthest = 0.0;
+      for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+        const Eigen::Vector3d p = positions.row(i).transpose();
+        if (truth.PenetrationDepth(p, 0.1) > 0.0) ++inside;
+        const double distance = truth.SignedDistance(p, 0.1);
+        farthest = std::max(farthest, distance);
+        if (distance > kThickness + kLeeway) ++beyond;
+      }
+      checked += static_cast<int>(positions.rows());
+      EXPECT_EQ(inside, 0) << name << " at " << t << " s, of " << positions.rows();
+      EXPECT_EQ(beyond, 0) << name << " at " << t << " s, of " << positions.rows()
+                           << " beyond " << 1e3 * (kThickness + kLeeway)
+                           << " mm; farthest " << 1e3 * farthest << " mm from the skin";
+    }
+  }
+  EXPECT_GT(checked, 9000);
+}
+
 // Points deep in a straight limb near its axis (docs/collision.md, "Nodes that saw no
 // skin"): seen from the thigh's, the shank's or the knee's centre, they lie on rays that run
 // along the leg and leave the skin only at its far end, beyond each shell's reach, so every
@@ -861,22 +934,22 @@ TEST(SuperquadricCollider, PushesPointsOutOfSkinFoldedThroughItsOwnPiece) {
   }
 }
 
-// Two limbs closer than two cloth thicknesses pinch a particle between their shells (the
-// thighs at MakeHuman's crotch): each push out of one shell is into the other, and the
-// passes throw it back and forth. Two parallel capsules 6 mm apart (hips under an unfitted
-// root) and a particle in the gap, 2.8 and 3.2 mm from their skins, 1.2 and 0.8 mm inside
-// their shells (closed form): every push leaves it 2 mm inside the other shell, so when
-// the passes run out it goes back to the least deep place it went through, its start.
-TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
-  constexpr double kAxis = kRadius + 0.003;  // each capsule's axis from the gap's middle
+/// Two capsules (each as MakeCapsuleAvatar's, rigid on its own hip joint under the root)
+/// whose joints stand at x = ±`offset`, y = 1 m, the left turned by −`tilt` and the right
+/// by +`tilt` [rad] about z, so that at tilt > 0 their axes close in going down: a crease
+/// opening upwards. `frames` gets each capsule's joint frame (for CapsuleDistance).
+std::shared_ptr<const Avatar> TwoCapsules(double offset, double tilt,
+                                          std::array<Eigen::Isometry3d, 2>& frames) {
   std::vector<Joint> joints(3);
   joints[0].name = "root";
   joints[0].hanim = HAnimJoint::kHumanoidRoot;
   for (int side = 1; side <= 2; ++side) {
+    const double sign = side == 1 ? 1.0 : -1.0;
     joints[side].name = side == 1 ? "left" : "right";
     joints[side].parent = 0;
     joints[side].hanim = side == 1 ? HAnimJoint::kLHip : HAnimJoint::kRHip;
-    joints[side].rest_local = Eigen::Translation3d(side == 1 ? kAxis : -kAxis, 1.0, 0.0);
+    joints[side].rest_local = Eigen::Translation3d(sign * offset, 1.0, 0.0) *
+                              Eigen::AngleAxisd(-sign * tilt, Eigen::Vector3d::UnitZ());
   }
   AvatarData data;
   data.name = "two capsules";
@@ -884,6 +957,7 @@ TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
   std::vector<Eigen::Vector3d> world;
   std::vector<int> owner;
   for (int side = 1; side <= 2; ++side) {
+    frames[side - 1] = data.skeleton->rest_world()[side];
     // Numbered from 0 in `local`, from `first` in the avatar.
     std::vector<Eigen::Vector3d> local;
     const std::size_t first_triangle = data.triangles.size();
@@ -893,7 +967,7 @@ TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
       data.triangles[t] += Eigen::Vector3i::Constant(first);
     }
     for (const Eigen::Vector3d& p : local) {
-      world.push_back(data.skeleton->rest_world()[side] * p);
+      world.push_back(frames[side - 1] * p);
       owner.push_back(side);
     }
   }
@@ -910,27 +984,77 @@ TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
     data.influence_joints(v, 0) = owner[v];
     data.influence_weights(v, 0) = 1.0;
   }
-  const std::shared_ptr<const Avatar> avatar = Avatar::Create(std::move(data));
-  SuperquadricCollider collider(avatar, BodyCollisionSettings{kThickness, 0.5});
-  ASSERT_EQ(collider.segments().size(), 2u);
-  collider.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
-  collider.Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
-  // Skin distance from each capsule (axes at x = ±kAxis, parallel to y, centred at 0.85 m).
-  const auto skin_distance = [&](const Eigen::Vector3d& x) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (double axis : {kAxis, -kAxis}) {
-      nearest = std::min(nearest, CapsuleDistance(x - Eigen::Vector3d(axis, 1.0, 0.0)));
-    }
-    return nearest;
-  };
-  const Eigen::Vector3d start(0.0002, 0.853, 0.001);
-  ASSERT_NEAR(skin_distance(start), 0.0028, 2e-5);
+  return Avatar::Create(std::move(data));
+}
+
+/// Distance of `x` (world) from the nearer skin of the capsules in `frames` [m] (closed
+/// form).
+double NearerCapsuleDistance(const std::array<Eigen::Isometry3d, 2>& frames,
+                             const Eigen::Vector3d& x) {
+  return std::min(CapsuleDistance(frames[0].inverse() * x),
+                  CapsuleDistance(frames[1].inverse() * x));
+}
+
+/// A collider of `avatar` (the tests' thickness) at rest in its rest pose.
+std::unique_ptr<SuperquadricCollider> RestingCollider(std::shared_ptr<const Avatar> avatar) {
+  auto collider =
+      std::make_unique<SuperquadricCollider>(avatar, BodyCollisionSettings{kThickness, 0.5});
+  collider->Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+  collider->Update(avatar->skeleton().rest_world(), avatar->rest_vertices(), 0.01);
+  return collider;
+}
+
+/// `start` after ProjectOut alone.
+Eigen::Vector3d ProjectedAlone(SuperquadricCollider& collider, const Eigen::Vector3d& start) {
   Points positions(1, 3);
   positions.row(0) = start.transpose();
   Points velocities = Points::Zero(1, 3);
   collider.ProjectOut(positions, velocities);
+  return positions.row(0).transpose();
+}
+
+// Two limbs closer than two cloth thicknesses pinch a particle between their shells (the
+// thighs at MakeHuman's crotch): each push out of one shell is into the other, and the
+// passes throw it back and forth. Two parallel capsules 6 mm apart (hips under an unfitted
+// root) and a particle in the gap, 2.8 and 3.2 mm from their skins, 1.2 and 0.8 mm inside
+// their shells (closed form): every push leaves it 2 mm inside the other shell, so when
+// the passes run out it goes back to the least deep place it went through, its start.
+TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
+  std::array<Eigen::Isometry3d, 2> frames;
+  const std::shared_ptr<const Avatar> avatar = TwoCapsules(kRadius + 0.003, 0.0, frames);
+  const std::unique_ptr<SuperquadricCollider> collider = RestingCollider(avatar);
+  ASSERT_EQ(collider->segments().size(), 2u);
+  const Eigen::Vector3d start(0.0002, 0.853, 0.001);
+  ASSERT_NEAR(NearerCapsuleDistance(frames, start), 0.0028, 2e-5);
   // Without going back it ended 2 mm from one skin, 2 mm inside that shell.
-  EXPECT_GE(skin_distance(positions.row(0).transpose()), 0.0027);
+  EXPECT_GE(NearerCapsuleDistance(frames, ProjectedAlone(*collider, start)), 0.0027);
+}
+
+// Where the two walls close in on one side (an arm swinging against the chest, the thighs
+// under the groin), a pinched particle has a way out: along the crease to where it opens
+// (EscapePinch). Two capsules tilted 10° towards each other below their joints, and a
+// particle at their middles 2.8 mm from each skin (closed form), 1.2 mm inside both shells;
+// eight passes lift it by under 2 mm, where the walls still stand closer than two
+// thicknesses. It must end above, outside both shells. Going back to the least deep place
+// it went through, it ended 2.8 mm from the skins.
+TEST(SuperquadricCollider, AParticlePinchedInAClosingCreaseLeavesWhereItOpens) {
+  constexpr double kTilt = 10.0 * kPi / 180.0;
+  constexpr double kGap = 0.0028;  // the particle's distance from each skin [m]
+  // The joint's offset that puts each tilted axis kRadius + kGap from the point below the
+  // joints at the capsules' middles (0.15 m down their axes).
+  const double offset = (kRadius + kGap + 0.15 * std::sin(kTilt)) / std::cos(kTilt);
+  std::array<Eigen::Isometry3d, 2> frames;
+  const std::shared_ptr<const Avatar> avatar = TwoCapsules(offset, kTilt, frames);
+  const std::unique_ptr<SuperquadricCollider> collider = RestingCollider(avatar);
+  ASSERT_EQ(collider->segments().size(), 2u);
+  const Eigen::Vector3d start(0.0, 1.0 - 0.15, 0.001);
+  ASSERT_NEAR(CapsuleDistance(frames[0].inverse() * start), kGap, 2e-5);
+  ASSERT_NEAR(CapsuleDistance(frames[1].inverse() * start), kGap, 2e-5);
+  const Eigen::Vector3d end = ProjectedAlone(*collider, start);
+  EXPECT_GE(NearerCapsuleDistance(frames, end), kThickness - 3e-4)
+      << "ended at " << end.transpose();
+  EXPECT_GT(end.y(), start.y() + 0.002);  // up, where the crease opens
+  EXPECT_LT((end - start).norm(), 0.03);
 }
 
 TEST(SuperquadricCollider, RefusesBadInput) {
