@@ -640,6 +640,21 @@ TEST(SuperquadricCollider, AMapDrawnOverItsStillLayerIsTheMapOfItsSkin) {
   EXPECT_GT(layered, 10000);
 }
 
+/// `avatar` posed at `t` [s] of `clip`: its joints' world frames into `world`, its skinned
+/// vertices returned, and `collider` updated to that pose twice, so that it rests there.
+Points PoseAtRest(const Avatar& avatar, const Clip& clip, double t,
+                  SuperquadricCollider& collider, std::vector<Eigen::Isometry3d>& world) {
+  Pose pose;
+  SampleClip(clip, t, pose);
+  std::vector<Eigen::Isometry3d> skinning;
+  ComputeJointWorld(avatar.skeleton(), pose, world);
+  Points skin;
+  SkinVertices(avatar, world, skinning, skin);
+  collider.Update(world, skin, 0.01);
+  collider.Update(world, skin, 0.01);
+  return skin;
+}
+
 // The creases of bent joints (docs/collision.md, "Joint shells"): the built-in humanoid in
 // two frames of its kick (the knee bent 55° behind, then hip 55° and knee 45° forward).
 // Points 3 mm inside the true skinned mesh (MeshDistance), within 15 cm of the kicking
@@ -653,14 +668,8 @@ TEST(SuperquadricCollider, PushesOutOfTheCreasesOfTheKickingLeg) {
   const std::unique_ptr<SuperquadricCollider> owned = SimulationCollider(humanoid);
   SuperquadricCollider& collider = *owned;
   for (double t : {0.42, 0.825}) {
-    Pose pose;
-    SampleClip(kick, t, pose);
-    std::vector<Eigen::Isometry3d> world, skinning;
-    ComputeJointWorld(skeleton, pose, world);
-    Points skin;
-    SkinVertices(*humanoid, world, skinning, skin);
-    collider.Update(world, skin, 0.01);
-    collider.Update(world, skin, 0.01);  // at rest in this pose
+    std::vector<Eigen::Isometry3d> world;
+    const Points skin = PoseAtRest(*humanoid, kick, t, collider, world);
     const MeshDistance truth("humanoid", skin, humanoid->triangles());
     const Eigen::Vector3d hip = world[skeleton.Find(HAnimJoint::kRHip)].translation();
     const Eigen::Vector3d knee = world[skeleton.Find(HAnimJoint::kRKnee)].translation();
@@ -709,14 +718,8 @@ TEST(SuperquadricCollider, PointsWithinTheThicknessGoOntoTheShellNotBeyondIt) {
   for (const char* name : {"walk", "kick"}) {
     const Clip clip = MakeBuiltInClip(name, humanoid->shared_skeleton());
     for (double t : {0.2, 0.5, 0.8}) {
-      Pose pose;
-      SampleClip(clip, t, pose);
-      std::vector<Eigen::Isometry3d> world, skinning;
-      ComputeJointWorld(skeleton, pose, world);
-      Points skin;
-      SkinVertices(*humanoid, world, skinning, skin);
-      collider.Update(world, skin, 0.01);
-      collider.Update(world, skin, 0.01);  // at rest in this pose
+      std::vector<Eigen::Isometry3d> world;
+      const Points skin = PoseAtRest(*humanoid, clip, t, collider, world);
       const MeshDistance truth("humanoid", skin, humanoid->triangles());
       std::vector<Eigen::Vector3d> near;
       for (int v = 0; v < humanoid->num_vertices(); ++v) {
