@@ -229,9 +229,12 @@ struct SegmentSkin {
   std::vector<int> folded_count;
   std::vector<std::pair<double, int>> folded_crossing;
   int num_folded = 0;
-  /// Per face the grid box of its folded rays (u_lo, u_hi, v_lo, v_hi; empty when
-  /// u_lo > u_hi): a triangle projecting outside it crosses none of them.
-  std::array<std::array<int, 4>, 6> folded_box{};
+  /// Per face the number of its folded rays, and, where there are any, their summed-area
+  /// table over the face's grid ((nj + 2) × (nk + 2), entry (u + 1, v + 1) counting those
+  /// at grid points up to (u, v)): a triangle whose grid box holds none crosses none of
+  /// them. Capacity fixed when the map is prepared.
+  std::array<int, 6> folded_on_face{};
+  std::array<std::vector<int>, 6> folded_sum;
   /// The drawing, per node: the distance from the centre to the skin along the ray [m]
   /// (where the ray first leaves the skin the map holds, at most the segment's reach;
   /// minus SkinDistanceMap::surface_radius it is the paper's mapped distance), the skin's
