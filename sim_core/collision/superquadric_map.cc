@@ -285,6 +285,10 @@ void ClassifyTriangles(double reach, SegmentSkin& skin) {
   }
 }
 
+/// Grid points in a row of face `f` of the map's box (its points are stored u-major, a row
+/// per u): intervals along the face's second axis, plus one.
+int FaceRowLength(const SkinDistanceMap& map, int f) { return map.intervals[(f / 2 + 2) % 3] + 1; }
+
 /// A bound from below on the hits (RasterizeTriangle's lambda) of `triangle` on face `f`:
 /// a point's hit on a face is its scaled coordinate along the face's axis, so the nearest
 /// corner's bounds every point's (0 when a corner lies behind the face's plane), less a
@@ -301,7 +305,7 @@ double NearestHit(const SegmentSkin& skin, int triangle, int f) {
 /// (SegmentSkin::face_hit) beyond `hit`.
 bool SomeExitBeyond(const SkinDistanceMap& map, const SegmentSkin& skin, int f, double hit,
                     int u_lo, int u_hi, int v_lo, int v_hi) {
-  const int rows = map.intervals[(f / 2 + 2) % 3] + 1;  // a face's points are u-major
+  const int rows = FaceRowLength(map, f);
   const std::vector<double>& exits = skin.face_hit[f];
   for (int u = u_lo; u <= u_hi; ++u) {
     for (int v = v_lo; v <= v_hi; ++v) {
@@ -467,10 +471,9 @@ bool MarkFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
   return skin.num_folded > 0;
 }
 
-/// Rows of a face's summed-area table of folded rays (SegmentSkin::folded_sum).
-int FoldedSumRows(const SkinDistanceMap& map, int face) {
-  return map.intervals[(face / 2 + 2) % 3] + 2;
-}
+/// Entries in a row of a face's summed-area table of folded rays (SegmentSkin::folded_sum):
+/// the face's row and a leading zero.
+int FoldedSumRows(const SkinDistanceMap& map, int face) { return FaceRowLength(map, face) + 1; }
 
 /// Counts each face's folded rays and sums them over its grid (SegmentSkin::folded_sum).
 void SumFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
@@ -484,9 +487,8 @@ void SumFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
   }
   for (int slot = 0; slot < skin.num_folded; ++slot) {
     const auto [f, index] = skin.folded_ray[slot];
-    const int rows = FoldedSumRows(map, f);
-    const int u = index / (rows - 1), v = index % (rows - 1);  // grid points are u-major
-    ++skin.folded_sum[f][(u + 1) * rows + v + 1];
+    const int u = index / FaceRowLength(map, f), v = index % FaceRowLength(map, f);
+    ++skin.folded_sum[f][(u + 1) * FoldedSumRows(map, f) + v + 1];
   }
   for (int f = 0; f < 6; ++f) {
     if (skin.folded_on_face[f] == 0) continue;
