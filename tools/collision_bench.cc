@@ -25,6 +25,7 @@
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/collision/mesh_distance.h"
+#include "sim_core/collision/self_collision.h"
 #include "sim_core/collision/superquadric_collider.h"
 #include "sim_core/common/input_error.h"
 #include "sim_core/scene/garment_fit.h"
@@ -54,6 +55,8 @@ struct Options {
   double max_skin_travel = sim::AvatarSpec{}.max_skin_travel;
   /// Calls per mode of the cloth-side regions' comparison (0: skip it).
   int regions_reps = 100;
+  /// Cloth against itself as well (effects.self_collision).
+  bool self_collision = false;
 };
 
 /// CPU time of the calling thread [ms]: unlike wall time, not stretched when other
@@ -91,6 +94,7 @@ sim::SceneDescription GarmentScene(std::shared_ptr<const sim::Avatar> avatar,
   spec.max_skin_travel = options.max_skin_travel;
   scene.avatar = spec;
   scene.duration = spec.motion.fit_time + options.walk_seconds;
+  scene.effects.self_collision = options.self_collision;
   sim::Material cotton;
   cotton.name = "skirt_cotton";
   cotton.density = 0.15;
@@ -236,7 +240,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   for (const sim::BodyAttachment& a : simulation->attachments()) attached[a.particle] = true;
 
   std::vector<double> total_ms, collision_ms, update_ms, with_update_ms, cpu_ms, frame_max_depth,
-      frame_max_strain;
+      frame_max_strain, self_collision_ms;
   double max_depth = 0.0, max_strain = 0.0;
   // Per joint, the frames whose most stretched spring is nearest it: where the collider
   // holds the cloth stretched.
@@ -252,7 +256,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const auto& clip = scene.avatar->clip;
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
-  long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0;
+  long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0,
+            unresolved_self = 0;
   const auto* superquadrics =
       dynamic_cast<const sim::SuperquadricCollider*>(simulation->body_collider());
   std::vector<double> floor_ms, floor_pairs;
@@ -275,6 +280,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     collision_ms.push_back(report.collision_ms);
     update_ms.push_back(report.collision_update_ms);
     with_update_ms.push_back(report.collision_ms + report.collision_update_ms);
+    self_collision_ms.push_back(report.self_collision_ms);
+    unresolved_self += report.unresolved_self_collisions;
     if (superquadrics) {
       const FloorFigures floor = SuperquadricFloor(*superquadrics, simulation->state().positions);
       floor_ms.push_back(floor.ms * report.steps);
@@ -325,6 +332,10 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const double map_cache_mb = MapCacheMegabytes(*simulation);
   const std::string deepest_near =
       deepest_joint < 0 ? "" : motion.avatar().skeleton().joint(deepest_joint).name;
+  // Brute force over every edge and triangle: once, at the end, what self-collision (or
+  // its absence) left.
+  const int crossing_edges =
+      sim::CountCrossingEdges(simulation->model(), simulation->state().positions);
   simulation.reset();  // only the last simulation built with the memo may step
   const RebuildFigures rebuilt = Rebuild(scene, memo, fit_frames, first_pass_frames);
   return {{"avatar", avatar_name},
@@ -380,6 +391,10 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"max_strain_p99", Percentile(frame_max_strain, 0.99)},
           {"max_strain_near", MostFrequent(strain_near, 3)},
           {"rolled_back_steps", rolled_back},
+          {"self_collision", scene.effects.self_collision},
+          {"self_collision_ms_median", Median(self_collision_ms)},
+          {"unresolved_self_collisions", unresolved_self},
+          {"crossing_edges_last_frame", crossing_edges},
           {"unconverged_frames", unconverged}};
 }
 
@@ -496,6 +511,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   app.add_flag("!--no-makehuman", options.makehuman, "Skip the MakeHuman body");
+  app.add_flag("--self-collision", options.self_collision,
+               "Cloth against itself as well (effects.self_collision; off costs nothing)");
   app.add_option("--regions-reps", options.regions_reps,
                  "Calls per mode of the adaptive regions' comparison on a flat and a folded "
                  "sheet (as collision_regions_bench; 0: skip)")
