@@ -223,7 +223,10 @@ CollisionPanel::CollisionPanel(QWidget* parent) : QGroupBox("Collision", parent)
                         "Superquadrics: memory for map drawings reused when the skin comes "
                         "back (a looping clip); 0 = draw every map afresh");
   self_collision = new QCheckBox("Cloth against itself");
-  self_collision->setToolTip("Self-collision; off costs nothing");
+  self_collision->setToolTip(
+      "Self-collision: keeps the cloth from passing through itself. Off costs nothing; on, "
+      "it slows a frame and, on a moving avatar, can press cloth into the legs "
+      "(docs/collision.md, \"On the avatar\")");
   apply = new QPushButton("Apply collision");
   auto* form = new QFormLayout(this);
   form->addRow("Method", method);
