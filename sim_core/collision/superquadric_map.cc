@@ -487,7 +487,8 @@ void SumFoldedRays(const SkinDistanceMap& map, SegmentSkin& skin) {
   }
   for (int slot = 0; slot < skin.num_folded; ++slot) {
     const auto [f, index] = skin.folded_ray[slot];
-    const int u = index / FaceRowLength(map, f), v = index % FaceRowLength(map, f);
+    const int row_length = FaceRowLength(map, f);
+    const int u = index / row_length, v = index % row_length;
     ++skin.folded_sum[f][(u + 1) * FoldedSumRows(map, f) + v + 1];
   }
   for (int f = 0; f < 6; ++f) {
@@ -865,9 +866,9 @@ void AllocateDrawingScratch(SuperquadricSegment& segment) {
     skin.layer_triangle[f].assign(segment.map.face_nodes[f].size(), -1);
     skin.face_slot[f].assign(segment.map.face_nodes[f].size(), -1);
     skin.face_folded[f].assign(segment.map.face_nodes[f].size(), 0);
-    const std::array<int, 3>& n = segment.map.intervals;
-    skin.folded_sum[f].assign(static_cast<std::size_t>(n[(f / 2 + 1) % 3] + 2) *
-                                  (n[(f / 2 + 2) % 3] + 2),
+    // A row per grid line along the face's first axis, and a leading zero row.
+    const int columns = segment.map.intervals[(f / 2 + 1) % 3] + 2;
+    skin.folded_sum[f].assign(static_cast<std::size_t>(columns) * FoldedSumRows(segment.map, f),
                               0);
   }
   skin.folded_ray.assign(kMaxFoldedRays, {0, 0});
