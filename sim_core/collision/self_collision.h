@@ -37,8 +37,8 @@ struct SelfCollisionSettings {
   /// wool slides as it would on a body of wool's coefficient.
   std::vector<double> particle_friction;
   /// Repulsion spring stiffness [N/m] >= 0: a pair closer than the thickness by d is pushed
-  /// apart by at most the impulse h·stiffness·d (Bridson §7.2); 0 disables the push-out (only
-  /// the approach is stopped).
+  /// apart by at most the impulse h·stiffness·d (Bridson §7.2), and never by more than would
+  /// part that pair alone; 0 disables the push-out (only the approach is stopped).
   double stiffness = 1000.0;
   /// Passes of continuous collision detection with inelastic impulses (Bridson §7.3) before
   /// the impact-zone fallback [-] >= 0; also the number of Gauss-Seidel sweeps of the
@@ -151,6 +151,9 @@ class SelfCollision {
   void ProximityStage(const Points& start, double h, ClothState& state,
                       SelfCollisionReport& report);
   bool Repel(NearPair& near, double h, ClothState& state);
+  /// The relative normal velocity change [m/s] that ends a pair the thickness (and two
+  /// tolerances) apart from `distance` [m] at the start, given its `approach` [m/s].
+  double FullParting(double approach, double distance, double h) const;
   double PairFriction(const Stencil& stencil) const;
   int CollisionPass(const Points& start, double h, ClothState& state, bool merge_zones,
                     SelfCollisionReport& report);
