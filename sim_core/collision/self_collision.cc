@@ -33,6 +33,10 @@ constexpr double kProximityToleranceFraction = 1e-6;
 /// Pinned particles weigh this many cloths in an impact zone, so a zone holding a pin keeps
 /// the pin's velocity (to rounding).
 constexpr double kPinnedWeightFactor = 1e9;
+/// A pair whose held particles count as infinitely heavy may move none of its others by more
+/// than this many times the pair's relative velocity change (HeldMasses); with their own
+/// masses no particle moves by more than the change itself.
+constexpr double kMaxHeldGain = 2.0;
 /// Gauss-Seidel sweeps of the proximity stage per settings.max_iterations: the sweeps are
 /// cheap (cached closest points) and neighbouring pairs need several to agree.
 constexpr int kProximitySweepsPerIteration = 4;
@@ -53,24 +57,42 @@ Vec3 Combine(const Points& values, const Stencil& s) {
   return sum;
 }
 
-/// Σ α_k² / m_k [1/kg]: the relative velocity change per unit impulse. 0 if all pinned.
-double InverseEffectiveMass(const Stencil& s, const Eigen::VectorXd& inverse_mass) {
+/// Σ α_k² / m_k [1/kg] for the stencil's own inverse masses `inverse[4]`: the relative
+/// velocity change per unit impulse. 0 if all pinned.
+double InverseEffectiveMass(const Stencil& s, const double inverse[4]) {
   double sum = 0.0;
-  for (int k = 0; k < 4; ++k) sum += s.weight[k] * s.weight[k] * inverse_mass[s.index[k]];
+  for (int k = 0; k < 4; ++k) sum += s.weight[k] * s.weight[k] * inverse[k];
   return sum;
 }
 
+/// The stencil's particles' entries of `inverse_mass` [1/kg].
+struct StencilMasses {
+  StencilMasses(const Stencil& s, const Eigen::VectorXd& inverse_mass) {
+    for (int k = 0; k < 4; ++k) inverse[k] = inverse_mass[s.index[k]];
+  }
+  double inverse[4];
+};
+
+double InverseEffectiveMass(const Stencil& s, const Eigen::VectorXd& inverse_mass) {
+  return InverseEffectiveMass(s, StencilMasses(s, inverse_mass).inverse);
+}
+
 /// Changes the stencil's relative velocity along unit `direction` by `delta` [m/s] with one
-/// momentum-conserving impulse split by the weights and inverse masses.
-void ApplyRelativeChange(Points& velocities, const Stencil& s, const Eigen::VectorXd& inverse_mass,
+/// impulse split by the weights and the stencil's inverse masses `inverse[4]` (momentum-
+/// conserving unless a held particle's infinite mass stands for the body's).
+void ApplyRelativeChange(Points& velocities, const Stencil& s, const double inverse[4],
                          const Vec3& direction, double delta) {
-  const double k = InverseEffectiveMass(s, inverse_mass);
+  const double k = InverseEffectiveMass(s, inverse);
   if (k <= 0.0 || delta == 0.0) return;
   const double impulse = delta / k;
   for (int i = 0; i < 4; ++i) {
-    const int p = s.index[i];
-    velocities.row(p) += (s.weight[i] * inverse_mass[p] * impulse) * direction.transpose();
+    velocities.row(s.index[i]) += (s.weight[i] * inverse[i] * impulse) * direction.transpose();
   }
+}
+
+void ApplyRelativeChange(Points& velocities, const Stencil& s, const Eigen::VectorXd& inverse_mass,
+                         const Vec3& direction, double delta) {
+  ApplyRelativeChange(velocities, s, StencilMasses(s, inverse_mass).inverse, direction, delta);
 }
 
 /// Bridson §7.2 friction: the relative tangential velocity shrinks by μ·(normal velocity
@@ -628,15 +650,29 @@ void SelfCollision::ProximityStage(const Points& start, double h, ClothState& st
     const double approach = std::max(-Combine(path_velocity_, p.stencil).dot(near.normal), 0.0);
     const double overlap = std::max(thickness - near.distance, 0.0);
     const double spring_bound = approach / near.inverse_mass + h * settings_.stiffness * overlap;
+    // Alone means against the body too: with held particles as heavy as it (HeldMasses).
+    double held[4];
+    HeldMasses(p.stencil, near.normal, held);
     near.max_impulse = std::min(spring_bound, FullParting(approach, near.distance, h) /
-                                                  near.inverse_mass);
+                                                  InverseEffectiveMass(p.stencil, held));
     proximities_.push_back(near);
+  }
+  const int num_holds = static_cast<int>(holds_->size());
+  hold_path_start_.resize(num_holds);
+  hold_state_start_.resize(num_holds);
+  hold_path_push_.assign(num_holds, 0.0);
+  hold_state_push_.assign(num_holds, 0.0);
+  for (int c = 0; c < num_holds; ++c) {
+    const BodyHold& hold = (*holds_)[c];
+    hold_path_start_[c] = Row(path_velocity_, hold.particle).dot(hold.normal);
+    hold_state_start_[c] = Row(state.velocities, hold.particle).dot(hold.normal);
   }
   const int sweeps = std::max(settings_.max_iterations, 1) * kProximitySweepsPerIteration;
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     int acted = 0;
     for (NearPair& near : proximities_) acted += Repel(near, h, state) ? 1 : 0;
     if (acted == 0) break;
+    for (int c = 0; c < num_holds; ++c) Hold(c, state);
   }
   // Friction once, from each pair's final normal impulse: applied at every sweep's increment
   // it also counted the impulses later sweeps took back, and a patch on a sheet at μ 0.32
@@ -647,6 +683,51 @@ void SelfCollision::ProximityStage(const Points& start, double h, ClothState& st
     ApplyFriction(state.velocities, near.stencil, inverse_mass_, near.normal,
                   near.state_impulse * near.inverse_mass, near.friction);
     report.proximity_impulses += near.path_impulse > 0.0 || near.state_impulse > 0.0 ? 1 : 0;
+  }
+}
+
+// The body behind a held particle takes whatever pushes it inward: its outward velocity
+// change is accumulated and kept >= 0, in the same sweeps as the pairs', so a pair pressing
+// a held layer moves the other layer instead of sharing the motion (momentum comes from the
+// body, an infinite mass).
+bool SelfCollision::Hold(int c, ClothState& state) {
+  const BodyHold& hold = (*holds_)[c];
+  const int i = hold.particle;
+  if (inverse_mass_[i] <= 0.0) return false;
+  const Vec3& n = hold.normal;
+  const double path_push = std::max(
+      hold_path_push_[c] + hold_path_start_[c] - Row(path_velocity_, i).dot(n), 0.0);
+  const double state_push = std::max(
+      hold_state_push_[c] + hold_state_start_[c] - Row(state.velocities, i).dot(n), 0.0);
+  path_velocity_.row(i) += (path_push - hold_path_push_[c]) * n.transpose();
+  state.velocities.row(i) += (state_push - hold_state_push_[c]) * n.transpose();
+  const bool acted = path_push != hold_path_push_[c] || state_push != hold_state_push_[c];
+  hold_path_push_[c] = path_push;
+  hold_state_push_[c] = state_push;
+  return acted;
+}
+
+// A held particle that a pair's impulse (along +n) would push into the body weighs as the
+// body does. If that leaves the pair nothing to move, or only a particle of small weight,
+// which would have to move as 1/weight (a run of the walking skirt slowed to minutes a
+// frame), the pair keeps its own masses and the holds' sweeps restore the held particle.
+void SelfCollision::HeldMasses(const Stencil& s, const Vec3& n, double inverse[4]) const {
+  double effective = 0.0, largest_gain = 0.0;
+  bool held_side[2] = {false, false};
+  for (int k = 0; k < 4; ++k) {
+    const int i = s.index[k];
+    inverse[k] = inverse_mass_[i];
+    const int c = hold_of_[i];
+    if (c >= 0 && s.weight[k] * n.dot((*holds_)[c].normal) < 0.0) {
+      inverse[k] = 0.0;
+      held_side[s.weight[k] > 0.0 ? 0 : 1] = true;
+    }
+    effective += s.weight[k] * s.weight[k] * inverse[k];
+    largest_gain = std::max(largest_gain, std::abs(s.weight[k]) * inverse[k]);
+  }
+  const bool pinched = held_side[0] && held_side[1];
+  if (pinched || !(effective > 0.0) || largest_gain > kMaxHeldGain * effective) {
+    for (int k = 0; k < 4; ++k) inverse[k] = inverse_mass_[s.index[k]];
   }
 }
 
@@ -769,10 +850,12 @@ int SelfCollision::CollisionPass(const Points& start, double h, ClothState& stat
           zone_parent_[Find(zone_parent_, index[k])] = Find(zone_parent_, index[0]);
         }
       } else {
-        ApplyRelativeChange(path_velocity_, pt.stencil, inverse_mass_, n, approach);
+        double inverse[4];
+        HeldMasses(pt.stencil, n, inverse);
+        ApplyRelativeChange(path_velocity_, pt.stencil, inverse, n, approach);
         const double state_approach = -Combine(state.velocities, pt.stencil).dot(n);
         if (state_approach > 0.0) {
-          ApplyRelativeChange(state.velocities, pt.stencil, inverse_mass_, n, state_approach);
+          ApplyRelativeChange(state.velocities, pt.stencil, inverse, n, state_approach);
         }
         ++report.collision_impulses;
       }
@@ -800,7 +883,11 @@ void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state
     for (int i = 0; i < n; ++i) {
       const int z = Find(zone_parent_, i);
       ++zone_size_[z];
-      const double weight = inverse_mass_[i] > 0.0 ? 1.0 / inverse_mass_[i] : pinned_weight;
+      // Held particles weigh as pins, so a zone holding one moves with the body; unlike
+      // pins they move with the zone, so a zone of several held particles still moves rigidly.
+      const bool held = hold_of_[i] >= 0;
+      const double weight =
+          inverse_mass_[i] > 0.0 && !held ? 1.0 / inverse_mass_[i] : pinned_weight;
       zone_mass_[z] += weight;
       zone_momentum_.row(z) += weight * path_velocity_.row(i);
       zone_state_momentum_.row(z) += weight * state.velocities.row(i);
@@ -821,16 +908,23 @@ void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state
 }
 
 SelfCollisionReport SelfCollision::Resolve(const Points& start_positions, double h,
-                                           ClothState& state) {
+                                           ClothState& state,
+                                           const std::vector<BodyHold>& holds) {
   SelfCollisionReport report;
   const Eigen::Index n = model_->num_particles();
+  const auto bad_hold = [n](const BodyHold& hold) {
+    return hold.particle < 0 || hold.particle >= n || !hold.normal.allFinite();
+  };
   if (start_positions.rows() != n || state.positions.rows() != n ||
       state.velocities.rows() != n || !(h > 0.0) || !std::isfinite(h) ||
       !start_positions.allFinite() || !state.positions.allFinite() ||
-      !state.velocities.allFinite()) {
+      !state.velocities.allFinite() || std::any_of(holds.begin(), holds.end(), bad_hold)) {
     report.skipped = true;
     return report;
   }
+  holds_ = &holds;
+  hold_of_.assign(n, -1);
+  for (int c = 0; c < static_cast<int>(holds.size()); ++c) hold_of_[holds[c].particle] = c;
   if (leaves_.empty()) return report;
   path_velocity_ = (state.positions - start_positions) / h;
   Refit(start_positions, h, settings_.thickness);

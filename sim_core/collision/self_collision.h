@@ -53,7 +53,8 @@ void ValidateSelfCollisionSettings(const SelfCollisionSettings& settings,
 /// What one Resolve did. Flags and counters instead of exceptions.
 struct SelfCollisionReport {
   /// The call was refused (positions of the wrong size, h not finite and > 0, non-finite
-  /// input) and left the state untouched. Remedy: the caller's bug or a rolled-back step.
+  /// input, a hold naming no particle or with a non-finite normal) and left the state
+  /// untouched. Remedy: the caller's bug or a rolled-back step.
   bool skipped = false;
   /// Primitive pairs (point–triangle and edge–edge sharing no particle) examined by the
   /// narrow phase, summed over the proximity stage and every collision pass.
@@ -69,6 +70,14 @@ struct SelfCollisionReport {
   /// Collisions continuous detection still found after the last pass; 0 means the path from
   /// the start to the end positions crosses nothing. Remedy when > 0: a smaller step.
   int remaining_collisions = 0;
+};
+
+/// A particle the body holds in this step: self-collision may not move it further into the
+/// body along `normal` (unit, out of the body) than the body's contact and correction left
+/// it, as the body is an infinite mass behind it.
+struct BodyHold {
+  int particle = 0;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
 };
 
 /// Resolves cloth–cloth contacts and collisions of one cloth model. Holds the broad-phase
@@ -88,11 +97,15 @@ class SelfCollision {
   /// is changed by the impulses and the end positions become start + h·v̄; `state.velocities`
   /// (n×3) [m/s] receive the same inelastic and friction impulses but not the push-out that
   /// restores the thickness (position only, so no energy is added; as in strain_limit.h).
-  /// Pinned particles have infinite mass. Linear momentum is conserved by every impulse.
+  /// Pinned particles have infinite mass. `holds` (BodyHold) are the particles the body
+  /// holds in this step: no impulse moves one of them further into the body, the body (of
+  /// infinite mass) taking the push instead. Linear momentum is conserved by every impulse
+  /// except what the holds take.
   /// Precondition for the guarantee: `start_positions` themselves cross nothing.
   /// Never throws; allocation-free once its buffers have grown to the largest step's needs
   /// (they are reserved for a typical cloth at construction).
-  SelfCollisionReport Resolve(const Points& start_positions, double h, ClothState& state);
+  SelfCollisionReport Resolve(const Points& start_positions, double h, ClothState& state,
+                              const std::vector<BodyHold>& holds = {});
 
   const SelfCollisionSettings& settings() const { return settings_; }
   /// The cloth's unique edges (each particle pair of a triangle side once).
@@ -151,6 +164,11 @@ class SelfCollision {
   void ProximityStage(const Points& start, double h, ClothState& state,
                       SelfCollisionReport& report);
   bool Repel(NearPair& near, double h, ClothState& state);
+  /// Keeps hold `index` from moving into the body (one projected Gauss-Seidel visit).
+  bool Hold(int index, ClothState& state);
+  /// The pair's inverse masses `inverse[4]` [1/kg] for an impulse along +n, held particles
+  /// it would push into the body counting as infinitely heavy.
+  void HeldMasses(const Stencil& s, const Eigen::Vector3d& n, double inverse[4]) const;
   /// The relative normal velocity change [m/s] that ends a pair the thickness (and two
   /// tolerances) apart from `distance` [m] at the start, given its `approach` [m/s].
   double FullParting(double approach, double distance, double h) const;
@@ -173,6 +191,11 @@ class SelfCollision {
   std::vector<std::pair<int, int>> triangle_pairs_;
   std::vector<PrimitivePair> pairs_;
   std::vector<NearPair> proximities_;
+  /// This step's body holds, their path and state velocities along the normal at the start of
+  /// Resolve, and their accumulated outward velocity changes (projected Gauss-Seidel).
+  const std::vector<BodyHold>* holds_ = nullptr;
+  std::vector<int> hold_of_;
+  std::vector<double> hold_path_start_, hold_state_start_, hold_path_push_, hold_state_push_;
   /// Boxes swept over the step (corners, one row per particle, edge, triangle) [m].
   Points box_lo_, box_hi_, edge_lo_, edge_hi_, triangle_lo_, triangle_hi_;
   Points path_velocity_;

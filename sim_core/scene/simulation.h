@@ -226,6 +226,9 @@ class Simulation {
   /// After the solve: the strain limit, the obstacles' and the body's position corrections,
   /// the attachments, the grab's feedback, self-collision.
   void CorrectAfterSolve(double h, FrameReport& report);
+  /// The particles the body holds in this step, for self-collision (BodyHold): those with a
+  /// contact in this step or the last, and those the body's correction moved (along the move).
+  void CollectBodyHolds();
   void ApplyStrainLimit(FrameReport& report);
   /// Keeps the state finite: a step that ends non-finite anywhere (the stepper undoes only
   /// its solve; the corrections after it work with what the body gives) returns to the last
@@ -252,6 +255,11 @@ class Simulation {
   std::unique_ptr<SelfCollision> self_collision_;
   /// Positions at the start of the step, for self-collision's continuous tests.
   Points start_positions_;
+  /// Positions after the solve, before the body's correction (self-collision only).
+  Points solved_positions_;
+  /// This step's and the last step's body holds, and each particle's hold (or -1).
+  std::vector<BodyHold> body_holds_, previous_holds_;
+  std::vector<int> hold_of_;
   /// The state after the last step that ended finite (KeepFinite).
   ClothState last_finite_;
   std::vector<Contact> contacts_;

@@ -143,6 +143,72 @@ TEST(SelfCollision, ContinuousDetectionStopsAFastParticleProximityMisses) {
   EXPECT_NEAR(momentum.z(), 0.0, 1e-14);
 }
 
+/// Triangle A (particles 0–2) held by a body below it: its normal out of the body is +y.
+std::vector<BodyHold> HoldA() {
+  std::vector<BodyHold> holds;
+  for (int i = 0; i < 3; ++i) holds.push_back({i, Vec3::UnitY()});
+  return holds;
+}
+
+// A layer lying on the body, with another falling onto it: the body (infinitely heavy)
+// takes the blow, so the held layer stays where it was and the falling one stops on it
+// (inelastic: B's normal velocity becomes the body's, 0). Without the hold the same blow
+// is shared by momentum and pushes A down, towards the body.
+TEST(SelfCollision, BodyHeldLayerStaysWhileTheFallingLayerStopsOnIt) {
+  const double gap = 0.003, h = 1.0 / 240.0;
+  const auto model = TwoTriangles(gap, 1e-3, 2e-3);
+  SelfCollisionSettings settings;  // thickness 4 mm > gap
+  const Points start = model->rest_positions();
+  ClothState falling = ClothState::AtRest(*model);
+  falling.velocities.col(1) << 0, 0, 0, -1, -1, -1;  // B falls at 1 m/s onto A
+  falling.positions = start + h * falling.velocities;
+
+  ClothState shared = falling;
+  SelfCollision(model, settings).Resolve(start, h, shared);
+  ClothState held = falling;
+  const SelfCollisionReport report =
+      SelfCollision(model, settings).Resolve(start, h, held, HoldA());
+
+  // Shared by momentum: A and B end at (3·2 g·(−1 m/s))/(9 g) = −2/3 m/s, A pushed down.
+  EXPECT_NEAR(shared.velocities(0, 1), -2.0 / 3.0, 1e-5);
+  EXPECT_LT(shared.positions(0, 1), -1e-3);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(held.positions(i, 1), start(i, 1), 1e-12) << "particle " << i;
+    EXPECT_NEAR(held.velocities(i, 1), 0.0, 1e-12) << "particle " << i;
+  }
+  // B to the sweeps' convergence: each sweep's push on A is taken back by the hold, so B
+  // gains a fixed fraction of what is left (16 sweeps: within 1 µm and 1e-4 m/s).
+  for (int i = 3; i < 6; ++i) EXPECT_NEAR(held.velocities(i, 1), 0.0, 1e-4) << "particle " << i;
+  EXPECT_GT(LowestHeightOfBAboveA(held.positions), settings.thickness - 1e-6);
+}
+
+// The same through continuous detection: a particle falling through the held triangle in
+// one step stops on it, and the triangle does not move.
+TEST(SelfCollision, ContinuousDetectionStopsAFastParticleOnABodyHeldTriangle) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities(3, 1) = -20.0;  // 83 mm in the step, through A
+  state.positions = start + h * state.velocities;
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state, HoldA());
+
+  EXPECT_EQ(report.proximity_impulses, 0);
+  EXPECT_GE(report.collision_impulses, 1);
+  EXPECT_EQ(report.zone_particles, 0);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  EXPECT_GT(LowestHeightOfBAboveA(state.positions), 0.0);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(state.positions.row(i), start.row(i)) << "particle " << i;
+    EXPECT_EQ(state.velocities.row(i).norm(), 0.0) << "particle " << i;
+  }
+  EXPECT_NEAR(state.velocities(3, 1), 0.0, 1e-9);  // stopped: the body took its momentum
+}
+
 TEST(CountCrossingEdges, CountsAnEdgeThroughATriangleOnceAndIgnoresNeighbours) {
   // A flat lattice has no crossings (neighbours share particles or lie beside each other).
   LatticePanel panel;
@@ -194,6 +260,24 @@ TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
   EXPECT_EQ(g_allocations, before);
   EXPECT_GT(report.proximity_impulses, 0);
+}
+
+TEST(SelfCollision, RefusesAHoldNamingNoParticleLeavingTheStateUntouched) {
+  const double h = 1.0 / 240.0;
+  const auto model = TwoTriangles(0.003, 1e-3, 1e-3);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+  state.velocities.col(1) << 0, 0, 0, -1, -1, -1;
+  state.positions = start + h * state.velocities;
+  const ClothState input = state;
+  for (const BodyHold& bad : {BodyHold{6, Vec3::UnitY()}, BodyHold{-1, Vec3::UnitY()},
+                              BodyHold{0, Vec3(NAN, 0, 0)}}) {
+    const SelfCollisionReport report = self_collision.Resolve(start, h, state, {bad});
+    EXPECT_TRUE(report.skipped) << "particle " << bad.particle;
+    EXPECT_EQ(state.positions, input.positions);
+    EXPECT_EQ(state.velocities, input.velocities);
+  }
 }
 
 TEST(SelfCollision, RefusesBadSettingsNamingTheField) {
