@@ -75,16 +75,25 @@ double LowestHeightOfBAboveA(const Points& x) {
   return lowest;
 }
 
+/// What Resolve receives after a step of length h from `model`'s rest positions with the
+/// particles' vertical velocities `vy` [m/s] (nothing else moving): the state at the end of
+/// the step on the straight path.
+ClothState EndOfStraightStep(const ClothModel& model, double h, const Eigen::VectorXd& vy) {
+  ClothState state = ClothState::AtRest(model);
+  state.velocities.col(1) = vy;
+  state.positions = model.rest_positions() + h * state.velocities;
+  return state;
+}
+
 TEST(SelfCollision, HeadOnTrianglesEndAtLeastTheThicknessApartKeepingMomentum) {
   const double gap = 0.003, h = 1.0 / 240.0, mass_a = 1e-3, mass_b = 2e-3;
   const auto model = TwoTriangles(gap, mass_a, mass_b);
   SelfCollisionSettings settings;  // thickness 4 mm > gap
   SelfCollision self_collision(model, settings);
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
   // A rises at 1 m/s, B falls at 1 m/s: unresolved they pass through each other this step.
-  state.velocities.col(1) << 1, 1, 1, -1, -1, -1;
-  state.positions = start + h * state.velocities;
+  ClothState state =
+      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 1, 1, 1, -1, -1, -1).finished());
   ASSERT_LT(LowestHeightOfBAboveA(state.positions), 0.0);
 
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
@@ -159,9 +168,8 @@ TEST(SelfCollision, BodyHeldLayerStaysWhileTheFallingLayerStopsOnIt) {
   const auto model = TwoTriangles(gap, 1e-3, 2e-3);
   SelfCollisionSettings settings;  // thickness 4 mm > gap
   const Points start = model->rest_positions();
-  ClothState falling = ClothState::AtRest(*model);
-  falling.velocities.col(1) << 0, 0, 0, -1, -1, -1;  // B falls at 1 m/s onto A
-  falling.positions = start + h * falling.velocities;
+  const ClothState falling =  // B falls at 1 m/s onto A
+      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 0, 0, 0, -1, -1, -1).finished());
 
   ClothState shared = falling;
   SelfCollision(model, settings).Resolve(start, h, shared);
@@ -249,9 +257,8 @@ TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
   const auto model = TwoTriangles(0.003, 1e-3, 2e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
-  state.velocities.col(1) << 1, 1, 1, -1, -1, -1;
-  state.positions = start + h * state.velocities;
+  ClothState state =
+      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 1, 1, 1, -1, -1, -1).finished());
   const ClothState input = state;
   self_collision.Resolve(start, h, state);  // first call: buffers reach their size
   state.positions = input.positions;
@@ -267,9 +274,8 @@ TEST(SelfCollision, RefusesAHoldNamingNoParticleLeavingTheStateUntouched) {
   const auto model = TwoTriangles(0.003, 1e-3, 1e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
-  state.velocities.col(1) << 0, 0, 0, -1, -1, -1;
-  state.positions = start + h * state.velocities;
+  ClothState state =
+      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 0, 0, 0, -1, -1, -1).finished());
   const ClothState input = state;
   for (const BodyHold& bad : {BodyHold{6, Vec3::UnitY()}, BodyHold{-1, Vec3::UnitY()},
                               BodyHold{0, Vec3(NAN, 0, 0)}}) {
