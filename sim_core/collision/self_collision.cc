@@ -35,7 +35,7 @@ constexpr double kProximityToleranceFraction = 1e-6;
 constexpr double kPinnedWeightFactor = 1e9;
 /// A pair whose held particles count as infinitely heavy may move none of its others by more
 /// than this many times the pair's relative velocity change (HeldMasses); with their own
-/// masses no particle moves by more than the change itself.
+/// masses, all equal, none moves by more than the change itself.
 constexpr double kMaxHeldGain = 2.0;
 /// Gauss-Seidel sweeps of the proximity stage per settings.max_iterations: the sweeps are
 /// cheap (cached closest points) and neighbouring pairs need several to agree.
