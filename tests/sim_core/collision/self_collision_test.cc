@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <new>
 
 #include "sim_core/cloth/lattice_panel.h"
@@ -78,9 +79,10 @@ double LowestHeightOfBAboveA(const Points& x) {
 /// What Resolve receives after a step of length h from `model`'s rest positions with the
 /// particles' vertical velocities `vy` [m/s] (nothing else moving): the state at the end of
 /// the step on the straight path.
-ClothState EndOfStraightStep(const ClothModel& model, double h, const Eigen::VectorXd& vy) {
+ClothState EndOfStraightStep(const ClothModel& model, double h, std::initializer_list<double> vy) {
   ClothState state = ClothState::AtRest(model);
-  state.velocities.col(1) = vy;
+  int i = 0;
+  for (double v : vy) state.velocities(i++, 1) = v;
   state.positions = model.rest_positions() + h * state.velocities;
   return state;
 }
@@ -92,8 +94,7 @@ TEST(SelfCollision, HeadOnTrianglesEndAtLeastTheThicknessApartKeepingMomentum) {
   SelfCollision self_collision(model, settings);
   const Points start = model->rest_positions();
   // A rises at 1 m/s, B falls at 1 m/s: unresolved they pass through each other this step.
-  ClothState state =
-      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 1, 1, 1, -1, -1, -1).finished());
+  ClothState state = EndOfStraightStep(*model, h, {1, 1, 1, -1, -1, -1});
   ASSERT_LT(LowestHeightOfBAboveA(state.positions), 0.0);
 
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
@@ -131,11 +132,9 @@ TEST(SelfCollision, ContinuousDetectionStopsAFastParticleProximityMisses) {
   const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
   // Particle 3 falls at 20 m/s: 83 mm in one step, from 50 mm above A to 33 mm below it,
   // farther than the 4 mm thickness from A at both ends of the step.
-  state.velocities(3, 1) = -20.0;
-  state.positions = start + h * state.velocities;
+  ClothState state = EndOfStraightStep(*model, h, {0, 0, 0, -20, 0, 0});
   ASSERT_EQ(CountCrossingEdges(*model, state.positions), 2);  // edges 3–4 and 3–5
 
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
@@ -168,8 +167,7 @@ TEST(SelfCollision, BodyHeldLayerStaysWhileTheFallingLayerStopsOnIt) {
   const auto model = TwoTriangles(gap, 1e-3, 2e-3);
   SelfCollisionSettings settings;  // thickness 4 mm > gap
   const Points start = model->rest_positions();
-  const ClothState falling =  // B falls at 1 m/s onto A
-      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 0, 0, 0, -1, -1, -1).finished());
+  const ClothState falling = EndOfStraightStep(*model, h, {0, 0, 0, -1, -1, -1});  // B falls
 
   ClothState shared = falling;
   SelfCollision(model, settings).Resolve(start, h, shared);
@@ -198,9 +196,8 @@ TEST(SelfCollision, ContinuousDetectionStopsAFastParticleOnABodyHeldTriangle) {
   const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
-  state.velocities(3, 1) = -20.0;  // 83 mm in the step, through A
-  state.positions = start + h * state.velocities;
+  // Particle 3 falls at 20 m/s: 83 mm in the step, through A.
+  ClothState state = EndOfStraightStep(*model, h, {0, 0, 0, -20, 0, 0});
 
   const SelfCollisionReport report = self_collision.Resolve(start, h, state, HoldA());
 
@@ -239,9 +236,7 @@ TEST(SelfCollision, ImpactZonesAloneStopTheFastParticleKeepingMomentum) {
   settings.max_iterations = 0;  // no impulse passes: straight to the impact-zone fallback
   SelfCollision self_collision(model, settings);
   const Points start = model->rest_positions();
-  ClothState state = ClothState::AtRest(*model);
-  state.velocities(3, 1) = -20.0;
-  state.positions = start + h * state.velocities;
+  ClothState state = EndOfStraightStep(*model, h, {0, 0, 0, -20, 0, 0});
 
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
 
@@ -257,8 +252,7 @@ TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
   const auto model = TwoTriangles(0.003, 1e-3, 2e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state =
-      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 1, 1, 1, -1, -1, -1).finished());
+  ClothState state = EndOfStraightStep(*model, h, {1, 1, 1, -1, -1, -1});
   const ClothState input = state;
   self_collision.Resolve(start, h, state);  // first call: buffers reach their size
   state.positions = input.positions;
@@ -274,8 +268,7 @@ TEST(SelfCollision, RefusesAHoldNamingNoParticleLeavingTheStateUntouched) {
   const auto model = TwoTriangles(0.003, 1e-3, 1e-3);
   SelfCollision self_collision(model, SelfCollisionSettings{});
   const Points start = model->rest_positions();
-  ClothState state =
-      EndOfStraightStep(*model, h, (Eigen::VectorXd(6) << 0, 0, 0, -1, -1, -1).finished());
+  ClothState state = EndOfStraightStep(*model, h, {0, 0, 0, -1, -1, -1});
   const ClothState input = state;
   for (const BodyHold& bad : {BodyHold{6, Vec3::UnitY()}, BodyHold{-1, Vec3::UnitY()},
                               BodyHold{0, Vec3(NAN, 0, 0)}}) {
