@@ -225,8 +225,8 @@ CollisionPanel::CollisionPanel(QWidget* parent) : QGroupBox("Collision", parent)
   self_collision = new QCheckBox("Cloth against itself");
   self_collision->setToolTip(
       "Self-collision: keeps the cloth from passing through itself. Off costs nothing; on, "
-      "it slows a frame and, on fine garments (90 around), single frames can still press "
-      "cloth a few millimetres into the body (docs/collision.md, \"On the avatar, mended\")");
+      "it slows a frame, most on fine garments (90 around: no longer real time; "
+      "docs/collision.md, \"The body once more\")");
   apply = new QPushButton("Apply collision");
   auto* form = new QFormLayout(this);
   form->addRow("Method", method);

@@ -359,6 +359,19 @@ struct PairCollector : btDbvt::ICollide {
   void Process(const btDbvtNode*) {}
 };
 
+/// The leaves overlapping moving triangle `triangle`, each pair once: a pair of two moving
+/// triangles is left to the one of lower index.
+struct MovingPairCollector : btDbvt::ICollide {
+  int triangle = 0;
+  const std::vector<char>* moving = nullptr;
+  std::vector<std::pair<int, int>>* pairs = nullptr;
+  void Process(const btDbvtNode* leaf) {
+    const int other = leaf->dataAsInt;
+    if (other == triangle || ((*moving)[other] && other < triangle)) return;
+    pairs->emplace_back(triangle, other);
+  }
+};
+
 /// Whether box a of (lo_a, hi_a) and box b of (lo_b, hi_b) (rows of corners) come within
 /// `margin` of each other.
 bool RowsOverlap(const Points& lo_a, const Points& hi_a, int a, const Points& lo_b,
@@ -446,6 +459,11 @@ void ValidateClothForSelfCollision(const ClothModel& model, const SelfCollisionS
 }
 
 }  // namespace
+
+/// Bullet's traversal stack, kept between calls (Bullet stays out of the header).
+struct SelfCollision::TreeStack {
+  btNodeStack nodes;
+};
 
 SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
                              const SelfCollisionSettings& settings)
@@ -540,6 +558,9 @@ void SelfCollision::ReserveScratch() {
   edge_hi_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
   triangle_lo_.resize(rows, 3);
   triangle_hi_.resize(rows, 3);
+  triangle_moving_.assign(num_triangles, 0);
+  tree_stack_ = std::make_unique<TreeStack>();
+  tree_stack_->nodes.reserve(128);  // a walk holds about two nodes per level of the tree
   path_velocity_.resize(n, 3);
   zone_parent_.resize(n);
   zone_size_.resize(n);
@@ -571,12 +592,35 @@ void SelfCollision::Refit(const Points& start, double h, double margin) {
   }
 }
 
-void SelfCollision::CollectPairs(double margin) {
+void SelfCollision::CollectTrianglePairs() {
   triangle_pairs_.clear();
-  pairs_.clear();
-  PairCollector collector;
+  if (!moving_only_) {
+    PairCollector collector;
+    collector.pairs = &triangle_pairs_;
+    tree_->collideTTpersistentStack(tree_->m_root, tree_->m_root, collector);
+    return;
+  }
+  // Only what moves can meet anything new: a pair of triangles at rest keeps its distance.
+  const auto& triangles = model_->triangles();
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = triangles[t];
+    triangle_moving_[t] = !(path_velocity_.row(tri[0]).isZero(0.0) &&
+                            path_velocity_.row(tri[1]).isZero(0.0) &&
+                            path_velocity_.row(tri[2]).isZero(0.0));
+  }
+  MovingPairCollector collector;
+  collector.moving = &triangle_moving_;
   collector.pairs = &triangle_pairs_;
-  tree_->collideTTpersistentStack(tree_->m_root, tree_->m_root, collector);
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    if (!triangle_moving_[t]) continue;
+    collector.triangle = static_cast<int>(t);
+    tree_->collideTVNoStackAlloc(tree_->m_root, leaves_[t]->volume, tree_stack_->nodes, collector);
+  }
+}
+
+void SelfCollision::CollectPairs(double margin) {
+  CollectTrianglePairs();
+  pairs_.clear();
   const auto& triangles = model_->triangles();
   for (const auto& [ta, tb] : triangle_pairs_) {
     for (int side = 0; side < 2; ++side) {
@@ -910,6 +954,19 @@ void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state
 SelfCollisionReport SelfCollision::Resolve(const Points& start_positions, double h,
                                            ClothState& state,
                                            const std::vector<BodyHold>& holds) {
+  return ResolvePath(start_positions, h, state, holds, /*moving_only=*/false);
+}
+
+SelfCollisionReport SelfCollision::ResolveMove(const Points& start_positions, double h,
+                                               ClothState& state,
+                                               const std::vector<BodyHold>& holds) {
+  return ResolvePath(start_positions, h, state, holds, /*moving_only=*/true);
+}
+
+SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, double h,
+                                               ClothState& state,
+                                               const std::vector<BodyHold>& holds,
+                                               bool moving_only) {
   SelfCollisionReport report;
   const Eigen::Index n = model_->num_particles();
   const auto bad_hold = [n](const BodyHold& hold) {
@@ -923,6 +980,7 @@ SelfCollisionReport SelfCollision::Resolve(const Points& start_positions, double
     return report;
   }
   holds_ = &holds;
+  moving_only_ = moving_only;
   hold_of_.assign(n, -1);
   for (int c = 0; c < static_cast<int>(holds.size()); ++c) hold_of_[holds[c].particle] = c;
   if (leaves_.empty()) return report;

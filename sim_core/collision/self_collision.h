@@ -107,6 +107,14 @@ class SelfCollision {
   SelfCollisionReport Resolve(const Points& start_positions, double h, ClothState& state,
                               const std::vector<BodyHold>& holds = {});
 
+  /// Resolve for a short move after a step that Resolve has already made collision-free
+  /// (the body's correction after it): the same, except that only pairs of triangles one of
+  /// which moves along the path are examined, so pairs at rest, resolved by that call, are
+  /// left as they are, and a move of a few particles costs a few tree walks instead of the
+  /// whole cloth's. Particles the impulses set moving are examined in the later passes.
+  SelfCollisionReport ResolveMove(const Points& start_positions, double h, ClothState& state,
+                                  const std::vector<BodyHold>& holds = {});
+
   const SelfCollisionSettings& settings() const { return settings_; }
   /// The cloth's unique edges (each particle pair of a triangle side once).
   const std::vector<std::pair<int, int>>& edges() const { return edges_; }
@@ -159,7 +167,12 @@ class SelfCollision {
   void AssignOwnership();
   void BuildTree();
   void ReserveScratch();
+  SelfCollisionReport ResolvePath(const Points& start_positions, double h, ClothState& state,
+                                  const std::vector<BodyHold>& holds, bool moving_only);
   void Refit(const Points& start, double h, double margin);
+  /// The overlapping leaves of the refitted tree: all of them, or, with moving_only_, those
+  /// with a triangle that has a particle of non-zero path velocity.
+  void CollectTrianglePairs();
   void CollectPairs(double margin);
   void ProximityStage(const Points& start, double h, ClothState& state,
                       SelfCollisionReport& report);
@@ -184,6 +197,11 @@ class SelfCollision {
   std::vector<std::pair<int, int>> edges_;
   std::vector<Owned> owned_;
   std::unique_ptr<btDbvt> tree_;
+  struct TreeStack;
+  std::unique_ptr<TreeStack> tree_stack_;
+  /// This call examines only pairs with a moving triangle (ResolveMove), and which move.
+  bool moving_only_ = false;
+  std::vector<char> triangle_moving_;
   /// One leaf per triangle, and the internal nodes children first (the refit order).
   std::vector<btDbvtNode*> leaves_;
   std::vector<btDbvtNode*> internal_nodes_;

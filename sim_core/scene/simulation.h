@@ -226,9 +226,20 @@ class Simulation {
   /// After the solve: the strain limit, the obstacles' and the body's position corrections,
   /// the attachments, the grab's feedback, self-collision.
   void CorrectAfterSolve(double h, FrameReport& report);
+  /// The body's position correction (BodyCollider::ProjectOut) and the attachments; keeps
+  /// the solved positions first when self-collision needs them.
+  void ProjectOutOfBody(FrameReport& report);
+  /// After self-collision: the body's correction again, and when it moved anything, a second
+  /// Resolve over that move with the moved particles held, so that self-collision leaves
+  /// neither cloth in the body nor an edge through the cloth.
+  void ResolveWhatTheBodyMovesBack(double h, FrameReport& report);
+  void AddBodyStats(FrameReport& report) const;
   /// The particles the body holds in this step, for self-collision (BodyHold): those with a
   /// contact in this step or the last, and those the body's correction moved (along the move).
   void CollectBodyHolds();
+  /// Adds (or turns along the move) a hold for each particle the body's correction moved
+  /// from `solved_positions_`; returns whether it moved any.
+  bool HoldWhatTheBodyMoved();
   void ApplyStrainLimit(FrameReport& report);
   /// Keeps the state finite: a step that ends non-finite anywhere (the stepper undoes only
   /// its solve; the corrections after it work with what the body gives) returns to the last
@@ -255,7 +266,7 @@ class Simulation {
   std::unique_ptr<SelfCollision> self_collision_;
   /// Positions at the start of the step, for self-collision's continuous tests.
   Points start_positions_;
-  /// Positions after the solve, before the body's correction (self-collision only).
+  /// Positions before the body's last correction (self-collision only).
   Points solved_positions_;
   /// This step's and the last step's body holds, and each particle's hold (or -1).
   std::vector<BodyHold> body_holds_, previous_holds_;

@@ -151,6 +151,56 @@ TEST(SelfCollision, ContinuousDetectionStopsAFastParticleProximityMisses) {
   EXPECT_NEAR(momentum.z(), 0.0, 1e-14);
 }
 
+/// TwoTriangles(0.003, 1 g, 1 g), B within the thickness of A, and a third triangle C
+/// (particles 6–8, 1 g each) of B's shape centred 60 mm beside B along x, 50 mm above A:
+/// well inside A's outline (its inscribed radius is 0.1 m) and 8 mm clear of B across.
+std::shared_ptr<const ClothModel> ThreeTriangles() {
+  ClothModelData data;
+  data.name = "three triangles";
+  data.rest_positions.resize(9, 3);
+  for (int k = 0; k < 3; ++k) {
+    const double s = std::sin(2.0 * M_PI * k / 3.0), c = std::cos(2.0 * M_PI * k / 3.0);
+    data.rest_positions.row(k) << 0.2 * s, 0.0, 0.2 * c;
+    data.rest_positions.row(3 + k) << 0.03 * s, 0.003, 0.03 * c;
+    data.rest_positions.row(6 + k) << 0.06 + 0.03 * s, 0.05, 0.03 * c;
+  }
+  data.masses = Eigen::VectorXd::Constant(9, 1e-3);
+  data.areas = Eigen::VectorXd::Zero(9);
+  data.triangles = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(3, 4, 5), Eigen::Vector3i(6, 7, 8)};
+  return ClothModel::Create(data);
+}
+
+// After a step Resolve made collision-free, the body's correction moves a few particles;
+// ResolveMove makes that move collision-free too, examining only what moves. Here C's
+// particle 6 falls through A at 20 m/s while B rests 3 mm above A, within the thickness:
+// ResolveMove stops particle 6 and leaves B exactly where it was; Resolve, the control,
+// also pushes B out to the thickness.
+TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
+  const double h = 1.0 / 240.0;
+  const auto model = ThreeTriangles();
+  SelfCollisionSettings settings;
+  SelfCollision self_collision(model, settings);
+  const Points start = model->rest_positions();
+  const ClothState input = EndOfStraightStep(*model, h, {0, 0, 0, 0, 0, 0, -20, 0, 0});
+  ASSERT_EQ(CountCrossingEdges(*model, input.positions), 2);  // edges 6–7 and 6–8
+
+  ClothState moved = input;
+  const SelfCollisionReport report = self_collision.ResolveMove(start, h, moved);
+  EXPECT_FALSE(report.skipped);
+  EXPECT_EQ(report.proximity_impulses, 0);
+  EXPECT_GE(report.collision_impulses, 1);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, moved.positions), 0);
+  EXPECT_TRUE(moved.positions.middleRows(3, 3) == start.middleRows(3, 3));  // B untouched
+  // Momentum by hand: 1 g at −20 m/s.
+  EXPECT_NEAR(Momentum(*model, moved.velocities).y(), -0.02, 1e-14);
+
+  ClothState resolved = input;
+  self_collision.Resolve(start, h, resolved);
+  EXPECT_EQ(CountCrossingEdges(*model, resolved.positions), 0);
+  EXPECT_GE(LowestHeightOfBAboveA(resolved.positions), settings.thickness);
+}
+
 /// Triangle A (particles 0–2) held by a body below it: its normal out of the body is +y.
 std::vector<BodyHold> HoldA() {
   std::vector<BodyHold> holds;
@@ -261,6 +311,11 @@ TEST(SelfCollision, RepeatedResolveAllocatesNothing) {
   const SelfCollisionReport report = self_collision.Resolve(start, h, state);
   EXPECT_EQ(g_allocations, before);
   EXPECT_GT(report.proximity_impulses, 0);
+  state.positions = input.positions;
+  state.velocities = input.velocities;
+  const SelfCollisionReport move = self_collision.ResolveMove(start, h, state);
+  EXPECT_EQ(g_allocations, before);
+  EXPECT_GT(move.proximity_impulses, 0);
 }
 
 TEST(SelfCollision, RefusesAHoldNamingNoParticleLeavingTheStateUntouched) {
