@@ -37,6 +37,9 @@ constexpr double kPinnedWeightFactor = 1e9;
 /// than this many times the pair's relative velocity change (HeldMasses); with their own
 /// masses, all equal, none moves by more than the change itself.
 constexpr double kMaxHeldGain = 2.0;
+/// Rings of neighbours around the triangles of a rest tangle that are left out with them:
+/// the tangle's line slides over the triangles as the cloth moves.
+constexpr int kTangleRings = 2;
 /// Gauss-Seidel sweeps of the proximity stage per settings.max_iterations: the sweeps are
 /// cheap (cached closest points) and neighbouring pairs need several to agree.
 constexpr int kProximitySweepsPerIteration = 4;
@@ -415,6 +418,20 @@ bool SegmentCrossesTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const V
   return (o1 > 0.0 && o2 > 0.0 && o3 > 0.0) || (o1 < 0.0 && o2 < 0.0 && o3 < 0.0);
 }
 
+/// Whether an edge of triangle `a` that shares no particle with triangle `b` passes through
+/// `b`, at `positions` (SegmentCrossesTriangle).
+bool AnEdgeCrosses(const Points& positions, const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
+  for (int k = 0; k < 3; ++k) {
+    const int p = a[k], q = a[(k + 1) % 3];
+    if (p == b[0] || p == b[1] || p == b[2] || q == b[0] || q == b[1] || q == b[2]) continue;
+    if (SegmentCrossesTriangle(Row(positions, p), Row(positions, q), Row(positions, b[0]),
+                               Row(positions, b[1]), Row(positions, b[2]))) {
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 void ValidateSelfCollisionSettings(const SelfCollisionSettings& settings,
@@ -479,6 +496,46 @@ SelfCollision::SelfCollision(std::shared_ptr<const ClothModel> model,
   AssignOwnership();
   BuildTree();
   ReserveScratch();
+  FindRestTangles();
+}
+
+// Why: a garment whose own rest shape passes through itself (the MakeHuman casual suit: 38
+// edges through it as modelled) cannot be kept on the side it started on, because it
+// started on both; resolving those pairs locked the layers together and stretched the suit.
+void SelfCollision::FindRestTangles() {
+  std::vector<char> tangled = ParticlesOfRestCrossings();
+  for (int ring = 0; ring < kTangleRings; ++ring) {
+    std::vector<char> grown = tangled;
+    for (const auto& [a, b] : edges_) {
+      if (tangled[a] || tangled[b]) grown[a] = grown[b] = 1;
+    }
+    tangled.swap(grown);
+  }
+  const auto& triangles = model_->triangles();
+  triangle_tangled_.assign(triangles.size(), 0);
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = triangles[t];
+    triangle_tangled_[t] = tangled[tri[0]] || tangled[tri[1]] || tangled[tri[2]];
+    num_tangled_triangles_ += triangle_tangled_[t];
+  }
+}
+
+std::vector<char> SelfCollision::ParticlesOfRestCrossings() {
+  const Points& rest = model_->rest_positions();
+  const auto& triangles = model_->triangles();
+  PairCollector collector;  // the tree still holds the rest shape's boxes
+  collector.pairs = &triangle_pairs_;
+  triangle_pairs_.clear();
+  tree_->collideTTpersistentStack(tree_->m_root, tree_->m_root, collector);
+  std::vector<char> tangled(model_->num_particles(), 0);
+  for (const auto& [ta, tb] : triangle_pairs_) {
+    const Eigen::Vector3i& a = triangles[ta];
+    const Eigen::Vector3i& b = triangles[tb];
+    if (!AnEdgeCrosses(rest, a, b) && !AnEdgeCrosses(rest, b, a)) continue;
+    for (int k = 0; k < 3; ++k) tangled[a[k]] = tangled[b[k]] = 1;
+  }
+  triangle_pairs_.clear();
+  return tangled;
 }
 
 void SelfCollision::AssignOwnership() {
@@ -623,6 +680,7 @@ void SelfCollision::CollectPairs(double margin) {
   pairs_.clear();
   const auto& triangles = model_->triangles();
   for (const auto& [ta, tb] : triangle_pairs_) {
+    if (triangle_tangled_[ta] && triangle_tangled_[tb]) continue;  // FindRestTangles
     for (int side = 0; side < 2; ++side) {
       const int own = side == 0 ? ta : tb, other = side == 0 ? tb : ta;
       const Eigen::Vector3i& tri = triangles[other];

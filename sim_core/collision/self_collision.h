@@ -116,6 +116,10 @@ class SelfCollision {
                                   const std::vector<BodyHold>& holds = {});
 
   const SelfCollisionSettings& settings() const { return settings_; }
+  /// Triangles left out against each other because the rest shape passes through itself
+  /// there (the pairs that cross at rest, with two rings of neighbours): a garment modelled
+  /// that way cannot be kept on the side it started on, as it started on both.
+  int num_rest_tangled_triangles() const { return num_tangled_triangles_; }
   /// The cloth's unique edges (each particle pair of a triangle side once).
   const std::vector<std::pair<int, int>>& edges() const { return edges_; }
 
@@ -167,6 +171,11 @@ class SelfCollision {
   void AssignOwnership();
   void BuildTree();
   void ReserveScratch();
+  /// Marks the triangles of the pairs that pass through each other in the rest shape, and
+  /// their neighbours (triangle_tangled_): pairs of two such triangles are left alone.
+  void FindRestTangles();
+  /// The particles of the triangle pairs that pass through each other in the rest shape.
+  std::vector<char> ParticlesOfRestCrossings();
   SelfCollisionReport ResolvePath(const Points& start_positions, double h, ClothState& state,
                                   const std::vector<BodyHold>& holds, bool moving_only);
   void Refit(const Points& start, double h, double margin);
@@ -202,6 +211,8 @@ class SelfCollision {
   /// This call examines only pairs with a moving triangle (ResolveMove), and which move.
   bool moving_only_ = false;
   std::vector<char> triangle_moving_;
+  std::vector<char> triangle_tangled_;
+  int num_tangled_triangles_ = 0;
   /// One leaf per triangle, and the internal nodes children first (the refit order).
   std::vector<btDbvtNode*> leaves_;
   std::vector<btDbvtNode*> internal_nodes_;

@@ -201,6 +201,55 @@ TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   EXPECT_GE(LowestHeightOfBAboveA(resolved.positions), settings.thickness);
 }
 
+/// TwoTriangles' A (particles 0–2, 1 g each) and a triangle B (particles 3–5, 1 g each)
+/// standing through A's middle: its tip 2 mm above A, its base 2 mm below (all three
+/// within the thickness of A), so its two slanted edges pass through A in the rest shape;
+/// and a third triangle C
+/// (particles 6–8) of B's size lying flat 3 mm above A, 60 mm aside, within the thickness.
+std::shared_ptr<const ClothModel> PiercedTriangle() {
+  ClothModelData data;
+  data.name = "pierced triangle";
+  data.rest_positions.resize(9, 3);
+  for (int k = 0; k < 3; ++k) {
+    const double s = std::sin(2.0 * M_PI * k / 3.0), c = std::cos(2.0 * M_PI * k / 3.0);
+    data.rest_positions.row(k) << 0.2 * s, 0.0, 0.2 * c;
+    data.rest_positions.row(6 + k) << 0.06 + 0.03 * s, 0.003, 0.03 * c;
+  }
+  data.rest_positions.row(3) << 0.0, 0.002, 0.0;
+  data.rest_positions.row(4) << -0.02, -0.002, 0.0;
+  data.rest_positions.row(5) << 0.02, -0.002, 0.0;
+  data.masses = Eigen::VectorXd::Constant(9, 1e-3);
+  data.areas = Eigen::VectorXd::Zero(9);
+  data.triangles = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(3, 4, 5), Eigen::Vector3i(6, 7, 8)};
+  return ClothModel::Create(data);
+}
+
+// A garment modelled passing through itself (the MakeHuman casual suit: 38 edges through
+// it at rest) cannot be kept on the side it started on. Resting as modelled, the pierced
+// pair (A, B) is left as it is, while C, 3 mm above A and not tangled with it, is still
+// pushed out to the thickness.
+TEST(SelfCollision, LeavesAPairThatCrossesAtRestAsModelled) {
+  const double h = 1.0 / 240.0;
+  const auto model = PiercedTriangle();
+  ASSERT_EQ(CountCrossingEdges(*model, model->rest_positions()), 2);  // edges 3–4 and 3–5
+  SelfCollisionSettings settings;
+  SelfCollision self_collision(model, settings);
+  EXPECT_EQ(self_collision.num_rest_tangled_triangles(), 2);  // A and B; C shares no edge
+  const Points start = model->rest_positions();
+  ClothState state = ClothState::AtRest(*model);
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_TRUE(state.positions.middleRows(3, 3) == start.middleRows(3, 3));  // B as modelled
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 2);
+  const Vec3 a = state.positions.row(0), b = state.positions.row(1), c = state.positions.row(2);
+  const Vec3 up = (b - a).cross(c - a).normalized() * ((b - a).cross(c - a).y() > 0 ? 1 : -1);
+  for (int i = 6; i < 9; ++i) {
+    EXPECT_GE((Vec3(state.positions.row(i)) - a).dot(up), settings.thickness) << "particle " << i;
+  }
+}
+
 /// Triangle A (particles 0–2) held by a body below it: its normal out of the body is +y.
 std::vector<BodyHold> HoldA() {
   std::vector<BodyHold> holds;
