@@ -66,13 +66,14 @@ Vec3 Momentum(const ClothModel& model, const Points& velocities) {
   return (velocities.transpose() * model.masses());
 }
 
-/// Height of B's particles above A's plane at `x` (A's normal taken upwards).
-double LowestHeightOfBAboveA(const Points& x) {
+/// Height above A's plane (particles 0–2, normal taken upwards) of the lowest of particles
+/// first..first+2 at `x`: B's by default.
+double LowestHeightOfBAboveA(const Points& x, int first = 3) {
   const Vec3 a = x.row(0), b = x.row(1), c = x.row(2);
   Vec3 n = (b - a).cross(c - a).normalized();
   if (n.y() < 0.0) n = -n;
   double lowest = 1e9;
-  for (int i = 3; i < 6; ++i) lowest = std::min(lowest, (Vec3(x.row(i)) - a).dot(n));
+  for (int i = first; i < first + 3; ++i) lowest = std::min(lowest, (Vec3(x.row(i)) - a).dot(n));
   return lowest;
 }
 
@@ -151,23 +152,32 @@ TEST(SelfCollision, ContinuousDetectionStopsAFastParticleProximityMisses) {
   EXPECT_NEAR(momentum.z(), 0.0, 1e-14);
 }
 
-/// TwoTriangles(0.003, 1 g, 1 g), B within the thickness of A, and a third triangle C
-/// (particles 6–8, 1 g each) of B's shape centred 60 mm beside B along x, 50 mm above A:
-/// well inside A's outline (its inscribed radius is 0.1 m) and 8 mm clear of B across.
-std::shared_ptr<const ClothModel> ThreeTriangles() {
+/// Three triangles of 1 g particles: A (0–2) as TwoTriangles' in the plane y = 0, B (3–5)
+/// at `b` (rows), and C (6–8), B's shape scaled to 0.03 m and centred 60 mm beside A's
+/// centre along x at height `c_height`: well inside A's outline (its inscribed radius is
+/// 0.1 m) and 8 mm clear across of a B of that shape at the centre.
+std::shared_ptr<const ClothModel> ThreeTriangles(const std::string& name, const Points& b,
+                                                 double c_height) {
   ClothModelData data;
-  data.name = "three triangles";
+  data.name = name;
   data.rest_positions.resize(9, 3);
   for (int k = 0; k < 3; ++k) {
     const double s = std::sin(2.0 * M_PI * k / 3.0), c = std::cos(2.0 * M_PI * k / 3.0);
     data.rest_positions.row(k) << 0.2 * s, 0.0, 0.2 * c;
-    data.rest_positions.row(3 + k) << 0.03 * s, 0.003, 0.03 * c;
-    data.rest_positions.row(6 + k) << 0.06 + 0.03 * s, 0.05, 0.03 * c;
+    data.rest_positions.row(6 + k) << 0.06 + 0.03 * s, c_height, 0.03 * c;
   }
+  data.rest_positions.middleRows(3, 3) = b;
   data.masses = Eigen::VectorXd::Constant(9, 1e-3);
   data.areas = Eigen::VectorXd::Zero(9);
   data.triangles = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(3, 4, 5), Eigen::Vector3i(6, 7, 8)};
   return ClothModel::Create(data);
+}
+
+/// ThreeTriangles with TwoTriangles(0.003, …)'s B, 3 mm above A (within the thickness),
+/// and C 50 mm above A.
+std::shared_ptr<const ClothModel> BRestingAndCFalling() {
+  const Points b = TwoTriangles(0.003, 1e-3, 1e-3)->rest_positions().bottomRows(3);
+  return ThreeTriangles("B resting, C falling", b, 0.05);
 }
 
 // After a step Resolve made collision-free, the body's correction moves a few particles;
@@ -177,7 +187,7 @@ std::shared_ptr<const ClothModel> ThreeTriangles() {
 // also pushes B out to the thickness.
 TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   const double h = 1.0 / 240.0;
-  const auto model = ThreeTriangles();
+  const auto model = BRestingAndCFalling();
   SelfCollisionSettings settings;
   SelfCollision self_collision(model, settings);
   const Points start = model->rest_positions();
@@ -201,27 +211,13 @@ TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   EXPECT_GE(LowestHeightOfBAboveA(resolved.positions), settings.thickness);
 }
 
-/// TwoTriangles' A (particles 0–2, 1 g each) and a triangle B (particles 3–5, 1 g each)
-/// standing through A's middle: its tip 2 mm above A, its base 2 mm below (all three
-/// within the thickness of A), so its two slanted edges pass through A in the rest shape;
-/// and a third triangle C
-/// (particles 6–8) of B's size lying flat 3 mm above A, 60 mm aside, within the thickness.
+/// ThreeTriangles with B standing through A's middle, its tip 2 mm above A and its base
+/// 2 mm below (all three corners within the thickness of A), so that its two slanted edges
+/// pass through A in the rest shape; C lies flat 3 mm above A, within the thickness.
 std::shared_ptr<const ClothModel> PiercedTriangle() {
-  ClothModelData data;
-  data.name = "pierced triangle";
-  data.rest_positions.resize(9, 3);
-  for (int k = 0; k < 3; ++k) {
-    const double s = std::sin(2.0 * M_PI * k / 3.0), c = std::cos(2.0 * M_PI * k / 3.0);
-    data.rest_positions.row(k) << 0.2 * s, 0.0, 0.2 * c;
-    data.rest_positions.row(6 + k) << 0.06 + 0.03 * s, 0.003, 0.03 * c;
-  }
-  data.rest_positions.row(3) << 0.0, 0.002, 0.0;
-  data.rest_positions.row(4) << -0.02, -0.002, 0.0;
-  data.rest_positions.row(5) << 0.02, -0.002, 0.0;
-  data.masses = Eigen::VectorXd::Constant(9, 1e-3);
-  data.areas = Eigen::VectorXd::Zero(9);
-  data.triangles = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(3, 4, 5), Eigen::Vector3i(6, 7, 8)};
-  return ClothModel::Create(data);
+  Points b(3, 3);
+  b << 0.0, 0.002, 0.0, -0.02, -0.002, 0.0, 0.02, -0.002, 0.0;
+  return ThreeTriangles("pierced triangle", b, 0.003);
 }
 
 // A garment modelled passing through itself (the MakeHuman casual suit: 38 edges through
@@ -243,11 +239,7 @@ TEST(SelfCollision, LeavesAPairThatCrossesAtRestAsModelled) {
   EXPECT_EQ(report.remaining_collisions, 0);
   EXPECT_TRUE(state.positions.middleRows(3, 3) == start.middleRows(3, 3));  // B as modelled
   EXPECT_EQ(CountCrossingEdges(*model, state.positions), 2);
-  const Vec3 a = state.positions.row(0), b = state.positions.row(1), c = state.positions.row(2);
-  const Vec3 up = (b - a).cross(c - a).normalized() * ((b - a).cross(c - a).y() > 0 ? 1 : -1);
-  for (int i = 6; i < 9; ++i) {
-    EXPECT_GE((Vec3(state.positions.row(i)) - a).dot(up), settings.thickness) << "particle " << i;
-  }
+  EXPECT_GE(LowestHeightOfBAboveA(state.positions, /*first=*/6), settings.thickness);  // C
 }
 
 /// Triangle A (particles 0–2) held by a body below it: its normal out of the body is +y.
