@@ -101,7 +101,9 @@ class SelfCollision {
   /// holds in this step: no impulse moves one of them further into the body, the body (of
   /// infinite mass) taking the push instead. Linear momentum is conserved by every impulse
   /// except what the holds take.
-  /// Precondition for the guarantee: `start_positions` themselves cross nothing.
+  /// Precondition for the guarantee: `start_positions` themselves cross nothing, except
+  /// where the rest shape itself does (num_rest_tangled_triangles): pairs of those
+  /// triangles are not examined, so the guarantee leaves them out.
   /// Never throws; allocation-free once its buffers have grown to the largest step's needs
   /// (they are reserved for a typical cloth at construction).
   SelfCollisionReport Resolve(const Points& start_positions, double h, ClothState& state,
