@@ -410,10 +410,16 @@ double Orient(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   return (b - a).cross(c - a).dot(d - a);
 }
 
+// Why the tolerance on the plane's side: a lattice column running on past a triangle's edge
+// lies in that triangle's plane, and the rounding of its orientations (±1e-22 m³) counted 2
+// edges of the built-in skirt's rest shape as crossing. 1e-12 of the largest term is far
+// above rounding (1e-16) and far below anything a cloth does.
 bool SegmentCrossesTriangle(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b,
                             const Vec3& c) {
   const double sp = Orient(a, b, c, p), sq = Orient(a, b, c, q);
-  if (!((sp > 0.0 && sq < 0.0) || (sp < 0.0 && sq > 0.0))) return false;
+  const double in_plane = 1e-12 * (b - a).norm() * (c - a).norm() *
+                          std::max((p - a).norm(), (q - a).norm());
+  if (!((sp > in_plane && sq < -in_plane) || (sp < -in_plane && sq > in_plane))) return false;
   const double o1 = Orient(p, q, a, b), o2 = Orient(p, q, b, c), o3 = Orient(p, q, c, a);
   return (o1 > 0.0 && o2 > 0.0 && o3 > 0.0) || (o1 < 0.0 && o2 < 0.0 && o3 < 0.0);
 }

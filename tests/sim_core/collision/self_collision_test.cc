@@ -320,6 +320,30 @@ TEST(CountCrossingEdges, CountsAnEdgeThroughATriangleOnceAndIgnoresNeighbours) {
   EXPECT_EQ(CountCrossingEdges(*model, x), 0);
 }
 
+// A lattice column running on past a triangle's edge lies in that triangle's plane; the
+// rounding of its orientation tests must not make it a crossing. The points p, q, a, b are
+// x0 + k·d, k = 0..3 (the skirt's rest shape has such columns; these digits were found by
+// a search in which the unguarded test counted edge p–q through triangle a–b–c).
+TEST(CountCrossingEdges, IgnoresAnEdgeInATrianglesPlaneAlongTheLineOfItsSide) {
+  const Vec3 x0(0.15439902292067226, 0.86009769557969407, 0.0059251672513549545);
+  const Vec3 d(0.0081168759520836107, -0.031546834309344268, 0.00013314990911424563);
+  const Vec3 c(0.17944954072456781, 0.76545719265166123, -0.014313952255833522);
+  ClothModelData data;
+  data.name = "column past a triangle";
+  data.rest_positions.resize(6, 3);
+  data.rest_positions.row(0) = x0;
+  data.rest_positions.row(1) = x0 + d;
+  data.rest_positions.row(2) = x0 + 2.0 * d;
+  data.rest_positions.row(3) = x0 + 3.0 * d;
+  data.rest_positions.row(4) = c;
+  data.rest_positions.row(5) = x0 + Vec3(-0.019, 0.0, 0.0);  // edge p–q's own triangle
+  data.masses = Eigen::VectorXd::Constant(6, 1e-3);
+  data.areas = Eigen::VectorXd::Zero(6);
+  data.triangles = {Eigen::Vector3i(0, 1, 5), Eigen::Vector3i(2, 3, 4)};
+  const auto model = ClothModel::Create(data);
+  EXPECT_EQ(CountCrossingEdges(*model, model->rest_positions()), 0);
+}
+
 TEST(SelfCollision, ImpactZonesAloneStopTheFastParticleKeepingMomentum) {
   const double h = 1.0 / 240.0;
   const auto model = TwoTriangles(0.05, 1e-3, 1e-3);
