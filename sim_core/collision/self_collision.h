@@ -240,7 +240,8 @@ class SelfCollision {
 /// the same cloth sharing none of its particles, at `positions` (n×3) [m]: the test oracle
 /// for self-intersection. Brute force over all edge–triangle pairs with orientation
 /// (signed-volume) tests: an edge counts when its ends lie strictly on opposite sides of the
-/// triangle's plane and the line through it passes strictly inside the triangle; touching
+/// triangle's plane (off it by more than 1e-12 of the tests' largest term, so that rounding
+/// does not decide) and the line through it passes strictly inside the triangle; touching
 /// and coplanar configurations do not count. O(edges × triangles); for tests and tools.
 int CountCrossingEdges(const ClothModel& model, const Points& positions);
 
