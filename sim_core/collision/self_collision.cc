@@ -522,8 +522,11 @@ void SelfCollision::FindRestTangles() {
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];
     triangle_tangled_[t] = tangled[tri[0]] || tangled[tri[1]] || tangled[tri[2]];
-    num_tangled_triangles_ += triangle_tangled_[t];
   }
+}
+
+int SelfCollision::num_rest_tangled_triangles() const {
+  return static_cast<int>(std::count(triangle_tangled_.begin(), triangle_tangled_.end(), 1));
 }
 
 std::vector<char> SelfCollision::ParticlesOfRestCrossings() {

@@ -121,7 +121,7 @@ class SelfCollision {
   /// Triangles left out against each other because the rest shape passes through itself
   /// there (the pairs that cross at rest, with two rings of neighbours): a garment modelled
   /// that way cannot be kept on the side it started on, as it started on both.
-  int num_rest_tangled_triangles() const { return num_tangled_triangles_; }
+  int num_rest_tangled_triangles() const;
   /// The cloth's unique edges (each particle pair of a triangle side once).
   const std::vector<std::pair<int, int>>& edges() const { return edges_; }
 
@@ -214,7 +214,6 @@ class SelfCollision {
   bool moving_only_ = false;
   std::vector<char> triangle_moving_;
   std::vector<char> triangle_tangled_;
-  int num_tangled_triangles_ = 0;
   /// One leaf per triangle, and the internal nodes children first (the refit order).
   std::vector<btDbvtNode*> leaves_;
   std::vector<btDbvtNode*> internal_nodes_;
