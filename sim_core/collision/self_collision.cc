@@ -362,15 +362,15 @@ struct PairCollector : btDbvt::ICollide {
   void Process(const btDbvtNode*) {}
 };
 
-/// The leaves overlapping moving triangle `triangle`, each pair once: a pair of two moving
-/// triangles is left to the one of lower index.
-struct MovingPairCollector : btDbvt::ICollide {
+/// The leaves overlapping changed triangle `triangle`, each pair once: a pair of two
+/// changed triangles is left to the one of lower index.
+struct ChangedPairCollector : btDbvt::ICollide {
   int triangle = 0;
-  const std::vector<char>* moving = nullptr;
+  const std::vector<char>* changed = nullptr;
   std::vector<std::pair<int, int>>* pairs = nullptr;
   void Process(const btDbvtNode* leaf) {
     const int other = leaf->dataAsInt;
-    if (other == triangle || ((*moving)[other] && other < triangle)) return;
+    if (other == triangle || ((*changed)[other] && other < triangle)) return;
     pairs->emplace_back(triangle, other);
   }
 };
@@ -624,7 +624,9 @@ void SelfCollision::ReserveScratch() {
   edge_hi_.resize(static_cast<Eigen::Index>(edges_.size()), 3);
   triangle_lo_.resize(rows, 3);
   triangle_hi_.resize(rows, 3);
-  triangle_moving_.assign(num_triangles, 0);
+  triangle_changed_.assign(num_triangles, 0);
+  particle_changed_.assign(n, 0);
+  path_examined_.resize(n, 3);
   tree_stack_ = std::make_unique<TreeStack>();
   tree_stack_->nodes.reserve(128);  // a walk holds about two nodes per level of the tree
   path_velocity_.resize(n, 3);
@@ -658,35 +660,62 @@ void SelfCollision::Refit(const Points& start, double h, double margin) {
   }
 }
 
-void SelfCollision::CollectTrianglePairs() {
+void SelfCollision::CollectTrianglePairs(Candidates candidates) {
   triangle_pairs_.clear();
-  if (!moving_only_) {
+  if (candidates == Candidates::kAll) {
     PairCollector collector;
     collector.pairs = &triangle_pairs_;
     tree_->collideTTpersistentStack(tree_->m_root, tree_->m_root, collector);
     return;
   }
-  // Only what moves can meet anything new: a pair of triangles at rest keeps its distance.
+  // Only a changed path can meet anything new: the rest were examined on this same path.
   const auto& triangles = model_->triangles();
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];
-    triangle_moving_[t] = !(path_velocity_.row(tri[0]).isZero(0.0) &&
-                            path_velocity_.row(tri[1]).isZero(0.0) &&
-                            path_velocity_.row(tri[2]).isZero(0.0));
+    triangle_changed_[t] =
+        particle_changed_[tri[0]] || particle_changed_[tri[1]] || particle_changed_[tri[2]];
   }
-  MovingPairCollector collector;
-  collector.moving = &triangle_moving_;
+  ChangedPairCollector collector;
+  collector.changed = &triangle_changed_;
   collector.pairs = &triangle_pairs_;
   for (std::size_t t = 0; t < triangles.size(); ++t) {
-    if (!triangle_moving_[t]) continue;
+    if (!triangle_changed_[t]) continue;
     collector.triangle = static_cast<int>(t);
     tree_->collideTVNoStackAlloc(tree_->m_root, leaves_[t]->volume, tree_stack_->nodes, collector);
   }
 }
 
-void SelfCollision::CollectPairs(double margin) {
-  CollectTrianglePairs();
-  pairs_.clear();
+bool SelfCollision::Overlaps(const PrimitivePair& pair, double margin) const {
+  if (pair.kind == PrimitivePair::kPointTriangle) {
+    return RowsOverlap(box_lo_, box_hi_, pair.a, triangle_lo_, triangle_hi_, pair.b, margin);
+  }
+  return RowsOverlap(edge_lo_, edge_hi_, pair.a, edge_lo_, edge_hi_, pair.b, margin);
+}
+
+bool SelfCollision::Changed(const PrimitivePair& pair) const {
+  int index[4];
+  PairIndices(pair, *model_, edges_, index);
+  return particle_changed_[index[0]] || particle_changed_[index[1]] ||
+         particle_changed_[index[2]] || particle_changed_[index[3]];
+}
+
+void SelfCollision::CollectPairs(double margin, Candidates candidates) {
+  if (candidates == Candidates::kKeptAndChanged) {
+    // The pairs the last collection found whose paths have not changed since: their boxes
+    // are the same, so the ones still within the (smaller) margin are what a fresh search
+    // would find among them.
+    const auto changed_or_far = [&](const PrimitivePair& pair) {
+      return Changed(pair) || !Overlaps(pair, margin);
+    };
+    pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(), changed_or_far), pairs_.end());
+  } else {
+    pairs_.clear();
+  }
+  CollectTrianglePairs(candidates == Candidates::kAll ? Candidates::kAll : Candidates::kChanged);
+  const bool all = candidates == Candidates::kAll;
+  const auto add = [&](const PrimitivePair& pair) {
+    if ((all || Changed(pair)) && Overlaps(pair, margin)) pairs_.push_back(pair);
+  };
   const auto& triangles = model_->triangles();
   for (const auto& [ta, tb] : triangle_pairs_) {
     if (triangle_tangled_[ta] && triangle_tangled_[tb]) continue;  // FindRestTangles
@@ -697,8 +726,7 @@ void SelfCollision::CollectPairs(double margin) {
       for (int k = 0; k < o.num_vertices; ++k) {
         const int v = o.vertices[k];
         if (v == tri[0] || v == tri[1] || v == tri[2]) continue;
-        if (!RowsOverlap(box_lo_, box_hi_, v, triangle_lo_, triangle_hi_, other, margin)) continue;
-        pairs_.push_back({PrimitivePair::kPointTriangle, v, other});
+        add({PrimitivePair::kPointTriangle, v, other});
       }
     }
     const Owned& oa = owned_[ta];
@@ -708,12 +736,20 @@ void SelfCollision::CollectPairs(double margin) {
       for (int j = 0; j < ob.num_edges; ++j) {
         const auto& [b0, b1] = edges_[ob.edges[j]];
         if (a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1) continue;
-        if (!RowsOverlap(edge_lo_, edge_hi_, oa.edges[i], edge_lo_, edge_hi_, ob.edges[j], margin)) {
-          continue;
-        }
-        pairs_.push_back({PrimitivePair::kEdgeEdge, oa.edges[i], ob.edges[j]});
+        add({PrimitivePair::kEdgeEdge, oa.edges[i], ob.edges[j]});
       }
     }
+  }
+}
+
+void SelfCollision::StartExamining() {
+  path_examined_ = path_velocity_;
+  std::fill(particle_changed_.begin(), particle_changed_.end(), 0);
+}
+
+void SelfCollision::FlagChangedPaths() {
+  for (Eigen::Index i = 0; i < path_velocity_.rows(); ++i) {
+    if (path_velocity_.row(i) != path_examined_.row(i)) particle_changed_[i] = 1;
   }
 }
 
@@ -908,11 +944,14 @@ double SelfCollision::PairFriction(const Stencil& stencil) const {
 // also touch is a collision; an inelastic impulse along the normal at that time stops their
 // approach. With merge_zones, collisions only join their particles' impact zones.
 int SelfCollision::CollisionPass(const Points& start, double h, ClothState& state,
-                                 bool merge_zones, SelfCollisionReport& report) {
+                                 bool merge_zones, Candidates candidates,
+                                 SelfCollisionReport& report) {
   // Continuous detection needs no thickness: only boxes that touch along the path matter.
   const double tolerance = kCollisionToleranceFraction * settings_.thickness;
+  FlagChangedPaths();
   Refit(start, h, tolerance);
-  CollectPairs(tolerance);
+  CollectPairs(tolerance, candidates);
+  StartExamining();
   ++report.collision_passes;
   int found = 0;
   for (const PrimitivePair& pair : pairs_) {
@@ -956,6 +995,7 @@ int SelfCollision::CollisionPass(const Points& start, double h, ClothState& stat
       const double approach = -Combine(path_velocity_, pt.stencil).dot(n);
       if (h * approach <= kMotionTolerance) continue;
       ++found;
+      for (int k = 0; k < 4; ++k) particle_changed_[index[k]] = 1;  // examined again next pass
       if (merge_zones) {
         for (int k = 1; k < 4; ++k) {
           zone_parent_[Find(zone_parent_, index[k])] = Find(zone_parent_, index[0]);
@@ -981,11 +1021,11 @@ int SelfCollision::CollisionPass(const Points& start, double h, ClothState& stat
 // velocity, so nothing inside a zone moves relative to anything else (linear momentum is
 // kept; the zone's spin is lost, an inelastic choice). Zones grow until nothing collides.
 void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state,
-                                SelfCollisionReport& report) {
+                                Candidates candidates, SelfCollisionReport& report) {
   const int n = model_->num_particles();
   for (int i = 0; i < n; ++i) zone_parent_[i] = i;
   const double pinned_weight = kPinnedWeightFactor * model_->total_mass();
-  int found = CollisionPass(start, h, state, true, report);
+  int found = CollisionPass(start, h, state, true, candidates, report);
   for (int pass = 0; found > 0 && pass < kMaxZonePasses; ++pass) {
     zone_mass_.setZero();
     zone_momentum_.setZero();
@@ -1010,7 +1050,7 @@ void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state
       path_velocity_.row(i) = zone_momentum_.row(z) / zone_mass_[z];
       state.velocities.row(i) = zone_state_momentum_.row(z) / zone_mass_[z];
     }
-    found = CollisionPass(start, h, state, true, report);
+    found = CollisionPass(start, h, state, true, Candidates::kChanged, report);
   }
   report.remaining_collisions = found;
   std::fill(zone_size_.begin(), zone_size_.end(), 0);
@@ -1047,19 +1087,28 @@ SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, do
     return report;
   }
   holds_ = &holds;
-  moving_only_ = moving_only;
   hold_of_.assign(n, -1);
   for (int c = 0; c < static_cast<int>(holds.size()); ++c) hold_of_[holds[c].particle] = c;
   if (leaves_.empty()) return report;
   path_velocity_ = (state.positions - start_positions) / h;
   Refit(start_positions, h, settings_.thickness);
-  CollectPairs(settings_.thickness);
+  if (moving_only) {  // a pair at rest keeps its distance
+    path_examined_.setZero();
+    std::fill(particle_changed_.begin(), particle_changed_.end(), 0);
+    FlagChangedPaths();
+  }
+  CollectPairs(settings_.thickness, moving_only ? Candidates::kChanged : Candidates::kAll);
+  StartExamining();
   ProximityStage(start_positions, h, state, report);
+  // The first pass also examines the proximity stage's pairs that it left alone; later
+  // passes only the pairs whose paths the last pass changed or found colliding.
+  Candidates candidates = Candidates::kKeptAndChanged;
   int found = 1;
   for (int pass = 0; found > 0 && pass < settings_.max_iterations; ++pass) {
-    found = CollisionPass(start_positions, h, state, false, report);
+    found = CollisionPass(start_positions, h, state, false, candidates, report);
+    candidates = Candidates::kChanged;
   }
-  if (found > 0) ImpactZones(start_positions, h, state, report);
+  if (found > 0) ImpactZones(start_positions, h, state, candidates, report);
   state.positions = start_positions + h * path_velocity_;
   return report;
 }

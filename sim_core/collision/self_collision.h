@@ -6,7 +6,9 @@
 /// positions to the end-of-step positions. Broad phase: Bullet's btDbvt over the triangles'
 /// boxes swept along that path and fattened by the thickness; its topology is built once
 /// from the rest shape and only refitted afterwards. docs/collision.md "## Self-collision"
-/// gives the pipeline and the places where it deviates from the paper.
+/// gives the pipeline and the places where it deviates from the paper. A collision pass
+/// after the first examines only the pairs whose paths the one before changed or found
+/// colliding: the others were examined on the same paths and found free.
 ///
 /// Costs nothing when off: a scene without self-collision simply makes no SelfCollision.
 
@@ -110,8 +112,8 @@ class SelfCollision {
                               const std::vector<BodyHold>& holds = {});
 
   /// Resolve for a short move after a step that Resolve has already made collision-free
-  /// (the body's correction after it): the same, except that only pairs of triangles one of
-  /// which moves along the path are examined, so pairs at rest, resolved by that call, are
+  /// (the body's correction after it): the same, except that only pairs with a particle
+  /// that moves along the path are examined, so pairs at rest, resolved by that call, are
   /// left as they are, and a move of a few particles costs a few tree walks instead of the
   /// whole cloth's. Particles the impulses set moving are examined in the later passes.
   SelfCollisionReport ResolveMove(const Points& start_positions, double h, ClothState& state,
@@ -181,10 +183,27 @@ class SelfCollision {
   SelfCollisionReport ResolvePath(const Points& start_positions, double h, ClothState& state,
                                   const std::vector<BodyHold>& holds, bool moving_only);
   void Refit(const Points& start, double h, double margin);
-  /// The overlapping leaves of the refitted tree: all of them, or, with moving_only_, those
-  /// with a triangle that has a particle of non-zero path velocity.
-  void CollectTrianglePairs();
-  void CollectPairs(double margin);
+  /// Which primitive pairs a collection gathers.
+  enum class Candidates {
+    /// Every pair whose boxes come within the margin.
+    kAll,
+    /// Only such pairs with a particle flagged in particle_changed_.
+    kChanged,
+    /// kChanged's, and the last collection's pairs without a flagged particle that still
+    /// come within the margin (the last collection's margin being at least as large).
+    kKeptAndChanged,
+  };
+  /// The overlapping leaves of the refitted tree: all of them (kAll), or those with a
+  /// triangle that has a flagged particle.
+  void CollectTrianglePairs(Candidates candidates);
+  void CollectPairs(double margin, Candidates candidates);
+  bool Overlaps(const PrimitivePair& pair, double margin) const;
+  /// Whether a particle of the pair is flagged in particle_changed_.
+  bool Changed(const PrimitivePair& pair) const;
+  /// The collected pairs are examined on the current path: remembers it and clears the flags.
+  void StartExamining();
+  /// Flags the particles whose path velocity differs from the one last examined.
+  void FlagChangedPaths();
   void ProximityStage(const Points& start, double h, ClothState& state,
                       SelfCollisionReport& report);
   bool Repel(NearPair& near, double h, ClothState& state);
@@ -198,8 +217,8 @@ class SelfCollision {
   double FullParting(double approach, double distance, double h) const;
   double PairFriction(const Stencil& stencil) const;
   int CollisionPass(const Points& start, double h, ClothState& state, bool merge_zones,
-                    SelfCollisionReport& report);
-  void ImpactZones(const Points& start, double h, ClothState& state,
+                    Candidates candidates, SelfCollisionReport& report);
+  void ImpactZones(const Points& start, double h, ClothState& state, Candidates candidates,
                    SelfCollisionReport& report);
 
   std::shared_ptr<const ClothModel> model_;
@@ -210,9 +229,12 @@ class SelfCollision {
   std::unique_ptr<btDbvt> tree_;
   struct TreeStack;
   std::unique_ptr<TreeStack> tree_stack_;
-  /// This call examines only pairs with a moving triangle (ResolveMove), and which move.
-  bool moving_only_ = false;
-  std::vector<char> triangle_moving_;
+  /// Particles whose path changed since their pairs were last examined, or that met a
+  /// collision there (only their pairs can meet anything new), their triangles, and the
+  /// path velocities last examined [m/s].
+  std::vector<char> particle_changed_;
+  std::vector<char> triangle_changed_;
+  Points path_examined_;
   std::vector<char> triangle_tangled_;
   /// One leaf per triangle, and the internal nodes children first (the refit order).
   std::vector<btDbvtNode*> leaves_;

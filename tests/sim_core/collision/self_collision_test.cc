@@ -211,6 +211,31 @@ TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   EXPECT_GE(LowestHeightOfBAboveA(resolved.positions), settings.thickness);
 }
 
+// A particle falling at 20 m/s through two layers, B 10 mm above A (farther apart than the
+// thickness, so proximity sees nothing): stopping it on B sets B moving down through A, a
+// collision that the first pass examined before it existed. Later passes examine only the
+// pairs whose paths the earlier ones changed; they must still find it.
+TEST(SelfCollision, LaterPassesFindTheCollisionAnEarlierImpulseMade) {
+  const double h = 1.0 / 240.0;
+  Points b = TwoTriangles(0.0, 1e-3, 1e-3)->rest_positions().topRows(3);  // A's shape
+  b.col(1).setConstant(0.01);
+  const auto model = ThreeTriangles("two layers and a falling particle", b, 0.05);
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  ClothState state = EndOfStraightStep(*model, h, {0, 0, 0, 0, 0, 0, -20, 0, 0});
+  ASSERT_EQ(CountCrossingEdges(*model, state.positions), 2);  // edges 6–7 and 6–8
+
+  const SelfCollisionReport report = self_collision.Resolve(start, h, state);
+
+  EXPECT_EQ(report.proximity_impulses, 0);
+  EXPECT_GE(report.collision_passes, 2);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, state.positions), 0);
+  EXPECT_GT(LowestHeightOfBAboveA(state.positions), 0.0);  // B still above A
+  // Momentum by hand: 1 g at −20 m/s.
+  EXPECT_NEAR(Momentum(*model, state.velocities).y(), -0.02, 1e-14);
+}
+
 /// ThreeTriangles with B standing through A's middle, its tip 2 mm above A and its base
 /// 2 mm below (all three corners within the thickness of A), so that its two slanted edges
 /// pass through A in the rest shape; C lies flat 3 mm above A, within the thickness.
