@@ -258,7 +258,12 @@ void AddBendingSprings(const ClothModel& fine, MeshCoarsening& out) {
     structural[s.b].push_back(s.a);
   }
   const double tau = DampingRatio(fine, true);
+  // A pair already joined by a stretch or shear spring gets no bending spring beside it: on
+  // an irregular mesh (the MakeHuman casual suit) the straightest line through a particle
+  // can end at a particle two structural steps from the other end, and a model allows one
+  // spring per pair.
   std::map<std::pair<int, int>, bool> added;
+  for (const Spring& s : data.springs) added.emplace(std::minmax(s.a, s.b), true);
   for (int m = 0; m < nc; ++m) {
     const Eigen::Vector3d x = data.rest_positions.row(m).transpose();
     for (int a : structural[m]) {

@@ -99,19 +99,25 @@ struct SuitRun {
   int rolled_back = 0;
 };
 
-/// A MakeHuman suit of ../shared/data (a folder under makehuman/clothes) on MakeHuman's
-/// body, fitted (or not) and then following the built-in `clip` for `walk_seconds`, frames
-/// split where the skin moves farther than `max_skin_travel` [m] a step (0: never).
-SuitRun RunSuit(bool fit, double walk_seconds,
-                BodyCollisionMethod method = BodyCollisionMethod::kMesh,
-                const std::string& garment = "female_casualsuit02",
-                const std::string& clip = "walk",
-                double max_skin_travel = AvatarSpec{}.max_skin_travel) {
+/// MakeHuman's body of ../shared/data, read once.
+const std::shared_ptr<const Avatar>& MakeHumanBody() {
   const fs::path mh = test::kSharedData / "makehuman";
-  const auto obj = assets::ReadObj((mh / "body/base.obj").string());
   static const auto body = assets::LoadMakeHumanAvatar(
       (mh / "body/base.obj").string(), (mh / "body/default.mhskel").string(),
       (mh / "body/default_weights.mhw").string());
+  return body;
+}
+
+/// A MakeHuman garment of ../shared/data (a folder under makehuman/clothes) in cotton on
+/// MakeHuman's body, fitted out of it (or not) and then following the built-in `clip` for
+/// `walk_seconds`, frames split where the skin moves farther than `max_skin_travel` [m] a
+/// step (0: never).
+SceneDescription SuitScene(bool fit, double walk_seconds, BodyCollisionMethod method,
+                           const std::string& garment, const std::string& clip,
+                           double max_skin_travel) {
+  const fs::path mh = test::kSharedData / "makehuman";
+  const auto obj = assets::ReadObj((mh / "body/base.obj").string());
+  const auto& body = MakeHumanBody();
   SceneDescription scene;
   scene.source = "garment_fit_test";
   AvatarSpec avatar;
@@ -134,9 +140,21 @@ SuitRun RunSuit(bool fit, double walk_seconds,
   suit.material = cotton.name;
   suit.fit_outside_body = fit;
   scene.garments.push_back(suit);
+  return scene;
+}
 
+/// SuitScene run and measured.
+SuitRun RunSuit(bool fit, double walk_seconds,
+                BodyCollisionMethod method = BodyCollisionMethod::kMesh,
+                const std::string& garment = "female_casualsuit02",
+                const std::string& clip = "walk",
+                double max_skin_travel = AvatarSpec{}.max_skin_travel) {
+  const SceneDescription scene = SuitScene(fit, walk_seconds, method, garment, clip, max_skin_travel);
+  const AvatarSpec& avatar = *scene.avatar;
+  const auto& body = MakeHumanBody();
   SuitRun run;
-  FitOutsideBody(*suit.mesh, body->rest_vertices(), body->triangles(), avatar.thickness + 0.001, &run.fit);
+  FitOutsideBody(*scene.garments[0].mesh, body->rest_vertices(), body->triangles(),
+                 avatar.thickness + 0.001, &run.fit);
   auto simulation = Simulation::Build(scene);
   MeshDistance skin("makehuman", simulation->avatar()->vertices(), body->triangles());
   std::vector<bool> attached(simulation->model().num_particles(), false);
@@ -222,6 +240,44 @@ TEST(GarmentFit, MakeHumanSuitEndsTheFitOutsideTheBodyUnstretched) {
   printf("fitted: %.1f mm, %.0f %% after the fit; walk %.1f mm, %.0f %%; unfitted %.0f %% after the fit\n",
          1e3 * fitted.fitted_depth, 100 * fitted.fitted_strain, 1e3 * fitted.walk_depth,
          100 * fitted.walk_strain, 100 * unfitted.fitted_strain);
+}
+
+// MakeHuman's garments are irregular meshes. Coarsening the casual suit once set a bending
+// spring beside a stretch spring joining the same two coarse particles, and every pyramid
+// solver refused the suit ("spring 2694 duplicates another spring between particles 44 and
+// 48"). Each garment now builds with each of them and runs its first frame; the
+// hierarchical step and Galerkin multigrid converge in it. (Multigrid with rediscretised
+// coarse models does not, on the two female suits: docs/pyramid.md, "MakeHuman's garments".)
+TEST(GarmentFit, EveryMakeHumanGarmentTakesThePyramidSolvers) {
+  if (!fs::exists(test::kSharedData / "makehuman/clothes/female_casualsuit02")) {
+    GTEST_SKIP() << "test data " << test::kSharedData << "/makehuman not present";
+  }
+  struct Solver {
+    SolverMethod method;
+    CoarseOperator coarse;
+    bool converges;
+  };
+  for (const char* garment : {"female_casualsuit01", "female_casualsuit02", "male_casualsuit02"}) {
+    for (const Solver solver :
+         {Solver{SolverMethod::kHierarchical, CoarseOperator::kRediscretised, true},
+          Solver{SolverMethod::kMultigrid, CoarseOperator::kRediscretised, false},
+          Solver{SolverMethod::kMultigrid, CoarseOperator::kGalerkin, true}}) {
+      SceneDescription scene = SuitScene(true, 0.0, BodyCollisionMethod::kMesh, garment, "walk",
+                                         AvatarSpec{}.max_skin_travel);
+      scene.solver.method = solver.method;
+      scene.solver.coarse_operator = solver.coarse;
+      const std::string what = std::string(garment) + ", " + SolverMethodName(solver.method) +
+                               ", " + CoarseOperatorName(solver.coarse);
+      std::unique_ptr<Simulation> simulation;
+      ASSERT_NO_THROW(simulation = Simulation::Build(scene)) << what;
+      const FrameReport report = simulation->AdvanceFrame();
+      if (solver.converges) {
+        EXPECT_TRUE(report.converged) << what;
+      }
+      EXPECT_EQ(report.rolled_back_steps, 0) << what;
+      EXPECT_TRUE(simulation->state().positions.allFinite()) << what;
+    }
+  }
 }
 
 // The superquadric method holds the walking suit about as stretched as the mesh method,
