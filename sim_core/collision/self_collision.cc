@@ -647,13 +647,17 @@ void SelfCollision::Refit(const Points& start, double h, double margin) {
     edge_hi_.row(e) = box_hi_.row(edges_[e].first).cwiseMax(box_hi_.row(edges_[e].second));
   }
   const auto& triangles = model_->triangles();
+  // Two leaves overlap when their boxes come within twice the fattening, so each is fattened
+  // by half the margin: fattened by all of it, the proximity stage's walk also met every
+  // pair 4-8 mm apart, which the primitives' own test then threw away.
+  const double fat = 0.5 * margin;
   for (std::size_t t = 0; t < leaves_.size(); ++t) {
     const Eigen::Vector3i& tri = triangles[t];
     triangle_lo_.row(t) = box_lo_.row(tri[0]).cwiseMin(box_lo_.row(tri[1])).cwiseMin(box_lo_.row(tri[2]));
     triangle_hi_.row(t) = box_hi_.row(tri[0]).cwiseMax(box_hi_.row(tri[1])).cwiseMax(box_hi_.row(tri[2]));
     leaves_[t]->volume = btDbvtVolume::FromMM(
-        btVector3(triangle_lo_(t, 0) - margin, triangle_lo_(t, 1) - margin, triangle_lo_(t, 2) - margin),
-        btVector3(triangle_hi_(t, 0) + margin, triangle_hi_(t, 1) + margin, triangle_hi_(t, 2) + margin));
+        btVector3(triangle_lo_(t, 0) - fat, triangle_lo_(t, 1) - fat, triangle_lo_(t, 2) - fat),
+        btVector3(triangle_hi_(t, 0) + fat, triangle_hi_(t, 1) + fat, triangle_hi_(t, 2) + fat));
   }
   for (btDbvtNode* node : internal_nodes_) {
     Merge(node->childs[0]->volume, node->childs[1]->volume, node->volume);
