@@ -1096,7 +1096,7 @@ SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, do
   if (leaves_.empty()) return report;
   path_velocity_ = (state.positions - start_positions) / h;
   Refit(start_positions, h, settings_.thickness);
-  if (moving_only) {  // a pair at rest keeps its distance
+  if (moving_only) {  // flags the moving particles: a pair at rest keeps its distance
     path_examined_.setZero();
     std::fill(particle_changed_.begin(), particle_changed_.end(), 0);
     FlagChangedPaths();

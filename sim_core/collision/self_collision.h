@@ -4,11 +4,11 @@
 /// collisions, contact and friction for cloth animation" (§6 detection, §7.1–7.4 response),
 /// run after the implicit solve on the step's straight-line path from the start-of-step
 /// positions to the end-of-step positions. Broad phase: Bullet's btDbvt over the triangles'
-/// boxes swept along that path and fattened by the thickness; its topology is built once
-/// from the rest shape and only refitted afterwards. docs/collision.md "## Self-collision"
-/// gives the pipeline and the places where it deviates from the paper. A collision pass
-/// after the first examines only the pairs whose paths the one before changed or found
-/// colliding: the others were examined on the same paths and found free.
+/// boxes swept along that path, meeting the pairs within the thickness; its topology is
+/// built once from the rest shape and only refitted afterwards. docs/collision.md
+/// "## Self-collision" gives the pipeline and the places where it deviates from the paper.
+/// A collision pass after the first examines only the pairs whose paths the one before
+/// changed or found colliding: the others were examined on the same paths and found free.
 ///
 /// Costs nothing when off: a scene without self-collision simply makes no SelfCollision.
 
