@@ -99,7 +99,8 @@ struct SuitRun {
   int rolled_back = 0;
 };
 
-/// MakeHuman's body of ../shared/data, read once.
+/// MakeHuman's body of ../shared/data, read once (as is its OBJ in SuitScene: the pyramid
+/// test builds nine scenes).
 const std::shared_ptr<const Avatar>& MakeHumanBody() {
   const fs::path mh = test::kSharedData / "makehuman";
   static const auto body = assets::LoadMakeHumanAvatar(
@@ -116,7 +117,7 @@ SceneDescription SuitScene(bool fit, double walk_seconds, BodyCollisionMethod me
                            const std::string& garment, const std::string& clip,
                            double max_skin_travel) {
   const fs::path mh = test::kSharedData / "makehuman";
-  const auto obj = assets::ReadObj((mh / "body/base.obj").string());
+  static const assets::ObjMesh obj = assets::ReadObj((mh / "body/base.obj").string());
   const auto& body = MakeHumanBody();
   SceneDescription scene;
   scene.source = "garment_fit_test";
