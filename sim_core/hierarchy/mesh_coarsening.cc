@@ -37,8 +37,36 @@ std::vector<std::vector<int>> StructuralNeighbours(const ClothModel& model) {
   return neighbours;
 }
 
-/// Greedy maximal independent set: pinned particles first (so pins survive), then index
-/// order, which on a lattice panel's row-major numbering yields the checkerboard.
+/// Order of a breadth-first search over the structural graph, each component from its first
+/// pinned particle (else its lowest index), with every particle's depth.
+std::vector<int> BreadthFirstOrder(const ClothModel& model,
+                                   const std::vector<std::vector<int>>& nbrs,
+                                   std::vector<int>& depth) {
+  depth.assign(model.num_particles(), -1);
+  std::vector<int> order;
+  order.reserve(model.num_particles());
+  auto search_from = [&](int seed) {
+    if (depth[seed] >= 0) return;
+    depth[seed] = 0;
+    order.push_back(seed);
+    for (std::size_t head = order.size() - 1; head < order.size(); ++head) {
+      for (int q : nbrs[order[head]]) {
+        if (depth[q] < 0) depth[q] = depth[order[head]] + 1, order.push_back(q);
+      }
+    }
+  };
+  for (int p : model.pinned()) search_from(p);
+  for (int p = 0; p < model.num_particles(); ++p) search_from(p);
+  return order;
+}
+
+/// Greedy maximal independent set, taken in the order of a two-colouring: the pinned
+/// particles an even number of structural steps from their component's seed, then the other
+/// pinned ones (so pins survive), then every even particle in breadth-first order, then any
+/// left free. On a quad mesh the even particles are one colour of its two-colouring however
+/// it is numbered: the quincunx set on a lattice panel, the same checkerboard on a garment
+/// read from a file. Index order, as before, took a scattered set on the MakeHuman suits,
+/// whose dropped particles often had a single kept neighbour (docs/pyramid.md).
 std::vector<bool> SelectKept(const ClothModel& model, const std::vector<std::vector<int>>& nbrs) {
   std::vector<bool> kept(model.num_particles(), false), blocked(model.num_particles(), false);
   auto take = [&](int p) {
@@ -46,14 +74,48 @@ std::vector<bool> SelectKept(const ClothModel& model, const std::vector<std::vec
     kept[p] = blocked[p] = true;
     for (int q : nbrs[p]) blocked[q] = true;
   };
+  std::vector<int> depth;
+  const std::vector<int> order = BreadthFirstOrder(model, nbrs, depth);
+  for (int p : model.pinned()) {
+    if (depth[p] % 2 == 0) take(p);
+  }
   for (int p : model.pinned()) take(p);
+  for (int p : order) {
+    if (depth[p] % 2 == 0) take(p);
+  }
   for (int p = 0; p < model.num_particles(); ++p) take(p);
   return kept;
 }
 
+/// The kept particles each fine particle is interpolated from: itself when kept, else its
+/// kept structural neighbours, and when it has only one, also those of its dropped
+/// neighbours. Where a quad mesh cannot be two-coloured (a welded hem, a tube with an odd
+/// number of quads around) a line of dropped particles has one kept neighbour each; copying
+/// that one coarse particle left the coarse level without the stiffness across the line.
+std::vector<std::vector<int>> Sources(const std::vector<std::vector<int>>& nbrs,
+                                      const std::vector<int>& kept) {
+  std::vector<std::vector<int>> sources(nbrs.size());
+  auto add_kept = [&](std::vector<int>& from, int q) {
+    if (kept[q] >= 0 && std::find(from.begin(), from.end(), q) == from.end()) from.push_back(q);
+  };
+  for (std::size_t f = 0; f < nbrs.size(); ++f) {
+    if (kept[f] >= 0) {
+      sources[f] = {static_cast<int>(f)};
+      continue;
+    }
+    for (int q : nbrs[f]) add_kept(sources[f], q);
+    if (sources[f].size() >= 2) continue;
+    for (int q : nbrs[f]) {
+      if (kept[q] >= 0) continue;
+      for (int r : nbrs[q]) add_kept(sources[f], r);
+    }
+  }
+  return sources;
+}
+
 /// Interpolation and lumped masses (PᵀMP lumped: a dropped particle's mass, area and drag
-/// go in equal shares to the kept neighbours it is interpolated from).
-void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& nbrs,
+/// go in equal shares to the kept particles it is interpolated from).
+void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& sources,
                  MeshCoarsening& out) {
   const int nc = static_cast<int>(out.fine_index.size());
   ClothModelData& data = out.coarse;
@@ -63,13 +125,7 @@ void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& nb
   out.interpolation_start.assign(1, 0);
   const bool has_drag = fine.drag().size() == fine.num_particles();
   for (int f = 0; f < fine.num_particles(); ++f) {
-    if (out.kept[f] >= 0) {
-      out.interpolation_from.push_back(out.kept[f]);
-    } else {
-      for (int q : nbrs[f]) {
-        if (out.kept[q] >= 0) out.interpolation_from.push_back(out.kept[q]);
-      }
-    }
+    for (int q : sources[f]) out.interpolation_from.push_back(out.kept[q]);
     const int first = out.interpolation_start.back();
     const int count = static_cast<int>(out.interpolation_from.size()) - first;
     for (int k = first; k < first + count; ++k) {
@@ -82,27 +138,43 @@ void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& nb
   }
 }
 
-/// Coarse pairs two structural steps apart, each marked structural when some path between
-/// them turns at the dropped particle (angle below 135°: a cell diagonal of the finer level)
-/// and shear when every path runs straight through it — on a lattice, exactly the rotated
-/// lattice's structural and shear springs, borders included.
+/// Coarse pairs: the kept particles a dropped particle is interpolated from, each marked
+/// structural when some path between them turns at the dropped particle (angle below 135°:
+/// a cell diagonal of the finer level) and shear when every path runs straight through it —
+/// on a lattice, exactly the rotated lattice's structural and shear springs, borders
+/// included; and, as shear, the ends of every structural spring between two dropped
+/// particles, which the Galerkin product PᵀAP couples too (none on a lattice, many on
+/// meshes that cannot be two-coloured).
 std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
                                                 const std::vector<std::vector<int>>& nbrs,
+                                                const std::vector<std::vector<int>>& sources,
                                                 const std::vector<int>& kept) {
   std::map<std::pair<int, int>, bool> pairs;
   const Points& x = fine.rest_positions();
   for (std::size_t f = 0; f < nbrs.size(); ++f) {
     if (kept[f] >= 0) continue;
-    for (std::size_t i = 0; i < nbrs[f].size(); ++i) {
-      for (std::size_t j = i + 1; j < nbrs[f].size(); ++j) {
-        const int p = nbrs[f][i], q = nbrs[f][j];
+    const std::vector<int>& from = sources[f];
+    for (std::size_t i = 0; i < from.size(); ++i) {
+      for (std::size_t j = i + 1; j < from.size(); ++j) {
+        const int p = from[i], q = from[j];
         const int a = kept[p], b = kept[q];
-        if (a < 0 || b < 0 || a == b) continue;
         const Eigen::Vector3d to_p = (x.row(p) - x.row(f)).normalized();
         const Eigen::Vector3d to_q = (x.row(q) - x.row(f)).normalized();
         const bool turns = to_p.dot(to_q) > -0.7071;
         bool& structural = pairs.try_emplace({std::min(a, b), std::max(a, b)}, false).first->second;
         structural = structural || turns;
+      }
+    }
+  }
+  for (int p = 0; p < static_cast<int>(nbrs.size()); ++p) {
+    if (kept[p] >= 0) continue;
+    for (int q : nbrs[p]) {
+      if (kept[q] >= 0 || q < p) continue;
+      for (int r : sources[p]) {
+        for (int t : sources[q]) {
+          const int a = kept[r], b = kept[t];
+          if (a != b) pairs.try_emplace({std::min(a, b), std::max(a, b)}, false);
+        }
       }
     }
   }
@@ -205,10 +277,10 @@ double DampingRatio(const ClothModel& fine, bool bending) {
 }
 
 void AddStretchShearSprings(const ClothModel& fine, const std::vector<std::vector<int>>& nbrs,
-                            MeshCoarsening& out) {
+                            const std::vector<std::vector<int>>& sources, MeshCoarsening& out) {
   ClothModelData& data = out.coarse;
   std::vector<Spring> springs;
-  for (const auto& [pair, structural] : CoarsePairs(fine, nbrs, out.kept)) {
+  for (const auto& [pair, structural] : CoarsePairs(fine, nbrs, sources, out.kept)) {
     Spring s;
     s.a = pair.first;
     s.b = pair.second;
@@ -311,8 +383,9 @@ std::optional<MeshCoarsening> CoarsenMesh(const ClothModel& fine, int min_partic
   for (int p : fine.pinned()) {
     if (out.kept[p] >= 0) data.pinned.push_back(out.kept[p]);
   }
-  Interpolate(fine, nbrs, out);
-  AddStretchShearSprings(fine, nbrs, out);
+  const std::vector<std::vector<int>> sources = Sources(nbrs, out.kept);
+  Interpolate(fine, sources, out);
+  AddStretchShearSprings(fine, nbrs, sources, out);
   AddBendingSprings(fine, out);
   return out;
 }
