@@ -131,8 +131,7 @@ SolverPanel::SolverPanel(QWidget* parent) : QGroupBox("Solver", parent) {
   coarse_operator->addItems({"Rediscretised models", "Galerkin (PᵀAP)"});
   coarse_operator->setToolTip(
       "Multigrid's coarse-level matrices: each level's own cloth model at the restricted "
-      "state, or products of level 0's matrix (fewer iterations at tight tolerances and on "
-      "irregular triangle meshes)");
+      "state, or products of level 0's matrix (fewer iterations at tight tolerances)");
   levels = new QSpinBox;
   levels->setRange(0, 12);
   levels->setSpecialValueText("all");

@@ -138,13 +138,38 @@ void Interpolate(const ClothModel& fine, const std::vector<std::vector<int>>& so
   }
 }
 
-/// Coarse pairs: the kept particles a dropped particle is interpolated from, each marked
-/// structural when some path between them turns at the dropped particle (angle below 135°:
-/// a cell diagonal of the finer level) and shear when every path runs straight through it —
-/// on a lattice, exactly the rotated lattice's structural and shear springs, borders
-/// included; and, as shear, the ends of every structural spring between two dropped
-/// particles, which the Galerkin product PᵀAP couples too (none on a lattice, many on
-/// meshes that cannot be two-coloured).
+/// Labels the pairs that do not turn at any dropped particle: shear when the two ends share a
+/// neighbour through turning pairs (then they are a coarse cell's diagonal, that neighbour
+/// one of its other corners: every such pair on a lattice, whatever its cells' aspect),
+/// structural otherwise. On a triangle mesh two kept particles often face each other across
+/// a dropped one with no coarse cell around them; called shear, they left the next coarsening,
+/// which follows structural springs only, a level whose particles had none (docs/pyramid.md).
+void LabelCellDiagonals(std::map<std::pair<int, int>, bool>& pairs, int num_coarse) {
+  std::vector<std::vector<int>> turning(num_coarse);
+  for (const auto& [pair, structural] : pairs) {
+    if (!structural) continue;
+    turning[pair.first].push_back(pair.second);
+    turning[pair.second].push_back(pair.first);
+  }
+  for (std::vector<int>& around : turning) std::sort(around.begin(), around.end());
+  std::vector<int> corners;
+  for (auto& [pair, structural] : pairs) {
+    if (structural) continue;
+    const std::vector<int>& at_a = turning[pair.first];
+    const std::vector<int>& at_b = turning[pair.second];
+    corners.clear();
+    std::set_intersection(at_a.begin(), at_a.end(), at_b.begin(), at_b.end(),
+                          std::back_inserter(corners));
+    structural = corners.empty();
+  }
+}
+
+/// Coarse pairs: the kept particles a dropped particle is interpolated from, and the ends of
+/// every structural spring between two dropped particles, which the Galerkin product PᵀAP
+/// couples too (none on a lattice, many on meshes that cannot be two-coloured). A pair is
+/// structural when some path between its ends turns at a dropped particle (angle below 135°:
+/// a cell diagonal of the finer level), else as LabelCellDiagonals says — on a lattice,
+/// exactly the rotated lattice's structural and shear springs, borders included.
 std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
                                                 const std::vector<std::vector<int>>& nbrs,
                                                 const std::vector<std::vector<int>>& sources,
@@ -178,6 +203,7 @@ std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
       }
     }
   }
+  LabelCellDiagonals(pairs, *std::max_element(kept.begin(), kept.end()) + 1);
   return pairs;
 }
 
