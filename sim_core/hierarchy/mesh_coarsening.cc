@@ -63,9 +63,9 @@ std::vector<int> BreadthFirstOrder(const ClothModel& model,
 /// Greedy maximal independent set, taken in the order of a two-colouring: the pinned
 /// particles an even number of structural steps from their component's seed, then the other
 /// pinned ones (so pins survive), then every even particle in breadth-first order, then any
-/// left free. On a quad mesh the even particles are one colour of its two-colouring however
-/// it is numbered: the quincunx set on a lattice panel, the same checkerboard on a garment
-/// read from a file. Index order, as before, took a scattered set on the MakeHuman suits,
+/// left free. On a quad mesh that can be two-coloured the even particles are one colour,
+/// however it is numbered: the quincunx set on a lattice panel, the same checkerboard on a
+/// garment read from a file. Index order, as before, took a scattered set on the MakeHuman suits,
 /// whose dropped particles often had a single kept neighbour (docs/pyramid.md).
 std::vector<bool> SelectKept(const ClothModel& model, const std::vector<std::vector<int>>& nbrs) {
   std::vector<bool> kept(model.num_particles(), false), blocked(model.num_particles(), false);

@@ -7,14 +7,16 @@
 /// Kept particles are a maximal independent set of the structural-spring graph, chosen
 /// greedily with pinned particles first and then in the order of a two-colouring (even
 /// breadth-first depth) — on a lattice panel that is exactly the quincunx set (i + j even),
-/// on any quad mesh that can be two-coloured the same checkerboard however it is numbered. A dropped particle is
-/// interpolated as the mean of its kept structural neighbours (with those of its dropped
-/// neighbours when it has only one). Coarse springs join the kept particles a dropped
-/// particle is interpolated from, and the ends of a structural spring between two dropped
-/// particles; their stiffnesses are fitted so that every coarse particle's share of the
-/// stretch/shear stiffness tensor Σ ½kℓ² n⊗n⊗n⊗n equals the fine particles' it stands for,
-/// which on a lattice gives the quincunx rule K_s = 2k_d, K_d = k_s/2 exactly. Bending
-/// springs keep the fine bending rigidity B = kℓ²/4 at their new length.
+/// on any quad mesh that can be two-coloured the same checkerboard however it is numbered.
+/// A dropped particle is interpolated as the mean of its kept structural neighbours (with
+/// those of its dropped neighbours when it has only one). Coarse springs join the kept
+/// particles a dropped particle is interpolated from, and the ends of a structural spring
+/// between two dropped particles; a pair is structural where a path between its ends turns,
+/// or where it is no coarse cell's diagonal. Their stiffnesses are fitted so that every
+/// coarse particle's share of the stretch/shear stiffness tensor Σ ½kℓ² n⊗n⊗n⊗n equals the
+/// fine particles' it stands for, which on a lattice gives the quincunx rule K_s = 2k_d,
+/// K_d = k_s/2 exactly. Bending springs keep the fine bending rigidity B = kℓ²/4 at their
+/// new length.
 
 #include <optional>
 #include <vector>

@@ -308,7 +308,9 @@ TEST(MeshCoarsening, KeepsTheCheckerboardOfAQuadMeshHoweverItIsNumbered) {
   ASSERT_TRUE(coarse.has_value());
   int kept_by_colour[2] = {0, 0};
   for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) kept_by_colour[(i + j) % 2] += coarse->kept[grid.at[i * n + j]] >= 0;
+    for (int j = 0; j < n; ++j) {
+      kept_by_colour[(i + j) % 2] += coarse->kept[grid.at[i * n + j]] >= 0;
+    }
   }
   const int colour = kept_by_colour[0] > 0 ? 0 : 1;
   EXPECT_EQ(kept_by_colour[1 - colour], 0);
