@@ -1279,6 +1279,7 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   for (Eigen::Index i = 0; i < positions.rows(); ++i) {
     // In a crease between two pieces (the back of a bent knee) moving out of one can move a
     // particle into the other: a few alternating passes, as the superquadric collider does.
+    Eigen::Vector3d pushed = Eigen::Vector3d::Zero();  // the last pass's push direction
     for (int pass = 0; pass < kMeshProjectionPasses; ++pass) {
       const Eigen::Vector3d x = positions.row(i).transpose();
       if (!x.allFinite()) break;
@@ -1305,8 +1306,19 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
         break;
       }
       if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
+      const double facing = pass > 0 ? pushed.dot(nearest.normal) : 0.0;
+      if (facing < -0.5) {
+        // A pinch: the skin the last pass pushed the particle out of faces this one across
+        // a gap narrower than two shells (an arm against the torso). Pushing out of this one
+        // would push it as deep into that one; midway its signed distances to both are equal.
+        const double t = (nearest.signed_distance - shell) / (1.0 - facing);
+        positions.row(i) += t * pushed.transpose();
+        RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
+        break;
+      }
       positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
       RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
+      pushed = nearest.normal;
     }
   }
   return deepest;

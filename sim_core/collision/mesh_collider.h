@@ -55,6 +55,8 @@ namespace costume::sim {
 /// other, so it is corrected again against the piece it is then deepest in. Two passes took
 /// the kicking skirt from 9.8 mm to under 1 mm inside the skin (docs/collision.md); four
 /// left it at 0 mm but with twice the strain, the cloth in the crease thrown through it.
+/// Where the second skin faces the first (a pinch narrower than two shells, as at an
+/// armpit), the second pass puts the particle midway instead (docs/collision.md, "Pinches").
 inline constexpr int kMeshProjectionPasses = 2;
 
 // Internal (mesh_collider.cc): one region, and all regions with their grids and Bullet tree.

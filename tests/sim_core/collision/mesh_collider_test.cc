@@ -388,6 +388,42 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
   }
 }
 
+// Two boxes face each other across a gap of 2 mm, narrower than two 4 mm shells, as an arm
+// swung against the torso leaves the armpit. A particle 2 mm inside one box goes midway,
+// 1 mm outside each (the closed-form box distances as oracle), with no velocity into either.
+// Pushed out of one box onto its shell, it would be 2 mm inside the other, and pushed out of
+// that one as deep into the first: MakeHuman's suit walking with multigrid ended 3.60 mm
+// inside the skin at the left armpit so (docs/collision.md, "Pinches").
+TEST(MeshCollider, ParticleInAPinchNarrowerThanTwoShellsGoesMidway) {
+  const Eigen::Vector3d half(0.1, 0.2, 0.2);
+  const Eigen::Vector3d center_a(-0.101, 1.0, 0.0), center_b(0.101, 1.0, 0.0);
+  const TestMesh a = test::TessellatedBox(center_a, half, Eigen::Vector3i(5, 8, 8));
+  const TestMesh b = test::TessellatedBox(center_b, half, Eigen::Vector3i(5, 8, 8));
+  TestMesh both;
+  both.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
+  both.vertices << a.vertices, b.vertices;
+  both.triangles = a.triangles;
+  for (const Eigen::Vector3i& t : b.triangles) {
+    both.triangles.push_back(t + Eigen::Vector3i::Constant(static_cast<int>(a.vertices.rows())));
+  }
+  BodyCollisionSettings settings;
+  settings.thickness = 0.004;
+  MeshCollider collider(RigidAvatar(both), settings);
+  collider.Update(kJoints, both.vertices, kH);
+  const Eigen::Vector3d start(-0.003, 1.013, 0.027);
+  ASSERT_NEAR(test::BoxSignedDistance(start, center_a, half), -0.002, 1e-12);
+  Points x = Row(start);
+  Points v = Row(Eigen::Vector3d(0.3, 0.1, 0.0));
+  collider.ProjectOut(x, v);
+  const Eigen::Vector3d moved = x.row(0).transpose();
+  EXPECT_NEAR(test::BoxSignedDistance(moved, center_a, half), 0.001, 1e-9);
+  EXPECT_NEAR(test::BoxSignedDistance(moved, center_b, half), 0.001, 1e-9);
+  EXPECT_NEAR(moved.y(), start.y(), 1e-12);
+  EXPECT_NEAR(moved.z(), start.z(), 1e-12);
+  EXPECT_NEAR(v(0, 0), 0.0, 1e-12);  // not into box b (nor, outward, into a)
+  EXPECT_NEAR(v(0, 1), 0.1, 1e-12);
+}
+
 /// `bar` (a box along x from 0, its axis at y = 1) with its far half, x > `middle`, turned
 /// 90° about the z axis through (middle, 1.0), as skinning turns a thigh: that half then
 /// stands up through the near half's top face, which it buries.
