@@ -304,11 +304,8 @@ BoxContact ClosedFormBoxContact(const Eigen::Vector3d& p, const Eigen::Vector3d&
   return {d, normal};
 }
 
-TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBoxes) {
-  const Eigen::Vector3d center_a(0.0, 1.0, 0.0), half_a(0.15, 0.1, 0.12);
-  const Eigen::Vector3d center_b(0.12, 1.05, 0.04), half_b(0.08, 0.12, 0.1);
-  const TestMesh a = test::TessellatedBox(center_a, half_a, Eigen::Vector3i(9, 6, 7));
-  const TestMesh b = test::TessellatedBox(center_b, half_b, Eigen::Vector3i(5, 7, 6));
+/// One body of two meshes' vertices and triangles (two pieces).
+TestMesh BothMeshes(const TestMesh& a, const TestMesh& b) {
   TestMesh both;
   both.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
   both.vertices << a.vertices, b.vertices;
@@ -316,6 +313,15 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
   for (const Eigen::Vector3i& t : b.triangles) {
     both.triangles.push_back(t + Eigen::Vector3i::Constant(static_cast<int>(a.vertices.rows())));
   }
+  return both;
+}
+
+TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBoxes) {
+  const Eigen::Vector3d center_a(0.0, 1.0, 0.0), half_a(0.15, 0.1, 0.12);
+  const Eigen::Vector3d center_b(0.12, 1.05, 0.04), half_b(0.08, 0.12, 0.1);
+  const TestMesh a = test::TessellatedBox(center_a, half_a, Eigen::Vector3i(9, 6, 7));
+  const TestMesh b = test::TessellatedBox(center_b, half_b, Eigen::Vector3i(5, 7, 6));
+  const TestMesh both = BothMeshes(a, b);
   // Particles from 4 cm inside either box (within max_penetration, so the search reaches
   // both boxes' surfaces) to 5 cm outside the union, near faces, edges and corners alike,
   // moving at up to 1 m/s.
@@ -399,13 +405,7 @@ TEST(MeshCollider, ParticleInAPinchNarrowerThanTwoShellsGoesMidway) {
   const Eigen::Vector3d center_a(-0.101, 1.0, 0.0), center_b(0.101, 1.0, 0.0);
   const TestMesh a = test::TessellatedBox(center_a, half, Eigen::Vector3i(5, 8, 8));
   const TestMesh b = test::TessellatedBox(center_b, half, Eigen::Vector3i(5, 8, 8));
-  TestMesh both;
-  both.vertices.resize(a.vertices.rows() + b.vertices.rows(), 3);
-  both.vertices << a.vertices, b.vertices;
-  both.triangles = a.triangles;
-  for (const Eigen::Vector3i& t : b.triangles) {
-    both.triangles.push_back(t + Eigen::Vector3i::Constant(static_cast<int>(a.vertices.rows())));
-  }
+  const TestMesh both = BothMeshes(a, b);
   BodyCollisionSettings settings;
   settings.thickness = 0.004;
   MeshCollider collider(RigidAvatar(both), settings);
