@@ -3,6 +3,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <iterator>
 #include <map>
 
 namespace costume::sim {
@@ -173,7 +174,7 @@ void LabelCellDiagonals(std::map<std::pair<int, int>, bool>& pairs, int num_coar
 std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
                                                 const std::vector<std::vector<int>>& nbrs,
                                                 const std::vector<std::vector<int>>& sources,
-                                                const std::vector<int>& kept) {
+                                                const std::vector<int>& kept, int num_coarse) {
   std::map<std::pair<int, int>, bool> pairs;
   const Points& x = fine.rest_positions();
   for (std::size_t f = 0; f < nbrs.size(); ++f) {
@@ -203,7 +204,7 @@ std::map<std::pair<int, int>, bool> CoarsePairs(const ClothModel& fine,
       }
     }
   }
-  LabelCellDiagonals(pairs, *std::max_element(kept.begin(), kept.end()) + 1);
+  LabelCellDiagonals(pairs, num_coarse);
   return pairs;
 }
 
@@ -306,7 +307,8 @@ void AddStretchShearSprings(const ClothModel& fine, const std::vector<std::vecto
                             const std::vector<std::vector<int>>& sources, MeshCoarsening& out) {
   ClothModelData& data = out.coarse;
   std::vector<Spring> springs;
-  for (const auto& [pair, structural] : CoarsePairs(fine, nbrs, sources, out.kept)) {
+  const int num_coarse = static_cast<int>(out.fine_index.size());
+  for (const auto& [pair, structural] : CoarsePairs(fine, nbrs, sources, out.kept, num_coarse)) {
     Spring s;
     s.a = pair.first;
     s.b = pair.second;
