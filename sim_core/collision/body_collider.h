@@ -5,6 +5,7 @@
 /// run time.
 
 #include <Eigen/Geometry>
+#include <span>
 #include <vector>
 
 #include "sim_core/cloth/cloth_model.h"
@@ -43,6 +44,15 @@ struct BodyCollisionStats {
   int num_buried = 0;
 };
 
+/// Removes particle `i`'s velocity into the body along the outward `normal`, relative to
+/// the velocity of the body's surface there [m/s]: what a position correction does to the
+/// velocity of a particle it moves.
+inline void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
+                                 const Eigen::Vector3d& surface_velocity, Points& velocities) {
+  const double inward = (velocities.row(i).transpose() - surface_velocity).dot(normal);
+  if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
+}
+
 class BodyCollider {
  public:
   virtual ~BodyCollider() = default;
@@ -65,6 +75,14 @@ class BodyCollider {
   /// into the body relative to the body (the paper's position correction). Returns the
   /// deepest penetration before the correction [m]. Never throws.
   virtual double ProjectOut(Points& positions, Points& velocities) = 0;
+  /// The least correction that leaves none of the listed `particles` (rows of `positions`)
+  /// inside the body, at their cost: one inside the skin itself moves onto the skin (not
+  /// the shell), and its velocity into the body is removed; one within the thickness stays.
+  /// For the few particles self-collision moved after ProjectOut, whose moves it must undo
+  /// no more than it has to. Returns the deepest penetration of the skin before the
+  /// correction [m]. Never throws.
+  virtual double ProjectOutOfSkin(Points& positions, Points& velocities,
+                                  std::span<const int> particles) = 0;
 
   virtual BodyCollisionStats stats() const = 0;
 

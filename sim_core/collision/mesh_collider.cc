@@ -1268,58 +1268,84 @@ void MeshCollider::TestClothNode(int k, int first, int count, const Points& posi
 
 double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   if (positions.rows() != velocities.rows()) return 0.0;
-  const double shell = settings_.thickness;
-  const double reach = shell + options_.max_penetration;
+  const Correction how = CorrectionFor(positions, settings_.thickness);
   double deepest = 0.0;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    deepest = std::max(deepest, ProjectParticleOut(i, how, positions, velocities));
+  }
+  return deepest;
+}
+
+double MeshCollider::ProjectOutOfSkin(Points& positions, Points& velocities,
+                                      std::span<const int> particles) {
+  if (positions.rows() != velocities.rows()) return 0.0;
+  const Correction how = CorrectionFor(positions, 0.0);
+  double deepest = 0.0;
+  for (const int i : particles) {
+    deepest = std::max(deepest, ProjectParticleOut(i, how, positions, velocities));
+  }
+  return deepest;
+}
+
+MeshCollider::Correction MeshCollider::CorrectionFor(const Points& positions,
+                                                    double shell) const {
+  Correction how;
+  how.shell = shell;
+  how.reach = settings_.thickness + options_.max_penetration;
   // The memory FindContacts left, when it was given these particles.
-  const bool remembered =
+  how.remembered =
       UsesMemory() &&
       memory_.size() == static_cast<std::size_t>(normals_.num_pieces() * positions.rows());
-  const bool near_known = near_piece_.size() == static_cast<std::size_t>(positions.rows());
-  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    // In a crease between two pieces (the back of a bent knee) moving out of one can move a
-    // particle into the other: a few alternating passes, as the superquadric collider does.
-    Eigen::Vector3d pushed = Eigen::Vector3d::Zero();  // the last pass's push direction
-    for (int pass = 0; pass < kMeshProjectionPasses; ++pass) {
-      const Eigen::Vector3d x = positions.row(i).transpose();
-      if (!x.allFinite()) break;
-      const Nearest nearest =
-          Query(x, reach, shell, 0.0, remembered ? static_cast<int>(i) : -1, Source{});
-      // The piece whose skin was within reach at the step's start has none within reach
-      // now: the particle left it by more than max_penetration in one step, or the skin
-      // swept over it (a kicking leg through loose trousers) and it is deeper than that.
-      if (pass == 0 && options_.find_buried && near_known && near_piece_[i] >= 0 &&
-          SearchedBeyondReach(near_piece_[i])) {
-        const double depth = ProjectOutLost(i, positions, velocities);
-        if (depth > 0.0) {
-          deepest = std::max(deepest, depth);
-          continue;  // out of that piece: into another?
-        }
+  how.near_known = near_piece_.size() == static_cast<std::size_t>(positions.rows());
+  return how;
+}
+
+double MeshCollider::ProjectParticleOut(Eigen::Index i, const Correction& how,
+                                        Points& positions, Points& velocities) {
+  const double shell = how.shell, reach = how.reach;
+  double deepest = 0.0;
+  // In a crease between two pieces (the back of a bent knee) moving out of one can move a
+  // particle into the other: a few alternating passes, as the superquadric collider does.
+  Eigen::Vector3d pushed = Eigen::Vector3d::Zero();  // the last pass's push direction
+  for (int pass = 0; pass < kMeshProjectionPasses; ++pass) {
+    const Eigen::Vector3d x = positions.row(i).transpose();
+    if (!x.allFinite()) break;
+    const Nearest nearest =
+        Query(x, reach, shell, 0.0, how.remembered ? static_cast<int>(i) : -1, Source{});
+    // The piece whose skin was within reach at the step's start has none within reach
+    // now: the particle left it by more than max_penetration in one step, or the skin
+    // swept over it (a kicking leg through loose trousers) and it is deeper than that.
+    if (pass == 0 && options_.find_buried && how.near_known && near_piece_[i] >= 0 &&
+        SearchedBeyondReach(near_piece_[i])) {
+      const double depth = ProjectOutLost(i, positions, velocities);
+      if (depth > 0.0) {
+        deepest = std::max(deepest, depth);
+        continue;  // out of that piece: into another?
       }
-      if (!nearest.found) break;
-      if (nearest.signed_distance >= shell) {
-        // Outside by its nearest triangle, which buried skin can belie.
-        if (options_.find_buried && nearest.signed_distance < reach) {
-          deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, nearest.piece,
-                                                       positions, velocities));
-        }
-        break;
-      }
-      if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
-      const double facing = pass > 0 ? pushed.dot(nearest.normal) : 0.0;
-      if (facing < -0.5) {
-        // A pinch: the skin the last pass pushed the particle out of faces this one across
-        // a gap narrower than two shells (an arm against the torso). Pushing out of this one
-        // would push it as deep into that one; midway its signed distances to both are equal.
-        const double t = (nearest.signed_distance - shell) / (1.0 - facing);
-        positions.row(i) += t * pushed.transpose();
-        RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
-        break;
-      }
-      positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
-      RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
-      pushed = nearest.normal;
     }
+    if (!nearest.found) break;
+    if (nearest.signed_distance >= shell) {
+      // Outside by its nearest triangle, which buried skin can belie.
+      if (options_.find_buried && nearest.signed_distance < reach) {
+        deepest = std::max(deepest, ProjectOutBuried(i, nearest.normal, nearest.piece,
+                                                     positions, velocities));
+      }
+      break;
+    }
+    if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
+    const double facing = pass > 0 ? pushed.dot(nearest.normal) : 0.0;
+    if (facing < -0.5) {
+      // A pinch: the skin the last pass pushed the particle out of faces this one across
+      // a gap narrower than two shells (an arm against the torso). Pushing out of this one
+      // would push it as deep into that one; midway its signed distances to both are equal.
+      const double t = (nearest.signed_distance - shell) / (1.0 - facing);
+      positions.row(i) += t * pushed.transpose();
+      RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
+      break;
+    }
+    positions.row(i) += (shell - nearest.signed_distance) * nearest.normal.transpose();
+    RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
+    pushed = nearest.normal;
   }
   return deepest;
 }
@@ -1330,13 +1356,6 @@ Eigen::Vector3d MeshCollider::SurfaceVelocity(int triangle,
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) velocity += weights[k] * vertex_velocities_.row(tri[k]).transpose();
   return velocity;
-}
-
-void MeshCollider::RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
-                                        const Eigen::Vector3d& surface_velocity,
-                                        Points& velocities) const {
-  const double inward = (velocities.row(i).transpose() - surface_velocity).dot(normal);
-  if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
 }
 
 bool MeshCollider::SearchedBeyondReach(int piece) const {

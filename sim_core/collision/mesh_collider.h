@@ -40,6 +40,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "sim_core/avatar/avatar.h"
@@ -179,6 +180,9 @@ class MeshCollider : public BodyCollider {
   /// FindContacts last had as many particles.
   /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
+  /// See BodyCollider: the above for the listed particles, onto the skin.
+  double ProjectOutOfSkin(Points& positions, Points& velocities,
+                          std::span<const int> particles) override;
 
   BodyCollisionStats stats() const override { return stats_; }
   void SetFriction(double friction) override { settings_.friction = friction; }
@@ -298,9 +302,6 @@ class MeshCollider : public BodyCollider {
   void Refit(bool all);
   /// The skin's velocity [m/s] at barycentric `weights` of `triangle`.
   Eigen::Vector3d SurfaceVelocity(int triangle, const Eigen::Vector3d& weights) const;
-  /// Removes particle i's velocity into the skin along `normal`, relative to the skin's.
-  void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
-                            const Eigen::Vector3d& surface_velocity, Points& velocities) const;
   /// Moves particle i out of the skin when it is inside by the winding number though its
   /// nearest triangle (of piece `folded`; `outward` [-] points away from it) puts it
   /// outside: exits up to kLostParticleSearch away in `folded`, max_penetration in other
@@ -313,6 +314,18 @@ class MeshCollider : public BodyCollider {
   /// the shell it had [m], 0 when it was not inside or no exit would do.
   double ProjectOutOfPiece(Eigen::Index i, int piece, const Eigen::Vector3d& outward,
                            double max_depth, Points& positions, Points& velocities);
+  /// What every particle's correction in one ProjectOut shares.
+  struct Correction {
+    double shell = 0.0;  // how far off the skin particles go [m]: the thickness, or 0
+    double reach = 0.0;  // the thickness plus max_penetration [m]
+    bool remembered = false;  // FindContacts left its memory for these particles
+    bool near_known = false;  // and near_piece_ for them
+  };
+  Correction CorrectionFor(const Points& positions, double shell) const;
+  /// ProjectOut for particle `i`, onto `how.shell`: its depth below that before the
+  /// correction [m], 0 when it was outside.
+  double ProjectParticleOut(Eigen::Index i, const Correction& how, Points& positions,
+                            Points& velocities);
   /// Particle i had skin of piece near_piece_[i] within reach when FindContacts ran, and
   /// none now: when it is inside that piece, out along the nearest exit within
   /// kLostParticleSearch (ProjectOutOfPiece). Returns its depth below the shell [m].

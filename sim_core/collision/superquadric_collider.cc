@@ -1127,66 +1127,101 @@ bool SuperquadricCollider::EscapePinch(const Eigen::Vector3d& from, const Eigen:
 
 double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
   if (positions.rows() == 0 || segments_.empty()) return 0.0;
+  CullSegmentsAtEnd(positions);
+  double deepest = 0.0;
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    deepest = std::max(deepest, ProjectParticleOut(i, 0.0, positions, velocities));
+  }
+  return deepest;
+}
+
+double SuperquadricCollider::ProjectOutOfSkin(Points& positions, Points& velocities,
+                                              std::span<const int> particles) {
+  if (particles.empty() || segments_.empty()) return 0.0;
+  CullSegmentsAtEnd(positions);  // all of them: a box over a few would save little
+  double deepest = 0.0;
+  for (const int i : particles) {
+    deepest = std::max(deepest,
+                       ProjectParticleOut(i, settings_.thickness, positions, velocities));
+  }
+  return deepest;
+}
+
+void SuperquadricCollider::CullSegmentsAtEnd(const Points& positions) {
   Eigen::Vector3d lo, hi;
   BoundingBox(positions, lo, hi);
   CullSegments(/*at_end=*/true, lo, hi, 0.0);
+}
+
+double SuperquadricCollider::ProjectParticleOut(Eigen::Index i, double allowance,
+                                                Points& positions, Points& velocities) {
+  // The most penetrated shell only, along its normal: a push along the ray from the centre
+  // of an elongated segment (a thigh) would slide the cloth along the limb and tear it
+  // where two segments overlap at a joint.
+  // A few passes: out of one shell can be into its neighbour's where segments overlap at
+  // a joint, and the normal gap of a deep point is only an estimate.
   double deepest = 0.0;
-  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    // The most penetrated shell only, along its normal: a push along the ray from the centre
-    // of an elongated segment (a thigh) would slide the cloth along the limb and tear it
-    // where two segments overlap at a joint.
-    // A few passes: out of one shell can be into its neighbour's where segments overlap at
-    // a joint, and the normal gap of a deep point is only an estimate.
-    double least_depth = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d least_deep = Eigen::Vector3d::Zero();
-    bool settled = false;
-    // The outward normals of the last two pushes: opposed, they are a crease's two walls.
-    Eigen::Vector3d last_normal = Eigen::Vector3d::Zero(), normal_before = last_normal;
-    for (int pass = 0; pass < kProjectionPasses; ++pass) {
-      const Eigen::Vector3d x = positions.row(i).transpose();
-      double gap;
-      Eigen::Vector3d normal, body_velocity;
-      // A first reading is checked where it puts the particle inside the skin itself; a
-      // later one, after a push that should have put it on the shell, wherever it still
-      // finds it a millimetre in (docs/collision.md, "Readings checked against the skin").
-      const double checked_depth = pass == 0 ? settings_.thickness : kRecheckedDepth;
-      if (!Penetration(x, checked_depth, gap, normal, body_velocity)) {
-        settled = true;
-        break;
-      }
-      if (pass == 0) deepest = std::max(deepest, -gap);
-      if (-gap < least_depth) {
-        least_depth = -gap;
-        least_deep = x;
-      }
-      normal_before = last_normal;
-      last_normal = normal;
-      positions.row(i) = (x - gap * normal).transpose();
-      const double inward = (velocities.row(i).transpose() - body_velocity).dot(normal);
-      if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
-    }
-    if (settled) continue;
-    // Two shells pinching the particle (a crease narrower than two thicknesses, between
-    // MakeHuman's thighs) throw it back and forth with every pass, and the last push may
-    // land it anywhere (the suit's walk: 1.2–2.1 mm deep in alternate shells for seven
-    // passes, then a push of 10.7 mm left it 3.2 mm inside the skin). It goes back to the
-    // least deep place it was pushed through, unless where it ended is less deep still.
-    // Where the two walls close on it (an arm swinging in), no place between them is out:
-    // it leaves the crease where it opens, if it can.
-    Eigen::Vector3d escaped;
-    if (EscapePinch(least_deep, normal_before, last_normal, escaped)) {
-      positions.row(i) = escaped.transpose();
-      continue;
-    }
+  Unsettled unsettled;
+  for (int pass = 0; pass < kProjectionPasses; ++pass) {
+    const Eigen::Vector3d x = positions.row(i).transpose();
     double gap;
     Eigen::Vector3d normal, body_velocity;
-    if (Penetration(positions.row(i).transpose(), settings_.thickness, gap, normal,
-                    body_velocity) &&
-        -gap > least_depth) {
-      positions.row(i) = least_deep.transpose();
+    // A first reading is checked where it puts the particle inside the skin itself; a
+    // later one, after a push that should have put it on the shell, wherever it still
+    // finds it a millimetre in (docs/collision.md, "Readings checked against the skin").
+    const double checked_depth = pass == 0 ? settings_.thickness : kRecheckedDepth;
+    if (!Penetration(x, checked_depth, gap, normal, body_velocity)) return deepest;
+    const double depth = -gap - allowance;
+    if (depth <= 0.0) return deepest;
+    if (pass == 0) deepest = depth;
+    if (depth < unsettled.least_depth) {
+      unsettled.least_depth = depth;
+      unsettled.least_deep = x;
     }
+    unsettled.normal_before = unsettled.last_normal;
+    unsettled.last_normal = normal;
+    positions.row(i) = (x + depth * normal).transpose();
+    RemoveInwardVelocity(i, normal, body_velocity, velocities);
   }
+  PlaceUnsettled(i, allowance, unsettled, positions, velocities);
   return deepest;
+}
+
+// Two shells pinching the particle (a crease narrower than two thicknesses, between
+// MakeHuman's thighs) throw it back and forth with every pass, and the last push may land
+// it anywhere (the suit's walk: 1.2–2.1 mm deep in alternate shells for seven passes, then
+// a push of 10.7 mm left it 3.2 mm inside the skin). Where the two walls close on it (an
+// arm swinging in), no place between them is out: it leaves the crease where it opens, if
+// it can. Else it goes midway between the two walls, where it is as deep in each
+// (MeshCollider's pinch rule; at the suit's armpit, back to the least deep place left it
+// 3.5 mm inside the skin), or back to the least deep place it was pushed through, or
+// stays, whichever is least deep.
+void SuperquadricCollider::PlaceUnsettled(Eigen::Index i, double allowance,
+                                          const Unsettled& unsettled, Points& positions,
+                                          Points& velocities) {
+  Eigen::Vector3d escaped;
+  if (EscapePinch(unsettled.least_deep, unsettled.normal_before, unsettled.last_normal,
+                  escaped)) {
+    positions.row(i) = escaped.transpose();
+    return;
+  }
+  double gap;
+  Eigen::Vector3d normal, body_velocity;
+  if (!Penetration(positions.row(i).transpose(), settings_.thickness, gap, normal,
+                   body_velocity)) {
+    return;
+  }
+  const double depth = -gap - allowance;
+  if (depth <= 0.0) return;
+  // Back along the last push by `back`, the depth in both walls to first order.
+  const double facing = normal.dot(unsettled.last_normal);
+  const double back = facing < -0.5 ? depth / (1.0 - facing) : depth;
+  if (back < std::min(unsettled.least_depth, depth)) {
+    positions.row(i) -= back * unsettled.last_normal.transpose();
+    RemoveInwardVelocity(i, normal, body_velocity, velocities);
+  } else if (depth > unsettled.least_depth) {
+    positions.row(i) = unsettled.least_deep.transpose();
+  }
 }
 
 }  // namespace costume::sim

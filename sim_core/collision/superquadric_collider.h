@@ -45,8 +45,10 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <limits>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -361,9 +363,13 @@ class SuperquadricCollider : public BodyCollider {
   /// skin checked against the skin's triangles, Penetration), and its velocity into the
   /// body (relative to the body's surface velocity) is removed; a few passes, for shells
   /// overlapping at joints. A particle still inside after them goes out of a closing crease
-  /// (EscapePinch), or else back to the least deep place it went through. Returns the
-  /// deepest normal penetration [m]. Never throws or allocates.
+  /// (EscapePinch), or else midway between two opposed walls or back to the least deep
+  /// place it went through (PlaceUnsettled). Returns the deepest normal penetration [m].
+  /// Never throws or allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
+  /// See BodyCollider: the above for the listed particles, onto the skin.
+  double ProjectOutOfSkin(Points& positions, Points& velocities,
+                          std::span<const int> particles) override;
 
   BodyCollisionStats stats() const override { return stats_; }
   /// The avatar it was built for.
@@ -464,6 +470,26 @@ class SuperquadricCollider : public BodyCollider {
   bool CheckedShell(const Eigen::Vector3d& x, double checked_depth, double& gap,
                     Eigen::Vector3d& normal, Eigen::Vector3d& body_velocity,
                     Undecided& undecided);
+  /// Culls the segments against the box of `positions` at the end of the step (CullSegments).
+  void CullSegmentsAtEnd(const Points& positions);
+  /// ProjectOut for particle `i`, onto the surface `allowance` [m] below the shell (0: the
+  /// shell; the thickness: the skin): its normal penetration of that surface before the
+  /// correction [m], 0 when it was outside.
+  double ProjectParticleOut(Eigen::Index i, double allowance, Points& positions,
+                            Points& velocities);
+  /// Where ProjectParticleOut's passes left a particle still inside: the least deep place
+  /// they went through and its depth [m], and the outward normals of the last two pushes.
+  struct Unsettled {
+    Eigen::Vector3d least_deep = Eigen::Vector3d::Zero();
+    double least_depth = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d normal_before = Eigen::Vector3d::Zero();
+    Eigen::Vector3d last_normal = Eigen::Vector3d::Zero();
+  };
+  /// Particle i after ProjectParticleOut's passes, still inside: out of a closing crease
+  /// (EscapePinch), else midway between two opposed walls, back to the least deep place, or
+  /// left, whichever is least deep.
+  void PlaceUnsettled(Eigen::Index i, double allowance, const Unsettled& unsettled,
+                      Points& positions, Points& velocities);
   /// A particle that ProjectOut's passes threw between two shells whose last outward
   /// normals `a` and `b` oppose (a crease closing on it) is moved from `from` (world) along
   /// the crease's opening, a + b, to the first place within kPinchEscapeSteps steps of

@@ -231,8 +231,13 @@ class Simulation {
   void ProjectOutOfBody(FrameReport& report);
   /// After self-collision: the body's correction again, and when it moved anything, a second
   /// Resolve over that move with the moved particles held, so that self-collision leaves
-  /// neither cloth in the body nor an edge through the cloth.
+  /// neither cloth in the body nor an edge through the cloth; then the particles that
+  /// Resolve moved into the skin go back onto it (the body wins where both cannot hold).
   void ResolveWhatTheBodyMovesBack(double h, FrameReport& report);
+  /// BodyCollider::ProjectOutOfSkin for the particles that moved from `before_move_`.
+  void ProjectOutWhatResolveMoved(FrameReport& report);
+  /// Puts the attached particles where the body holds them.
+  void PlaceAttachments();
   void AddBodyStats(FrameReport& report) const;
   /// The particles the body holds in this step, for self-collision (BodyHold): those with a
   /// contact in this step or the last, and those the body's correction moved (along the move).
@@ -268,6 +273,9 @@ class Simulation {
   Points start_positions_;
   /// Positions before the body's last correction (self-collision only).
   Points solved_positions_;
+  /// Positions before the second Resolve, and the particles it moved (self-collision only).
+  Points before_move_;
+  std::vector<int> moved_by_resolve_;
   /// This step's and the last step's body holds, and each particle's hold (or -1).
   std::vector<BodyHold> body_holds_, previous_holds_;
   std::vector<int> hold_of_;

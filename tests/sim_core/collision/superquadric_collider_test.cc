@@ -1117,21 +1117,44 @@ Eigen::Vector3d ProjectedAlone(SuperquadricCollider& collider, const Eigen::Vect
   return positions.row(0).transpose();
 }
 
+/// `start` after ProjectOut alone between two parallel upright capsules `gap` [m] apart,
+/// skin to skin, on either side of x = 0 (TwoCapsules); `frames` gets their joint frames.
+Eigen::Vector3d ProjectedBetweenParallelCapsules(double gap, const Eigen::Vector3d& start,
+                                                 std::array<Eigen::Isometry3d, 2>& frames) {
+  const std::shared_ptr<const Avatar> avatar = TwoCapsules(kRadius + 0.5 * gap, 0.0, frames);
+  const std::unique_ptr<SuperquadricCollider> collider = RestingCollider(avatar);
+  EXPECT_EQ(collider->segments().size(), 2u);
+  return ProjectedAlone(*collider, start);
+}
+
 // Two limbs closer than two cloth thicknesses pinch a particle between their shells (the
 // thighs at MakeHuman's crotch): each push out of one shell is into the other, and the
 // passes throw it back and forth. Two parallel capsules 6 mm apart (hips under an unfitted
 // root) and a particle in the gap, 2.8 and 3.2 mm from their skins, 1.2 and 0.8 mm inside
 // their shells (closed form): every push leaves it 2 mm inside the other shell, so when
-// the passes run out it goes back to the least deep place it went through, its start.
+// the passes run out it goes where it is least deep, midway (3 mm from each skin).
 TEST(SuperquadricCollider, APinchedParticleEndsNoDeeperThanItStarted) {
   std::array<Eigen::Isometry3d, 2> frames;
-  const std::shared_ptr<const Avatar> avatar = TwoCapsules(kRadius + 0.003, 0.0, frames);
-  const std::unique_ptr<SuperquadricCollider> collider = RestingCollider(avatar);
-  ASSERT_EQ(collider->segments().size(), 2u);
   const Eigen::Vector3d start(0.0002, 0.853, 0.001);
+  const Eigen::Vector3d end = ProjectedBetweenParallelCapsules(0.006, start, frames);
   ASSERT_NEAR(NearerCapsuleDistance(frames, start), 0.0028, 2e-5);
   // Without going back it ended 2 mm from one skin, 2 mm inside that shell.
-  EXPECT_GE(NearerCapsuleDistance(frames, ProjectedAlone(*collider, start)), 0.0027);
+  EXPECT_GE(NearerCapsuleDistance(frames, end), 0.0027);
+}
+
+// Skins closer than one thickness (an arm against the torso, 0.5 mm at the suit's armpit
+// in collision_bench --self-collision): each push out of one shell leaves the particle
+// inside the other skin. Two parallel capsules 1 mm apart and a particle 2 mm inside one of
+// them, between the two: every push leaves it 3 mm inside the other skin, as did going
+// back to the least deep place it went through (the suit's particle 1040: 3.5 mm). Midway
+// it is 0.5 mm from each skin (closed form).
+TEST(SuperquadricCollider, AParticlePinchedBetweenSkinsCloserThanAThicknessGoesMidway) {
+  std::array<Eigen::Isometry3d, 2> frames;
+  const Eigen::Vector3d start(0.0025, 0.853, 0.001);
+  const Eigen::Vector3d end = ProjectedBetweenParallelCapsules(0.001, start, frames);
+  ASSERT_NEAR(NearerCapsuleDistance(frames, start), -0.002, 2e-5);
+  EXPECT_NEAR(CapsuleDistance(frames[0].inverse() * end), 0.0005, 2e-4) << end.transpose();
+  EXPECT_NEAR(CapsuleDistance(frames[1].inverse() * end), 0.0005, 2e-4) << end.transpose();
 }
 
 // Where the two walls close in on one side (an arm swinging against the chest, the thighs
