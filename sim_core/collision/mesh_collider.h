@@ -180,7 +180,8 @@ class MeshCollider : public BodyCollider {
   /// FindContacts last had as many particles.
   /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
-  /// See BodyCollider: the above for the listed particles, onto the skin.
+  /// See BodyCollider: the above for the listed particles, onto the skin (a buried or lost
+  /// particle's exit, which ProjectOut finds, still onto the shell).
   double ProjectOutOfSkin(Points& positions, Points& velocities,
                           std::span<const int> particles) override;
 
