@@ -53,6 +53,16 @@ inline void RemoveInwardVelocity(Eigen::Index i, const Eigen::Vector3d& normal,
   if (inward < 0.0) velocities.row(i) -= inward * normal.transpose();
 }
 
+/// Two skins (or shells) whose outward normals have a dot product below this face each
+/// other across a pinch (an arm against the torso, the thighs): a push out of one is into
+/// the other.
+inline constexpr double kPinchFacing = -0.5;
+
+/// In a pinch, a particle on the wall it was last pushed out of and `depth` [m] > 0 inside
+/// the facing wall (normals' dot product `facing` < kPinchFacing) is as deep in both, to
+/// first order, once moved back along that push by this much [m]: midway across the gap.
+inline double PinchMidwayBack(double depth, double facing) { return depth / (1.0 - facing); }
+
 class BodyCollider {
  public:
   virtual ~BodyCollider() = default;

@@ -1334,12 +1334,12 @@ double MeshCollider::ProjectParticleOut(Eigen::Index i, const Correction& how,
     }
     if (pass == 0) deepest = std::max(deepest, shell - nearest.signed_distance);
     const double facing = pass > 0 ? pushed.dot(nearest.normal) : 0.0;
-    if (facing < -0.5) {
+    if (facing < kPinchFacing) {
       // A pinch: the skin the last pass pushed the particle out of faces this one across
       // a gap narrower than two shells (an arm against the torso). Pushing out of this one
       // would push it as deep into that one; midway its signed distances to both are equal.
-      const double t = (nearest.signed_distance - shell) / (1.0 - facing);
-      positions.row(i) += t * pushed.transpose();
+      const double back = PinchMidwayBack(shell - nearest.signed_distance, facing);
+      positions.row(i) -= back * pushed.transpose();
       RemoveInwardVelocity(i, nearest.normal, nearest.surface_velocity, velocities);
       break;
     }

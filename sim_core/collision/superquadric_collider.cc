@@ -1114,7 +1114,7 @@ bool SuperquadricCollider::EscapePinch(const Eigen::Vector3d& from, const Eigen:
   // normals lean towards where the crease opens. Walls nearly parallel (a sum under 0.1
   // long) say nothing of which way that is.
   const Eigen::Vector3d opening = a + b;
-  if (a.dot(b) > -0.5 || opening.norm() < 0.1) return false;
+  if (a.dot(b) > kPinchFacing || opening.norm() < 0.1) return false;
   const Eigen::Vector3d direction = opening.normalized();
   double gap;
   Eigen::Vector3d normal, body_velocity;
@@ -1215,7 +1215,7 @@ void SuperquadricCollider::PlaceUnsettled(Eigen::Index i, double allowance,
   if (depth <= 0.0) return;
   // Back along the last push by `back`, the depth in both walls to first order.
   const double facing = normal.dot(unsettled.last_normal);
-  const double back = facing < -0.5 ? depth / (1.0 - facing) : depth;
+  const double back = facing < kPinchFacing ? PinchMidwayBack(depth, facing) : depth;
   if (back < std::min(unsettled.least_depth, depth)) {
     positions.row(i) -= back * unsettled.last_normal.transpose();
     RemoveInwardVelocity(i, normal, body_velocity, velocities);
