@@ -32,7 +32,6 @@ inline bool HaveData(const fs::path& relative) { return fs::exists(kData / relat
   GTEST_SKIP() << "test data " << (::costume::assets::testing::kData / (relative))    \
                << " not present"
 
-/// A fresh folder for one test's files, removed afterwards.
 /// The bytes of the file at `source`.
 inline std::string ReadBytes(const fs::path& source) {
   std::ifstream in(source, std::ios::binary);
@@ -41,6 +40,7 @@ inline std::string ReadBytes(const fs::path& source) {
   return all.str();
 }
 
+/// A fresh folder for one test's files, removed afterwards.
 class ScratchDir {
  public:
   ScratchDir() {
@@ -57,6 +57,7 @@ class ScratchDir {
   ScratchDir(const ScratchDir&) = delete;
   ScratchDir& operator=(const ScratchDir&) = delete;
 
+  /// Writes `content` to the file `name` in this folder and returns its path.
   std::string Write(const std::string& name, const std::string& content) const {
     const fs::path file = path_ / name;
     std::ofstream(file, std::ios::binary) << content;

@@ -17,6 +17,7 @@
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/mesh_cloth.h"
 #include "sim_core/common/input_error.h"
+#include "tests/assets/import_test_support.h"
 
 namespace costume::assets {
 namespace {
@@ -24,33 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 using sim::InputError;
 using sim::SurfaceMesh;
-
-/// A fresh folder for one test's files, removed afterwards.
-class ScratchDir {
- public:
-  ScratchDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("mesh_import_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::create_directories(path_);
-  }
-  ~ScratchDir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  ScratchDir(const ScratchDir&) = delete;
-  ScratchDir& operator=(const ScratchDir&) = delete;
-
-  /// Writes `content` to the file `name` in this folder and returns its path.
-  std::string Write(const std::string& name, const std::string& content) const {
-    const fs::path file = path_ / name;
-    std::ofstream(file, std::ios::binary) << content;
-    return file.string();
-  }
-
- private:
-  fs::path path_;
-};
+using testing::ScratchDir;
 
 const char* kQuadObj =
     "# a unit square\n"
