@@ -63,7 +63,8 @@ class Tokens {
     const std::string found = Take("'" + word + "'");
     if (found != word) {
       --next_;
-      throw InputError(Where() + ": expected '" + word + "', found '" + Shorten(found) + "'");
+      throw InputError(Where() + ": expected '" + word + "', found '" +
+                       sim::QuoteForMessage(found) + "'");
     }
   }
   double TakeNumber(const std::string& what) {
@@ -72,7 +73,7 @@ class Tokens {
     const double value = std::strtod(word.c_str(), &end);
     if (end != word.c_str() + word.size() || !std::isfinite(value)) {
       --next_;
-      throw InputError(Where() + ": " + what + " is '" + Shorten(word) +
+      throw InputError(Where() + ": " + what + " is '" + sim::QuoteForMessage(word) +
                        "' (allowed: a finite number)");
     }
     return value;
@@ -94,13 +95,6 @@ class Tokens {
   }
 
  private:
-  static std::string Shorten(const std::string& word) {
-    std::string shown = word.size() > 40 ? word.substr(0, 40) + "…" : word;
-    for (char& c : shown) {
-      if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
-    }
-    return shown;
-  }
   std::string path_;
   std::vector<std::string> words_;
   std::vector<int> lines_;
@@ -153,7 +147,7 @@ Channel ParseChannel(Tokens& tokens) {
       return channel;
     }
   }
-  throw InputError(tokens.Where() + ": unknown channel '" + word +
+  throw InputError(tokens.Where() + ": unknown channel '" + sim::QuoteForMessage(word) +
                    "' (allowed: Xposition Yposition Zposition Xrotation Yrotation Zrotation)");
 }
 
@@ -184,7 +178,7 @@ void ParseHierarchy(Tokens& tokens, BvhFile& file) {
     }
     const bool is_root = word == "ROOT" && open.empty();
     if (!is_root && !(word == "JOINT" && !open.empty())) {
-      throw InputError(tokens.Where() + ": unexpected '" + word.substr(0, 40) + "'" +
+      throw InputError(tokens.Where() + ": unexpected '" + sim::QuoteForMessage(word) + "'" +
                        (open.empty() ? " (expected ROOT or MOTION)"
                                      : " (expected JOINT, End Site or '}')"));
     }
@@ -238,14 +232,14 @@ void ParseMotion(Tokens& tokens, BvhFile& file) {
     const auto& [joint, channel] = columns[static_cast<std::size_t>(i % file.num_channels)];
     if (IsRotation(channel) && !(std::abs(value) <= kMaxRotationDegrees)) {
       tokens.RefuseLast("frame " + std::to_string(i / file.num_channels) + ", joint '" +
-                        joint->name + "' " + ChannelName(channel) + " = " +
+                        sim::QuoteForMessage(joint->name) + "' " + ChannelName(channel) + " = " +
                         sim::FormatValue(value) + " degrees (allowed: within ±" +
                         sim::FormatValue(kMaxRotationDegrees) + ")");
     }
     file.values.push_back(value);
   }
   if (!tokens.done()) {
-    throw InputError(tokens.Where() + ": '" + tokens.Peek().substr(0, 40) +
+    throw InputError(tokens.Where() + ": '" + sim::QuoteForMessage(tokens.Peek()) +
                      "' after the last of " + std::to_string(file.num_frames) +
                      " frames (the Frames: count does not match the data)");
   }

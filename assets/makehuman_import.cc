@@ -41,7 +41,7 @@ double ParseNumber(const std::string& where, const std::string& word) {
   char* end = nullptr;
   const double value = std::strtod(word.c_str(), &end);
   if (word.empty() || end != word.c_str() + word.size() || !std::isfinite(value)) {
-    throw InputError(where + ": '" + word.substr(0, 40) + "' is not a finite number");
+    throw InputError(where + ": '" + sim::QuoteForMessage(word) + "' is not a finite number");
   }
   return value;
 }
@@ -52,9 +52,9 @@ int ParseCorner(const std::string& where, const std::string& word, int num_verti
   const double value = ParseNumber(where, index);
   const double resolved = value < 0 ? num_vertices + value : value - 1;
   if (value == 0 || value != std::floor(value) || resolved < 0 || resolved >= num_vertices) {
-    throw InputError(where + ": face index " + index + " out of range (allowed: 1.." +
-                     std::to_string(num_vertices) + " or -1..-" + std::to_string(num_vertices) +
-                     " for the vertices read so far)");
+    throw InputError(where + ": face index " + sim::QuoteForMessage(index) +
+                     " out of range (allowed: 1.." + std::to_string(num_vertices) + " or -1..-" +
+                     std::to_string(num_vertices) + " for the vertices read so far)");
   }
   return static_cast<int>(resolved);
 }
@@ -74,7 +74,7 @@ Eigen::Vector3d Centroid(const std::string& where, const json& refs, const ObjMe
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (const json& ref : refs) {
     if (!ref.is_number_integer() || ref.get<long>() < 0 || ref.get<long>() >= obj.vertices.rows()) {
-      throw InputError(where + ": vertex index " + ref.dump().substr(0, 40) +
+      throw InputError(where + ": vertex index " + sim::QuoteForMessage(ref.dump()) +
                        " out of range (allowed: 0.." + std::to_string(obj.vertices.rows() - 1) + ")");
     }
     sum += obj.vertices.row(ref.get<long>()).transpose();

@@ -27,7 +27,7 @@ std::vector<std::uint8_t> PackBundle(const std::vector<BundleFile>& files) {
   std::set<std::string> names;
   for (const BundleFile& file : files) {
     if (!IsPlainName(file.name) || !names.insert(file.name).second) {
-      throw sim::InputError("bundle: file name '" + file.name +
+      throw sim::InputError("bundle: file name '" + sim::QuoteForMessage(file.name) +
                             "' must be a plain, unique file name");
     }
     const std::string head = file.name + "\n" + std::to_string(file.bytes.size()) + "\n";
@@ -58,12 +58,13 @@ std::vector<BundleFile> UnpackBundle(const std::vector<std::uint8_t>& bytes,
     BundleFile file;
     file.name = line();
     if (!IsPlainName(file.name) || !names.insert(file.name).second) {
-      fail("file name '" + file.name + "' is not a plain, unique file name");
+      fail("file name '" + sim::QuoteForMessage(file.name) + "' is not a plain, unique file name");
     }
     const std::string size_text = line();
     if (size_text.empty() || size_text.size() > 12 ||
         size_text.find_first_not_of("0123456789") != std::string::npos) {
-      fail("file '" + file.name + "': size '" + size_text + "' is not a number");
+      fail("file '" + file.name + "': size '" + sim::QuoteForMessage(size_text) +
+           "' is not a number");
     }
     const std::size_t size = std::stoull(size_text);
     if (size + 1 > bytes.size() - at) fail("file '" + file.name + "' is truncated");

@@ -163,16 +163,6 @@ bool IsPostgresUrl(const std::string& url) {
 /// line of `costume-catalog list`; 200 bytes is some 50–200 characters of UTF-8.
 constexpr std::size_t kMaxNameBytes = 200;
 
-/// `text` as a message can show it: control characters as '?', cut after 40 bytes.
-std::string Shown(const std::string& text) {
-  std::string shown = text.size() > 40 ? text.substr(0, 40) + "…" : text;
-  for (char& c : shown) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (byte < 0x20 || byte == 0x7f) c = '?';
-  }
-  return shown;
-}
-
 /// Throws InputError unless `text` is at most kMaxNameBytes long, holds no control character
 /// (a line break split `list`'s rows) and, when `required`, is not empty.
 void RequireName(const std::string& where, const std::string& field, const std::string& text,
@@ -182,7 +172,7 @@ void RequireName(const std::string& where, const std::string& field, const std::
     return byte < 0x20 || byte == 0x7f;
   });
   if ((required && text.empty()) || text.size() > kMaxNameBytes || control) {
-    throw sim::InputError(where + ": " + field + " '" + Shown(text) + "' (" +
+    throw sim::InputError(where + ": " + field + " '" + sim::QuoteForMessage(text) + "' (" +
                           std::to_string(text.size()) + " bytes) is not allowed: " +
                           (required ? "1" : "0") + " to " + std::to_string(kMaxNameBytes) +
                           " bytes without control characters such as line breaks");

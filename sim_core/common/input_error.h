@@ -3,9 +3,11 @@
 /// The one error type thrown while loading, building and validating user input.
 /// Hot paths (the solver step) never throw: they report trouble through StepReport flags.
 
+#include <cstddef>
 #include <initializer_list>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace costume::sim {
 
@@ -25,6 +27,12 @@ std::string FormatValue(double value);
 /// `open` and `close` and separated by ", " ("(1, nan, 0)").
 std::string FormatValues(std::initializer_list<double> values, const char* open = "(",
                          const char* close = ")");
+
+/// `text` from a file or a user, as a message quotes it: at most `max_bytes` of it (never a
+/// character cut in two), then "…" if there was more; control characters and bytes that are
+/// not UTF-8 as \xNN (a damaged file's word "1.\xb497" says which byte is wrong, where the
+/// raw byte would print as nothing or as the terminal's replacement mark).
+std::string QuoteForMessage(std::string_view text, std::size_t max_bytes = 40);
 
 /// Throws InputError unless `value` is finite and value > 0.
 /// `field` names the offending field, e.g. "material.density".

@@ -99,7 +99,8 @@ TEST(BvhImport, MalformedTextNamesFileAndLine) {
         Case{good.substr(0, good.size() - 4), "ends in frame 0 of 1"},
         Case{good + "7\n", "does not match"},
         Case{"HIERARCHY\nROOT a\n{\n OFFSET 0 0 0\n CHANNELS 9\n", "0..6"},
-        Case{"MOTION\n", "expected 'HIERARCHY'"}}) {
+        Case{"MOTION\n", "expected 'HIERARCHY'"},
+        Case{"HIERARCHY\nROOT a\n{\n OFFSET 0 \x10" "1 0\n", "OFFSET value is '\\x101'"}}) {
     try {
       LoadClip(dir.Write("bad.bvh", c.text));
       ADD_FAILURE() << "no error for: " << c.text;

@@ -245,6 +245,15 @@ TEST(MakeHumanImport, ObjReaderKeepsOrderAndRefusesBadIndices) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("bad.obj:3"), std::string::npos) << e.what();
   }
+  // A byte flipped in a number (tools/fuzz_import.py) is named, not printed raw.
+  try {
+    ReadObj(dir.Write("flipped.obj", "v 0 0 0\nv 1.\xb4" "97 0 0\n"));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("flipped.obj:2: '1.\\xb497' is not a finite number"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace
