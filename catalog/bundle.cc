@@ -60,17 +60,17 @@ std::vector<BundleFile> UnpackBundle(const std::vector<std::uint8_t>& bytes,
     if (!IsPlainName(file.name) || !names.insert(file.name).second) {
       fail("file name '" + sim::QuoteForMessage(file.name) + "' is not a plain, unique file name");
     }
+    const std::string shown = "file '" + sim::QuoteForMessage(file.name, 255) + "'";
     const std::string size_text = line();
     if (size_text.empty() || size_text.size() > 12 ||
         size_text.find_first_not_of("0123456789") != std::string::npos) {
-      fail("file '" + file.name + "': size '" + sim::QuoteForMessage(size_text) +
-           "' is not a number");
+      fail(shown + ": size '" + sim::QuoteForMessage(size_text) + "' is not a number");
     }
     const std::size_t size = std::stoull(size_text);
-    if (size + 1 > bytes.size() - at) fail("file '" + file.name + "' is truncated");
+    if (size + 1 > bytes.size() - at) fail(shown + " is truncated");
     file.bytes.assign(bytes.begin() + at, bytes.begin() + at + size);
     at += size;
-    if (bytes[at++] != '\n') fail("file '" + file.name + "' is not followed by a newline");
+    if (bytes[at++] != '\n') fail(shown + " is not followed by a newline");
     files.push_back(std::move(file));
   }
   return files;
