@@ -8,19 +8,16 @@
 #include <vector>
 
 #include "sim_core/common/input_error.h"
+#include "tests/support/refusal.h"
 
 namespace costume::catalog {
 namespace {
 
 std::vector<std::uint8_t> Bytes(const std::string& text) { return {text.begin(), text.end()}; }
 
-std::string RefusalOf(const std::vector<std::uint8_t>& bytes) {
-  try {
-    UnpackBundle(bytes, "garment 'suit'");
-  } catch (const sim::InputError& error) {
-    return error.what();
-  }
-  return "";
+/// What unpacking `bytes` as the stored garment 'suit' says.
+std::string UnpackRefusal(const std::vector<std::uint8_t>& bytes) {
+  return test::RefusalOf([&] { UnpackBundle(bytes, "garment 'suit'"); });
 }
 
 TEST(Bundle, UnpacksWhatItPacked) {
@@ -41,12 +38,12 @@ TEST(Bundle, ADamagedHeaderIsQuotedShortAndEscaped) {
   // The size line's newline lost: the size swallows the file's first kilobyte.
   const std::string size_lost =
       "COSTUME-BUNDLE 1\nbase.obj\n1025" + std::string(1024, '7') + "\n";
-  std::string message = RefusalOf(Bytes(size_lost));
+  std::string message = UnpackRefusal(Bytes(size_lost));
   EXPECT_EQ(message.rfind("garment 'suit': malformed bundle: file 'base.obj': size '", 0), 0u)
       << message;
   EXPECT_LT(message.size(), 150u) << message;
   // A name damaged into a control byte and a path.
-  message = RefusalOf(Bytes("COSTUME-BUNDLE 1\nba\x01se/../x\n1\nv\n"));
+  message = UnpackRefusal(Bytes("COSTUME-BUNDLE 1\nba\x01se/../x\n1\nv\n"));
   EXPECT_NE(message.find("file name 'ba\\x01se/../x' is not a plain"), std::string::npos)
       << message;
 }

@@ -10,20 +10,14 @@
 #include <vector>
 
 #include "sim_core/common/input_error.h"
+#include "tests/support/refusal.h"
 
 namespace costume::sim {
 namespace {
 
 constexpr double kHalfPi = std::numbers::pi / 2.0;
 
-std::string MessageOf(auto&& call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "";
-}
+using test::RefusalOf;
 
 /// Root at the origin, "elbow" 1 m above it.
 std::shared_ptr<const Skeleton> TwoJoints() {
@@ -100,7 +94,7 @@ TEST(Avatar, SegmentOfEachVertexIsItsHeaviestJoints) {
 }
 
 void ExpectRefused(AvatarData data, const std::vector<std::string>& words) {
-  const std::string message = MessageOf([&] { Avatar::Create(std::move(data)); });
+  const std::string message = RefusalOf([&] { Avatar::Create(std::move(data)); });
   ASSERT_FALSE(message.empty()) << "accepted";
   EXPECT_NE(message.find("test body"), std::string::npos) << message;
   for (const std::string& word : words) {

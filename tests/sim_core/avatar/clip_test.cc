@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sim_core/common/input_error.h"
+#include "tests/support/refusal.h"
 
 namespace costume::sim {
 namespace {
@@ -22,14 +23,7 @@ Eigen::Quaterniond About(const Eigen::Vector3d& axis, double degrees) {
   return Eigen::Quaterniond(Eigen::AngleAxisd(degrees * kPi / 180.0, axis.normalized()));
 }
 
-std::string MessageOf(auto&& call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "";
-}
+using test::RefusalOf;
 
 // ---- sampling ---------------------------------------------------------------------------
 
@@ -100,7 +94,7 @@ TEST(SampleClip, NonLoopingClipHoldsItsEnds) {
 TEST(ValidateClip, RefusalsNameTheClipAndField) {
   EXPECT_NO_THROW(ValidateClip(ThreeFrames(true)));
   auto expect = [](const Clip& clip, const std::string& word) {
-    const std::string message = MessageOf([&] { ValidateClip(clip); });
+    const std::string message = RefusalOf([&] { ValidateClip(clip); });
     EXPECT_NE(message.find("clip 'turn'"), std::string::npos) << message;
     EXPECT_NE(message.find(word), std::string::npos) << "'" << word << "' not in: " << message;
   };
@@ -338,7 +332,7 @@ TEST(Retargeter, RefusesSkeletonsWithoutTheLegsAndArms) {
   joints[1].rest_local.translation() = Eigen::Vector3d(0.1, -0.1, 0);
   joints[1].hanim = HAnimJoint::kLHip;
   const auto stub = Skeleton::Create("stub", joints);
-  const std::string message = MessageOf([&] { Retargeter(TestHumanoid(), stub); });
+  const std::string message = RefusalOf([&] { Retargeter(TestHumanoid(), stub); });
   EXPECT_NE(message.find("stub"), std::string::npos) << message;
   EXPECT_NE(message.find("l_knee"), std::string::npos) << message;
   EXPECT_EQ(message.find("l_hip"), std::string::npos) << message;
@@ -351,7 +345,7 @@ TEST(Retargeter, RefusesAThighOfNoLength) {
   collapsed.thigh = 0.0;
   for (bool as_source : {true, false}) {
     const auto bad = TestHumanoid(collapsed);
-    const std::string message = MessageOf(
+    const std::string message = RefusalOf(
         [&] { as_source ? Retargeter(bad, TestHumanoid()) : Retargeter(TestHumanoid(), bad); });
     EXPECT_NE(message.find("l_hip to l_knee is 0 m"), std::string::npos) << message;
     EXPECT_NE(message.find("allowed: at least 0.001 m"), std::string::npos) << message;
@@ -368,7 +362,7 @@ TEST(Retargeter, RefusesHipsAtOnePoint) {
   Variant collapsed;
   collapsed.hip_half_width = 0.0;
   const std::string message =
-      MessageOf([&] { Retargeter(TestHumanoid(collapsed), TestHumanoid()); });
+      RefusalOf([&] { Retargeter(TestHumanoid(collapsed), TestHumanoid()); });
   EXPECT_NE(message.find("l_hip and r_hip are 0 m apart"), std::string::npos) << message;
   EXPECT_NE(message.find("allowed: at least 0.001 m"), std::string::npos) << message;
 }

@@ -11,20 +11,14 @@
 
 #include "sim_core/avatar/hanim.h"
 #include "sim_core/common/input_error.h"
+#include "tests/support/refusal.h"
 
 namespace costume::sim {
 namespace {
 
 constexpr double kHalfPi = std::numbers::pi / 2.0;
 
-std::string MessageOf(auto&& call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "";
-}
+using test::RefusalOf;
 
 Joint MakeJoint(std::string name, int parent, Eigen::Vector3d translation,
                 std::optional<HAnimJoint> hanim = std::nullopt) {
@@ -43,7 +37,7 @@ std::vector<Joint> Chain() {
 }
 
 TEST(SkeletonCreate, RefusesNoJoints) {
-  const std::string message = MessageOf([] { Skeleton::Create("rig", {}); });
+  const std::string message = RefusalOf([] { Skeleton::Create("rig", {}); });
   EXPECT_NE(message.find("rig"), std::string::npos) << message;
   EXPECT_NE(message.find("no joints"), std::string::npos) << message;
 }
@@ -51,12 +45,12 @@ TEST(SkeletonCreate, RefusesNoJoints) {
 TEST(SkeletonCreate, RefusesEmptyAndRepeatedNames) {
   std::vector<Joint> joints = Chain();
   joints[2].name = "hip";
-  std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
   EXPECT_NE(message.find("joint 2"), std::string::npos) << message;
   EXPECT_NE(message.find("'hip'"), std::string::npos) << message;
   EXPECT_NE(message.find("twice"), std::string::npos) << message;
   joints[2].name = "";
-  message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  message = RefusalOf([&] { Skeleton::Create("rig", joints); });
   EXPECT_NE(message.find("empty name"), std::string::npos) << message;
 }
 
@@ -64,7 +58,7 @@ TEST(SkeletonCreate, RefusesParentNotBeforeChild) {
   for (int bad_parent : {2, 3, -2}) {
     std::vector<Joint> joints = Chain();
     joints[2].parent = bad_parent;
-    const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+    const std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
     EXPECT_NE(message.find("'knee'"), std::string::npos) << message;
     EXPECT_NE(message.find("parent index " + std::to_string(bad_parent)), std::string::npos)
         << message;
@@ -82,13 +76,13 @@ TEST(SkeletonCreate, RefusesNonRigidOrNonFiniteRestTransforms) {
   for (const Eigen::Matrix3d& linear : bad_linear) {
     std::vector<Joint> joints = Chain();
     joints[1].rest_local.linear() = linear;
-    const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+    const std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
     EXPECT_NE(message.find("'hip'"), std::string::npos) << message;
     EXPECT_NE(message.find("not a rotation"), std::string::npos) << message;
   }
   std::vector<Joint> joints = Chain();
   joints[1].rest_local.translation().x() = std::nan("");
-  const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  const std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
   EXPECT_NE(message.find("non-finite"), std::string::npos) << message;
 }
 
@@ -98,7 +92,7 @@ TEST(SkeletonCreate, RefusesAnOffsetBeyondAnyStageButKeepsOneAtTheLimit) {
   EXPECT_NO_THROW(Skeleton::Create("rig", joints));
   // Finite, and its square overflows: the coordinate is reported, not an infinite norm.
   joints[1].rest_local.translation() = Eigen::Vector3d(0.0, -2.5e298, 1e298);
-  const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  const std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
   EXPECT_NE(message.find("'hip'): rest offset coordinate 2.5e+298 m (allowed: within ±10000 m"),
             std::string::npos)
       << message;
@@ -110,7 +104,7 @@ TEST(SkeletonCreate, AcceptsRotationsAndRefusesHAnimUsedTwice) {
       Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
   EXPECT_NO_THROW(Skeleton::Create("rig", joints));
   joints[2].hanim = HAnimJoint::kLHip;
-  const std::string message = MessageOf([&] { Skeleton::Create("rig", joints); });
+  const std::string message = RefusalOf([&] { Skeleton::Create("rig", joints); });
   EXPECT_NE(message.find("l_hip"), std::string::npos) << message;
   EXPECT_NE(message.find("twice"), std::string::npos) << message;
 }

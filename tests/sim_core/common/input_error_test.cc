@@ -6,20 +6,15 @@
 #include <cmath>
 #include <limits>
 
+#include "tests/support/refusal.h"
+
 namespace costume::sim {
 namespace {
 
-std::string MessageOf(auto&& call) {
-  try {
-    call();
-  } catch (const InputError& error) {
-    return error.what();
-  }
-  return "";
-}
+using test::RefusalOf;
 
 TEST(RequirePositive, NamesFieldValueAndRange) {
-  const std::string message = MessageOf([] { RequirePositive("material.density", -2.5, "kg/m²"); });
+  const std::string message = RefusalOf([] { RequirePositive("material.density", -2.5, "kg/m²"); });
   EXPECT_NE(message.find("material.density"), std::string::npos);
   EXPECT_NE(message.find("-2.5 kg/m²"), std::string::npos);
   EXPECT_NE(message.find("> 0"), std::string::npos);
@@ -33,14 +28,14 @@ TEST(RequirePositive, RefusesZeroNanAndInfinity) {
 }
 
 TEST(RequireInRange, QuotesBothBounds) {
-  const std::string message = MessageOf([] { RequireInRange("solver.tolerance", 2, 0, 1, ""); });
+  const std::string message = RefusalOf([] { RequireInRange("solver.tolerance", 2, 0, 1, ""); });
   EXPECT_NE(message.find("solver.tolerance = 2"), std::string::npos);
   EXPECT_NE(message.find("allowed 0 to 1"), std::string::npos);
 }
 
 TEST(RequirePositiveAtMost, RefusesZeroAndAboveTheBoundQuotingIt) {
   const std::string message =
-      MessageOf([] { RequirePositiveAtMost("material.density", 150, 100, "kg/m²"); });
+      RefusalOf([] { RequirePositiveAtMost("material.density", 150, 100, "kg/m²"); });
   EXPECT_NE(message.find("material.density = 150 kg/m²"), std::string::npos) << message;
   EXPECT_NE(message.find("above 0 up to 100 kg/m²"), std::string::npos) << message;
   for (double bad : {0.0, -1.0, 100.5, std::nan(""), std::numeric_limits<double>::infinity()}) {
