@@ -1065,20 +1065,27 @@ void SelfCollision::ImpactZones(const Points& start, double h, ClothState& state
 SelfCollisionReport SelfCollision::Resolve(const Points& start_positions, double h,
                                            ClothState& state,
                                            const std::vector<BodyHold>& holds) {
-  return ResolvePath(start_positions, h, state, holds, /*moving_only=*/false);
+  return ResolvePath(start_positions, h, state, holds, PathMode::kWhole);
 }
 
 SelfCollisionReport SelfCollision::ResolveMove(const Points& start_positions, double h,
                                                ClothState& state,
                                                const std::vector<BodyHold>& holds) {
-  return ResolvePath(start_positions, h, state, holds, /*moving_only=*/true);
+  return ResolvePath(start_positions, h, state, holds, PathMode::kMoving);
+}
+
+SelfCollisionReport SelfCollision::ResolveCrossings(const Points& start_positions, double h,
+                                                    ClothState& state,
+                                                    const std::vector<BodyHold>& holds) {
+  return ResolvePath(start_positions, h, state, holds, PathMode::kMovingCrossings);
 }
 
 SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, double h,
                                                ClothState& state,
                                                const std::vector<BodyHold>& holds,
-                                               bool moving_only) {
+                                               PathMode mode) {
   SelfCollisionReport report;
+  const bool moving_only = mode != PathMode::kWhole;
   const Eigen::Index n = model_->num_particles();
   const auto bad_hold = [n](const BodyHold& hold) {
     return hold.particle < 0 || hold.particle >= n || !hold.normal.allFinite();
@@ -1103,9 +1110,10 @@ SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, do
   }
   CollectPairs(settings_.thickness, moving_only ? Candidates::kChanged : Candidates::kAll);
   StartExamining();
-  ProximityStage(start_positions, h, state, report);
-  // The first pass also examines the proximity stage's pairs that it left alone; later
-  // passes only the pairs whose paths the last pass changed or found colliding.
+  if (mode != PathMode::kMovingCrossings) ProximityStage(start_positions, h, state, report);
+  // The first pass also examines the pairs collected above that the proximity stage (when
+  // it ran) left alone; later passes only the pairs whose paths the last pass changed or
+  // found colliding.
   Candidates candidates = Candidates::kKeptAndChanged;
   int found = 1;
   for (int pass = 0; found > 0 && pass < settings_.max_iterations; ++pass) {

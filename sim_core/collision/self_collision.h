@@ -119,6 +119,13 @@ class SelfCollision {
   SelfCollisionReport ResolveMove(const Points& start_positions, double h, ClothState& state,
                                   const std::vector<BodyHold>& holds = {});
 
+  /// ResolveMove without the proximity stage: continuous detection and its impact zones
+  /// only, so the move crosses nothing but may end with layers nearer than the thickness
+  /// (the next Resolve parts them). For a correction that shortens springs, such as the
+  /// strain limit after Resolve: the proximity stage's push-out would stretch them again.
+  SelfCollisionReport ResolveCrossings(const Points& start_positions, double h,
+                                       ClothState& state, const std::vector<BodyHold>& holds = {});
+
   const SelfCollisionSettings& settings() const { return settings_; }
   /// Triangles left out against each other because the rest shape passes through itself
   /// there (the pairs that cross at rest, with two rings of neighbours): a garment modelled
@@ -180,8 +187,14 @@ class SelfCollision {
   void FindRestTangles();
   /// The particles of the triangle pairs that pass through each other in the rest shape.
   std::vector<char> ParticlesOfRestCrossings();
+  /// Which pairs a ResolvePath examines, and whether it keeps them the thickness apart.
+  enum class PathMode {
+    kWhole,            ///< Resolve: every pair
+    kMoving,           ///< ResolveMove: the pairs with a moving particle
+    kMovingCrossings,  ///< ResolveCrossings: those, without the proximity stage
+  };
   SelfCollisionReport ResolvePath(const Points& start_positions, double h, ClothState& state,
-                                  const std::vector<BodyHold>& holds, bool moving_only);
+                                  const std::vector<BodyHold>& holds, PathMode mode);
   void Refit(const Points& start, double h, double margin);
   /// Which primitive pairs a collection gathers.
   enum class Candidates {

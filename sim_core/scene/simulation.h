@@ -224,11 +224,15 @@ class Simulation {
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts(double h);
   /// After the solve: the strain limit, the obstacles' and the body's position corrections,
-  /// the attachments, the grab's feedback, self-collision.
+  /// the attachments, the grab's feedback, self-collision (with the strain limit after it).
   void CorrectAfterSolve(double h, FrameReport& report);
   /// The body's position correction (BodyCollider::ProjectOut) and the attachments; keeps
   /// the solved positions first when self-collision needs them.
   void ProjectOutOfBody(FrameReport& report);
+  /// After self-collision's Resolve: the strain limit again and, when it shortened any
+  /// spring, SelfCollision::ResolveCrossings over that correction (the body's holds kept);
+  /// up to four rounds, until the limit shortens nothing.
+  void LimitWhatSelfCollisionStretched(double h, FrameReport& report);
   /// After self-collision: the body's correction again, and when it moved anything, a second
   /// Resolve over that move with the moved particles held, so that self-collision leaves
   /// neither cloth in the body nor an edge through the cloth; then the particles that
@@ -273,6 +277,8 @@ class Simulation {
   Points start_positions_;
   /// Positions before the body's last correction (self-collision only).
   Points solved_positions_;
+  /// Positions before each round of LimitWhatSelfCollisionStretched's strain limit.
+  Points self_resolved_;
   /// Positions before the second Resolve, and the particles it moved (self-collision only).
   Points before_move_;
   std::vector<int> moved_by_resolve_;

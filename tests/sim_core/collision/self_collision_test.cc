@@ -211,6 +211,39 @@ TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   EXPECT_GE(LowestHeightOfBAboveA(resolved.positions), settings.thickness);
 }
 
+// The strain limit after Resolve shortens springs; ResolveCrossings makes that move
+// crossing-free without the proximity stage, whose push-out to the thickness would stretch
+// them again. Here B, resting 3 mm above A, moves 1 mm down (to 2 mm, within the 4 mm
+// thickness) while C's particle 6 falls through A at 20 m/s: ResolveCrossings stops particle
+// 6 and leaves B where the move put it; ResolveMove, the control, also keeps B off A.
+TEST(SelfCollision, ResolveCrossingsStopsCrossingsAndPushesNothingApart) {
+  const double h = 1.0 / 240.0;
+  const auto model = BRestingAndCFalling();
+  SelfCollision self_collision(model, SelfCollisionSettings{});
+  const Points start = model->rest_positions();
+  const double down = 0.001 / h;  // B's speed [m/s]: 1 mm in the step
+  const ClothState input =
+      EndOfStraightStep(*model, h, {0, 0, 0, -down, -down, -down, -20, 0, 0});
+  ASSERT_EQ(CountCrossingEdges(*model, input.positions), 2);  // edges 6–7 and 6–8
+  ASSERT_NEAR(LowestHeightOfBAboveA(input.positions), 0.002, 1e-12);
+
+  ClothState crossings = input;
+  const SelfCollisionReport report = self_collision.ResolveCrossings(start, h, crossings);
+  EXPECT_FALSE(report.skipped);
+  EXPECT_EQ(report.proximity_impulses, 0);
+  EXPECT_GE(report.collision_impulses, 1);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(*model, crossings.positions), 0);
+  EXPECT_TRUE(crossings.positions.middleRows(3, 3) == input.positions.middleRows(3, 3));
+  // Momentum by hand: 1 g at −20 m/s and 3 g at −0.24 m/s.
+  EXPECT_NEAR(Momentum(*model, crossings.velocities).y(), -0.02 - 3e-3 * down, 1e-14);
+
+  ClothState moved = input;
+  self_collision.ResolveMove(start, h, moved);
+  EXPECT_EQ(CountCrossingEdges(*model, moved.positions), 0);
+  EXPECT_GT(LowestHeightOfBAboveA(moved.positions), 0.0025);  // its approach stopped
+}
+
 // A particle falling at 20 m/s through two layers, B 10 mm above A (farther apart than the
 // thickness, so proximity sees nothing): stopping it on B sets B moving down through A, a
 // collision that the first pass examined before it existed. Later passes examine only the
