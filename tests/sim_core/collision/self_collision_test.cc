@@ -180,6 +180,17 @@ std::shared_ptr<const ClothModel> BRestingAndCFalling() {
   return ThreeTriangles("B resting, C falling", b, 0.05);
 }
 
+/// What a moving-only resolve of BRestingAndCFalling's step must report and leave: particle
+/// 6 stopped by continuous detection alone, no proximity impulse, nothing crossing.
+void ExpectStoppedByDetectionAlone(const SelfCollisionReport& report, const ClothModel& model,
+                                   const ClothState& state) {
+  EXPECT_FALSE(report.skipped);
+  EXPECT_EQ(report.proximity_impulses, 0);
+  EXPECT_GE(report.collision_impulses, 1);
+  EXPECT_EQ(report.remaining_collisions, 0);
+  EXPECT_EQ(CountCrossingEdges(model, state.positions), 0);
+}
+
 // After a step Resolve made collision-free, the body's correction moves a few particles;
 // ResolveMove makes that move collision-free too, examining only what moves. Here C's
 // particle 6 falls through A at 20 m/s while B rests 3 mm above A, within the thickness:
@@ -195,12 +206,7 @@ TEST(SelfCollision, ResolveMoveStopsWhatMovesAndLeavesPairsAtRest) {
   ASSERT_EQ(CountCrossingEdges(*model, input.positions), 2);  // edges 6–7 and 6–8
 
   ClothState moved = input;
-  const SelfCollisionReport report = self_collision.ResolveMove(start, h, moved);
-  EXPECT_FALSE(report.skipped);
-  EXPECT_EQ(report.proximity_impulses, 0);
-  EXPECT_GE(report.collision_impulses, 1);
-  EXPECT_EQ(report.remaining_collisions, 0);
-  EXPECT_EQ(CountCrossingEdges(*model, moved.positions), 0);
+  ExpectStoppedByDetectionAlone(self_collision.ResolveMove(start, h, moved), *model, moved);
   EXPECT_TRUE(moved.positions.middleRows(3, 3) == start.middleRows(3, 3));  // B untouched
   // Momentum by hand: 1 g at −20 m/s.
   EXPECT_NEAR(Momentum(*model, moved.velocities).y(), -0.02, 1e-14);
@@ -228,12 +234,8 @@ TEST(SelfCollision, ResolveCrossingsStopsCrossingsAndPushesNothingApart) {
   ASSERT_NEAR(LowestHeightOfBAboveA(input.positions), 0.002, 1e-12);
 
   ClothState crossings = input;
-  const SelfCollisionReport report = self_collision.ResolveCrossings(start, h, crossings);
-  EXPECT_FALSE(report.skipped);
-  EXPECT_EQ(report.proximity_impulses, 0);
-  EXPECT_GE(report.collision_impulses, 1);
-  EXPECT_EQ(report.remaining_collisions, 0);
-  EXPECT_EQ(CountCrossingEdges(*model, crossings.positions), 0);
+  ExpectStoppedByDetectionAlone(self_collision.ResolveCrossings(start, h, crossings), *model,
+                                crossings);
   EXPECT_TRUE(crossings.positions.middleRows(3, 3) == input.positions.middleRows(3, 3));
   // Momentum by hand: 1 g at −20 m/s and 3 g at −0.24 m/s.
   EXPECT_NEAR(Momentum(*model, crossings.velocities).y(), -0.02 - 3e-3 * down, 1e-14);
