@@ -229,9 +229,9 @@ class Simulation {
   /// The body's position correction (BodyCollider::ProjectOut) and the attachments; keeps
   /// the solved positions first when self-collision needs them.
   void ProjectOutOfBody(FrameReport& report);
-  /// After self-collision's Resolve: the strain limit again and, when it shortened any
-  /// spring, SelfCollision::ResolveCrossings over that correction (the body's holds kept);
-  /// up to four rounds, until the limit shortens nothing.
+  /// After self-collision's Resolve: the strain limit again (16 sweeps) and, when it
+  /// shortened any spring, SelfCollision::ResolveCrossings over that correction (the body's
+  /// holds kept); again while that resolve stops anything, up to four rounds.
   void LimitWhatSelfCollisionStretched(double h, FrameReport& report);
   /// After self-collision: the body's correction again, and when it moved anything, a second
   /// Resolve over that move with the moved particles held, so that self-collision leaves
