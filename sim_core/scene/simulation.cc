@@ -491,8 +491,9 @@ void Simulation::PlaceAttachments() {
 // too, and the path of its correction is made crossing-free again. Only crossing-free:
 // ResolveMove's push-out to the thickness stretched the springs the limit had just
 // shortened. The stops of ResolveCrossings can stretch a few springs again, hence another
-// round when it stopped anything. More sweeps than after the solve, as the impulses stretch further: a patch dropped
-// onto a sheet ended at 17.7 % with 4 sweeps a round, 11.7 % with 8, 10.3 % with 16.
+// round when it stopped anything. More sweeps than after the solve, as the impulses stretch
+// further: a patch dropped onto a sheet ended at 17.7 % with 4 sweeps a round, 11.7 % with
+// 8, 10.3 % with 16.
 void Simulation::LimitWhatSelfCollisionStretched(double h, FrameReport& report) {
   if (scene_.solver.strain_limit <= 0.0) return;
   constexpr int kRounds = 4, kSweeps = 16;
