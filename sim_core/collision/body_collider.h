@@ -76,8 +76,9 @@ class BodyCollider {
 
   /// Appends a contact (contact.h) for each particle that is inside the body's shell
   /// (surface + thickness) or would end the step of length h [s] within `margin` [m] of it
-  /// at its current velocity. The target normal velocity is the body surface's own normal
-  /// velocity plus what brings the particle onto the shell within the step. Never throws.
+  /// at `velocities` (the caller's prediction of the step's). The target normal velocity is
+  /// ContactNormalVelocity's (contact.h): onto the shell from inside; from outside the
+  /// particle's own, never pulling it in. Never throws.
   virtual void FindContacts(const Points& positions, const Points& velocities, double h,
                             double margin, std::vector<Contact>& contacts) = 0;
 

@@ -1149,8 +1149,8 @@ bool MeshCollider::MakeContact(int particle, const Eigen::Vector3d& velocity,
   contact = Contact{};
   contact.particle = particle;
   contact.normal = nearest.normal;
-  contact.target_normal_velocity =
-      nearest.surface_velocity.dot(nearest.normal) + (shell - distance) / h;
+  contact.target_normal_velocity = ContactNormalVelocity(
+      nearest.surface_velocity.dot(nearest.normal), distance - shell, relative_normal_velocity, h);
   contact.friction = settings_.friction;
   return true;
 }

@@ -838,17 +838,20 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
       continue;
     }
     const double body_normal_velocity = body_velocity.dot(normal);
+    const double relative_normal_velocity = v.dot(normal) - body_normal_velocity;
     // Cloth within the margin stays constrained whatever its start velocity, as cloth
     // inside the mesh collider's shell does: the solve may turn back a particle that the
     // start velocity carries off a limb swinging into it (its neighbours pull it), which
     // then ends centimetres inside, and ProjectOut's pushes along the deepest shell thread
     // the cloth through the limb (895 % strain on the kick when only the predicted gap
-    // counted; docs/collision.md). A contact that pulls is released in the next step.
-    if (gap > margin && gap + h * (v.dot(normal) - body_normal_velocity) > margin) continue;
+    // counted; docs/collision.md). The constraint holds a leaving particle's own normal
+    // velocity (ContactNormalVelocity): the solve cannot turn it back, nor is it pulled in.
+    if (gap > margin && gap + h * relative_normal_velocity > margin) continue;
     Contact contact;
     contact.particle = static_cast<int>(i);
     contact.normal = normal;
-    contact.target_normal_velocity = body_normal_velocity - gap / h;
+    contact.target_normal_velocity =
+        ContactNormalVelocity(body_normal_velocity, gap, relative_normal_velocity, h);
     contact.friction = settings_.friction;
     contacts.push_back(contact);
     ++stats_.num_contacts;

@@ -348,9 +348,9 @@ class SuperquadricCollider : public BodyCollider {
   /// pose before the last Update) carrying the map of its end: a particle is in contact
   /// when its normal gap is within the margin (whatever its velocity: cloth resting on a
   /// swinging limb stays constrained), or its predicted gap gap + h·(v − v_body)·n is.
-  /// The target normal velocity is v_body·n − gap/h, the body surface's normal velocity plus
-  /// the correction that brings the particle onto the shell within the step (as
-  /// sphere_contacts.cc, for a moving surface).
+  /// The target normal velocity is ContactNormalVelocity's (contact.h) for the body surface's
+  /// normal velocity v_body·n: a particle within the margin outside the shell keeps its own
+  /// normal velocity, so a leaving one is not stopped and a resting one is not pulled in.
   /// One contact per particle: its most penetrating segment. Segments whose bounding sphere
   /// (grown by the motion of the step) misses the particles' bounding box are skipped;
   /// stats().num_tests counts the particle-segment pairs examined. Preconditions: h > 0,

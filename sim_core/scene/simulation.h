@@ -288,6 +288,9 @@ class Simulation {
   /// The state after the last step that ended finite (KeepFinite).
   ClothState last_finite_;
   std::vector<Contact> contacts_;
+  /// The velocities the particles would have at the end of the step under gravity alone,
+  /// which FindContacts judges contacts by.
+  Points coasting_;
   /// The grab and what it does; `applied_` is what the stepper adds (n×3) [N].
   Grab grab_;
   bool grabbing_ = false;

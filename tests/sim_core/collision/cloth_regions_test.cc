@@ -16,6 +16,7 @@
 #include "sim_core/common/input_error.h"
 #include "tests/sim_core/collision/test_meshes.h"
 
+#include "tests/support/contact_rule.h"
 #include "tests/support/count_mallocs.h"
 
 namespace costume::sim {
@@ -243,7 +244,8 @@ std::vector<ExpectedContact> ClosedFormContacts(const Points& x, const Points& v
     const double d = test::BoxSignedDistance(p, kCenter, kHalf);
     EXPECT_NEAR(d, p.y() - kTop, 1e-12);  // the premise
     if (d >= kThickness && d + kH * v(i, 1) > kThickness + kMargin) continue;
-    contacts.push_back({static_cast<int>(i), (kThickness - d) / kH});
+    contacts.push_back(
+        {static_cast<int>(i), costume::test::ExpectedContactVelocity(0.0, d - kThickness, v(i, 1), kH)});
   }
   return contacts;
 }

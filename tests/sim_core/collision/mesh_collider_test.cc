@@ -16,6 +16,7 @@
 #include "sim_core/collision/surface_geometry.h"
 #include "tests/sim_core/collision/test_meshes.h"
 
+#include "tests/support/contact_rule.h"
 #include "tests/support/count_mallocs.h"
 
 namespace costume::sim {
@@ -182,7 +183,8 @@ std::vector<BruteContact> BruteForceContacts(const TestMesh& mesh, const Points&
     const double relative = (v.row(i).transpose() - body_velocity).dot(normal);
     if (d >= thickness && d + kH * relative > thickness + margin) continue;
     contacts.push_back({static_cast<int>(i), normal,
-                        body_velocity.dot(normal) + (thickness - d) / kH});
+                        costume::test::ExpectedContactVelocity(body_velocity.dot(normal), d - thickness,
+                                                      relative, kH)});
   }
   return contacts;
 }
@@ -365,7 +367,11 @@ TEST(MeshCollider, EachParticleGetsItsNearestOrDeepestTriangleOnTwoOverlappingBo
       ASSERT_EQ(got, expected) << "particle " << i << " at distance " << d;
       if (!got) continue;
       EXPECT_LT((contacts[k].normal - normal).norm(), 1e-9) << i;
-      EXPECT_NEAR(contacts[k].target_normal_velocity, (settings.thickness - d) / kH, 1e-7) << i;
+      EXPECT_NEAR(contacts[k].target_normal_velocity,
+                  costume::test::ExpectedContactVelocity(0.0, d - settings.thickness,
+                                                v.row(i).dot(normal), kH),
+                  1e-7)
+          << i;
       ++k;
     }
     EXPECT_EQ(k, contacts.size());
