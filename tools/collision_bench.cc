@@ -257,7 +257,7 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
   const int first_pass_frames =
       clip ? std::max(1, static_cast<int>(std::lround(clip->duration() * scene.frame_rate))) : 0;
   long long maps_drawn = 0, maps_reused = 0, skin_checks = 0, winding_checks = 0, buried = 0,
-            unresolved_self = 0;
+            unresolved_self = 0, iterations = 0, contacts = 0;
   const auto* superquadrics =
       dynamic_cast<const sim::SuperquadricCollider*>(simulation->body_collider());
   std::vector<double> floor_ms, floor_pairs;
@@ -270,6 +270,8 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
     if (f < fit_frames) continue;  // the clip is measured, not the fitting
     steps += report.steps;
     most_steps = std::max(most_steps, report.steps);
+    iterations += report.iterations;
+    contacts += report.num_contacts;
     maps_drawn += report.maps_drawn;
     maps_reused += report.maps_reused;
     skin_checks += report.skin_checks;
@@ -348,6 +350,9 @@ json Measure(const std::string& avatar_name, const sim::SceneDescription& scene)
           {"frames_measured", total_ms.size()},
           {"steps_per_frame_mean", total_ms.empty() ? 0.0 : double(steps) / total_ms.size()},
           {"steps_per_frame_max", most_steps},
+          // What the solve's time follows: its iterations, and the particles it constrains.
+          {"iterations_per_step_mean", steps ? double(iterations) / steps : 0.0},
+          {"contacts_per_step_mean", steps ? double(contacts) / steps : 0.0},
           {"collision_ms_median", Median(collision_ms)},
           {"collision_ms_median_first_pass", Median(first_pass_collision_ms)},
           // The kick's first pass is 90 of the 240 frames of 4 s, so the median of all frames

@@ -19,8 +19,7 @@ void FindSphereContacts(const SphereObstacle& sphere, const Points& positions,
     Contact contact;
     contact.particle = static_cast<int>(i);
     contact.normal = normal;
-    contact.target_normal_velocity =
-        ContactNormalVelocity(0.0, distance - shell, normal_velocity, h);
+    contact.target_normal_velocity = (shell - distance) / h;
     contact.friction = sphere.friction;
     contacts.push_back(contact);
   }

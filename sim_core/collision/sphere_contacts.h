@@ -22,8 +22,7 @@ struct SphereObstacle {
 
 /// Appends a contact for each particle that is inside the sphere's shell (radius +
 /// thickness), or would end the step of length h [s] within `margin` [m] of it moving at
-/// `velocities`; its target as ContactNormalVelocity (contact.h). Never allocates beyond
-/// `contacts`' capacity growth.
+/// its current velocity. Never allocates beyond `contacts`' capacity growth.
 void FindSphereContacts(const SphereObstacle& sphere, const Points& positions,
                         const Points& velocities, double h, double margin,
                         std::vector<Contact>& contacts);

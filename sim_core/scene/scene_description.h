@@ -131,11 +131,11 @@ struct AvatarSpec {
   /// Whether the simulation chooses the arms' spread for the clip (FindArmSpread,
   /// arm_spread.h) instead of taking motion.arm_spread.
   bool auto_arm_spread = true;
-  /// The mesh method by default: its worst frames stretch the cloth less (a typical frame
-  /// alike), and it is faster on the first pass through a clip and on any motion that does
-  /// not repeat (a posture being set); the superquadric one, update included, is 0.9–2.5× as
+  /// The mesh method by default: it is faster on the first pass through a clip and on any
+  /// motion that does not repeat (a posture being set); the superquadric one is 1.5–2.9× as
   /// fast on a looping clip's later passes, where it reuses its maps' drawings. Both keep
-  /// the cloth within 2 mm of the skin (docs/collision.md, "Figures").
+  /// the cloth within 2 mm of the skin and stretch it alike (docs/collision.md, "Figures",
+  /// "Contacts that pulled").
   BodyCollisionMethod collision = BodyCollisionMethod::kMesh;
   /// Superquadric method: memory for its maps' drawings kept for reuse when the skin comes
   /// back, as a looping clip brings it every pass [MB] in [0, kMaxSuperquadricMapMb]; 0
