@@ -53,6 +53,15 @@ Eigen::Vector3d HeadTop() {
   return skin.row(top).transpose();
 }
 
+/// The built-in humanoid standing still in its rest pose, colliding by `method`, unfitted.
+AvatarSpec StandingHumanoid(BodyCollisionMethod method) {
+  AvatarSpec avatar;
+  avatar.avatar = test::Humanoid();
+  avatar.collision = method;
+  avatar.motion.fit_time = 0.0;
+  return avatar;
+}
+
 /// The patch centre's heights [m] over `frames` frames after the whole patch is given the
 /// upward velocity `speed` [m/s].
 std::vector<double> HeightsAfterToss(const SceneDescription& scene, double speed, int frames) {
@@ -79,10 +88,7 @@ TEST(ContactRelease, ClothTossedUpOffTheHeadRisesAsInFreeSpace) {
   const Eigen::Vector3d top = HeadTop();
   for (BodyCollisionMethod method :
        {BodyCollisionMethod::kSuperquadric, BodyCollisionMethod::kMesh}) {
-    AvatarSpec avatar;
-    avatar.avatar = test::Humanoid();
-    avatar.collision = method;
-    avatar.motion.fit_time = 0.0;
+    const AvatarSpec avatar = StandingHumanoid(method);
     const double start = top.y() + avatar.thickness + 0.001;
     SceneDescription scene = PatchAt(Eigen::Vector3d(top.x(), start, top.z()));
     const std::vector<double> free = HeightsAfterToss(scene, kSpeed, kFrames);
@@ -111,10 +117,7 @@ TEST(ContactRelease, ClothLetGoJustAboveTheBodyRestsOnItsShell) {
   const Eigen::Vector3d top = HeadTop();
   for (BodyCollisionMethod method :
        {BodyCollisionMethod::kSuperquadric, BodyCollisionMethod::kMesh}) {
-    AvatarSpec avatar;
-    avatar.avatar = test::Humanoid();
-    avatar.collision = method;
-    avatar.motion.fit_time = 0.0;
+    const AvatarSpec avatar = StandingHumanoid(method);
     SceneDescription scene = PatchAt(top + Eigen::Vector3d(0.0, avatar.thickness + 0.002, 0.0));
     scene.avatar = avatar;
     auto simulation = Simulation::Build(scene);
