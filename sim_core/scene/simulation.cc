@@ -381,8 +381,8 @@ void Simulation::FindContacts(double h, FrameReport& report) {
     FindSphereContacts(sphere, state_.positions, state_.velocities, h, 0.5 * sphere.thickness,
                        contacts_);
   }
-  coasting_ = state_.velocities.rowwise() + h * scene_.gravity.transpose();
   if (body_) {
+    coasting_ = state_.velocities.rowwise() + h * scene_.gravity.transpose();
     const auto start = std::chrono::steady_clock::now();
     body_->FindContacts(state_.positions, coasting_, h, 0.5 * scene_.avatar->thickness,
                         contacts_);
