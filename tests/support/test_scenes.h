@@ -8,6 +8,19 @@
 
 namespace costume::test {
 
+/// A 6 cm, 7 × 7 patch centred on `centre`, its rows along `u`, its columns along `v` (unit,
+/// perpendicular) [m].
+inline sim::LatticePanel SmallPatch(const Eigen::Vector3d& centre, const Eigen::Vector3d& u,
+                                    const Eigen::Vector3d& v) {
+  sim::LatticePanel panel;
+  panel.width = panel.height = 0.06;
+  panel.cols = panel.rows = 7;
+  panel.u_axis = u;
+  panel.v_axis = v;
+  panel.origin = centre - 0.03 * u - 0.03 * v;
+  return panel;
+}
+
 /// The benchmark's hang scene (1 m sheet, two corners pinned) at n×n with `material`.
 inline sim::SceneDescription HangScene(int n, const sim::Material& material = {}) {
   sim::SceneDescription scene;

@@ -14,14 +14,14 @@
 #include "sim_core/collision/mesh_distance.h"
 #include "sim_core/scene/simulation.h"
 #include "tests/support/humanoid.h"
+#include "tests/support/test_scenes.h"
 
 namespace costume::sim {
 namespace {
 
-constexpr int kSide = 7;  // particles along each side of the patch
-constexpr int kCentre = (kSide * kSide) / 2;
+constexpr int kCentre = (7 * 7) / 2;  // the middle particle of test::SmallPatch
 
-/// A 6 cm horizontal patch of kSide × kSide particles centred on `centre` [m], in a scene
+/// A 6 cm horizontal patch (test::SmallPatch) centred on `centre` [m], in a scene
 /// without air drag (free flight is then a parabola for every solver).
 SceneDescription PatchAt(const Eigen::Vector3d& centre) {
   SceneDescription scene;
@@ -34,13 +34,7 @@ SceneDescription PatchAt(const Eigen::Vector3d& centre) {
   GarmentSpec patch;
   patch.name = "patch";
   patch.material = "fabric";
-  LatticePanel panel;
-  panel.width = panel.height = 0.06;
-  panel.cols = panel.rows = kSide;
-  panel.u_axis = Eigen::Vector3d::UnitX();
-  panel.v_axis = Eigen::Vector3d::UnitZ();
-  panel.origin = centre - 0.03 * (panel.u_axis + panel.v_axis);
-  patch.panel = panel;
+  patch.panel = test::SmallPatch(centre, Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitZ());
   scene.garments.push_back(patch);
   return scene;
 }

@@ -15,6 +15,7 @@
 #include "sim_core/collision/contact.h"
 #include "sim_core/collision/self_collision.h"
 #include "sim_core/scene/simulation.h"
+#include "tests/support/test_scenes.h"
 
 namespace costume::sim {
 namespace {
@@ -32,19 +33,6 @@ Material Fabric(const std::string& name, double friction) {
   material.density = 0.1;
   material.friction = friction;
   return material;
-}
-
-/// The tests' 6 cm, 7 × 7 patch centred on `centre`, its rows along `u`, its columns along
-/// `v` (unit, perpendicular) [m].
-LatticePanel Patch(const Eigen::Vector3d& centre, const Eigen::Vector3d& u,
-                   const Eigen::Vector3d& v) {
-  LatticePanel panel;
-  panel.width = panel.height = 0.06;
-  panel.cols = panel.rows = 7;
-  panel.u_axis = u;
-  panel.v_axis = v;
-  panel.origin = centre - 0.03 * u - 0.03 * v;
-  return panel;
 }
 
 /// `measure(simulation)` at simulated times t0 < t1 [s] of the scene `scene`.
@@ -69,7 +57,8 @@ SceneDescription PatchOnSlope(double fabric) {
   GarmentSpec patch;
   patch.name = "patch";
   patch.material = "fabric";
-  patch.panel = Patch((kRadius + kThickness) * normal, downhill, Eigen::Vector3d::UnitZ());
+  patch.panel =
+      test::SmallPatch((kRadius + kThickness) * normal, downhill, Eigen::Vector3d::UnitZ());
   scene.garments.push_back(patch);
   SphereObstacleSpec sphere;
   sphere.center = Eigen::Vector3d::Zero();
@@ -167,7 +156,8 @@ SceneDescription PatchOnSheet(double fabric, double turn_angle) {
   patch.material = "patch_fabric";
   const Eigen::AngleAxisd turn(turn_angle, normal);
   // At the self-collision's thickness (4 mm without an avatar) above the sheet.
-  patch.panel = Patch(SelfCollisionSettings{}.thickness * normal, turn * downhill, turn * across);
+  patch.panel = test::SmallPatch(SelfCollisionSettings{}.thickness * normal, turn * downhill,
+                                 turn * across);
   scene.garments = {sheet, patch};
   return scene;
 }
