@@ -46,7 +46,6 @@ constexpr double kAxisOrthogonalityTolerance = 1e-6;
 constexpr std::size_t kMaxQuotedValueLength = 80;
 
 constexpr std::string_view kStiffCotton = "stiff_cotton";
-constexpr std::string_view kBlenderCotton = "blender_cotton";
 
 // ---- built-in scenes --------------------------------------------------------------------
 
@@ -293,7 +292,8 @@ std::string ReadName(const Field& field) {
 }
 
 /// One of `choices`.
-std::string ReadChoice(const Field& field, std::initializer_list<std::string_view> choices) {
+template <typename Choices>
+std::string ReadChoice(const Field& field, const Choices& choices) {
   const auto* string = field.node->as_string();
   if (!string || std::find(choices.begin(), choices.end(), string->get()) == choices.end()) {
     std::vector<std::string> quoted;
@@ -301,6 +301,10 @@ std::string ReadChoice(const Field& field, std::initializer_list<std::string_vie
     field.Refuse("must be one of " + Join(quoted));
   }
   return string->get();
+}
+
+std::string ReadChoice(const Field& field, std::initializer_list<std::string_view> choices) {
+  return ReadChoice<std::initializer_list<std::string_view>>(field, choices);
 }
 
 /// An array of exactly `length` elements (any length when nullopt); `what` names the
@@ -448,10 +452,11 @@ sim::Effects ParseEffects(const TableView& table) {
   return effects;
 }
 
-/// The built-in material a [[material]] starts from: `base`, stiff_cotton by default.
+/// The built-in material a [[material]] starts from: `base` (a fabric preset, stiff_cotton
+/// or blender_cotton: sim::NamedMaterialNames), stiff_cotton by default.
 sim::Material BaseMaterial(const TableView& table) {
   const std::optional<Field> base = table.Find("base");
-  return sim::NamedMaterial(base ? ReadChoice(*base, {kStiffCotton, kBlenderCotton})
+  return sim::NamedMaterial(base ? ReadChoice(*base, sim::NamedMaterialNames())
                                  : std::string(kStiffCotton));
 }
 
@@ -493,9 +498,9 @@ std::vector<sim::Material> ParseMaterials(const TableView& root) {
 std::vector<std::string> KnownMaterialNames(const std::vector<sim::Material>& materials) {
   std::vector<std::string> names;
   for (const sim::Material& material : materials) names.push_back(material.name);
-  for (std::string_view built_in : {kStiffCotton, kBlenderCotton}) {
+  for (const std::string& built_in : sim::NamedMaterialNames()) {
     if (std::find(names.begin(), names.end(), built_in) == names.end()) {
-      names.emplace_back(built_in);
+      names.push_back(built_in);
     }
   }
   return names;

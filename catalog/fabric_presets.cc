@@ -1,47 +1,20 @@
 #include "catalog/fabric_presets.h"
 
+#include "sim_core/cloth/fabric_presets.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::catalog {
 
-namespace {
-
-// Unit conversions from Kawabata's KES-F units (docs/catalog.md):
-/// Bending rigidity B: 1 gf·cm²/cm = 1 gf·cm = 9.80665e-3 N · 1e-2 m [N·m].
-constexpr double kGfCm2PerCm = 9.80665e-5;
-/// Shear rigidity G: 1 gf/(cm·degree) = 9.80665e-3 N / 1e-2 m per π/180 rad [N/m].
-constexpr double kGfPerCmDegree = 0.980665 * 180.0 / 3.141592653589793;
-/// KES-F's tensile test stops at 500 gf/cm = 490.3 N/m; EMT is the strain reached there.
-constexpr double kEmtLoad = 490.3325;
-
-FabricParameters Make(double mass_per_area, double emt, double shear_g, double bending_b,
-                      double friction) {
-  FabricParameters f;
-  f.mass_per_area = mass_per_area;
-  f.stretch_stiffness = kEmtLoad / emt;  // secant stiffness up to the KES-F load
-  f.shear_stiffness = shear_g * kGfPerCmDegree;
-  f.bend_stiffness = bending_b * kGfCm2PerCm;
-  f.damping = 1e-3;  // the engine's default damping time (estimate, as for every preset)
-  f.friction = friction;
-  return f;
-}
-
-}  // namespace
-
 const std::vector<FabricPreset>& FabricPresets() {
-  // Make(mass per area [kg/m²], EMT [-], G [gf/(cm·deg)], B [gf·cm²/cm], μ against skin [-]).
-  static const std::vector<FabricPreset> presets = {
-      {"cotton", Make(0.12, 0.05, 1.0, 0.08, 0.4),
-       "poplin 120 g/m²; KES-F shirting EMT 5%, G 1.0, B 0.08; skin friction 0.4"},
-      {"silk", Make(0.06, 0.08, 0.4, 0.03, 0.25),
-       "crepe de chine 14 momme (61 g/m²); KES-F EMT 8%, G 0.4, B 0.03; skin friction 0.25"},
-      {"wool", Make(0.25, 0.06, 0.6, 0.12, 0.45),
-       "worsted suiting 250 g/m²; KES-F EMT 6%, G 0.6, B 0.12; skin friction 0.45"},
-      {"denim", Make(0.40, 0.03, 3.0, 1.0, 0.45),
-       "12 oz/yd² (407 g/m²); KES-F EMT 3%, G 3, B 1.0 (estimate); skin friction 0.45"},
-      {"leather", Make(0.55, 0.02, 10.0, 3.0, 0.55),
-       "lamb nappa 0.7 mm; estimates: E·t ≈ 25 kN/m, G 10, B 3 (E·t³/12); skin friction 0.55"},
-  };
+  // The engine's presets (sim_core/cloth/fabric_presets.h): one table for scene files, the
+  // catalogue and the GUI.
+  static const std::vector<FabricPreset> presets = [] {
+    std::vector<FabricPreset> list;
+    for (const sim::FabricPreset& preset : sim::FabricPresets()) {
+      list.push_back({preset.name, FabricFromMaterial(preset.material), preset.source});
+    }
+    return list;
+  }();
   return presets;
 }
 

@@ -178,13 +178,10 @@ std::string ImportFilter(EntryKind kind) {
 }
 
 std::vector<FabricPreset> FabricPresets() {
+  // The engine's table (sim_core/cloth/fabric_presets.h), as scene files and the catalogue
+  // read it, then the benchmark materials.
   std::vector<FabricPreset> presets;
-#ifdef COSTUME_HAVE_CATALOG
-  for (const catalog::FabricPreset& preset : catalog::FabricPresets()) {
-    presets.push_back({preset.name, catalog::MaterialFromFabric(preset.fabric, preset.name)});
-  }
-#endif
-  for (const char* name : {"stiff_cotton", "blender_cotton"}) {
+  for (const std::string& name : sim::NamedMaterialNames()) {
     presets.push_back({name, sim::NamedMaterial(name)});
   }
   return presets;

@@ -107,6 +107,12 @@ Image RenderThumbnail(const Thumbnail& thumbnail) {
   return Downsample(context.ReadPixels(), kSupersampling);
 }
 
+Thumbnail FrameGarmentScene(RenderScene scene, int size) {
+  CheckSize(size);
+  const Eigen::Vector3d view = GarmentView(scene);
+  return Frame(std::move(scene), view, size);
+}
+
 Thumbnail BuildAvatarThumbnail(const sim::Avatar& avatar, int size) {
   CheckSize(size);
   RenderScene scene;
@@ -159,7 +165,7 @@ Thumbnail BuildGarmentThumbnail(const sim::SceneDescription& scene, int size) {
   }
   render_scene.meshes.push_back(ToDrawMesh(simulation->state().positions,
                                              simulation->model().triangles(), kClothColour, true));
-  return Frame(std::move(render_scene), GarmentView(render_scene), size);
+  return FrameGarmentScene(std::move(render_scene), size);
 }
 
 Image RenderGarmentThumbnail(const sim::SceneDescription& scene, int size) {

@@ -27,6 +27,10 @@ struct Thumbnail {
 /// Renders `thumbnail` in a fresh size × size OffscreenContext.
 Image RenderThumbnail(const Thumbnail& thumbnail);
 
+/// `scene` framed as a garment thumbnail is (from the front right, or the back right when
+/// its last mesh, the cloth, hangs behind its first, the avatar), no floor.
+Thumbnail FrameGarmentScene(RenderScene scene, int size);
+
 /// The avatar in its rest pose, seen from the front (+z towards the camera), skin coloured,
 /// framed to fit `size` × `size` pixels. Throws sim::InputError for size outside 16..4096.
 Thumbnail BuildAvatarThumbnail(const sim::Avatar& avatar, int size);

@@ -8,11 +8,14 @@
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <vector>
 
 #include "assets/frame_writer.h"
+#include "assets/run_summary_json.h"
 #include "assets/scene_file.h"
 #include "sim_core/common/input_error.h"
+#include "sim_core/scene/garment_metrics.h"
 #include "sim_core/scene/simulation.h"
 #include "sim_core/solver/spring_forces.h"
 
@@ -27,6 +30,8 @@ struct Options {
   std::string out_dir = "out";
   bool write_frames = true;
   bool quiet = false;
+  /// Measure every frame (garment_metrics.h) and end with one JSON line of the run's figures.
+  bool json = false;
   double duration = 0.0;
   /// Overrides of the scene's collision method and self-collision switch ("" keeps them).
   std::string collision;
@@ -130,8 +135,11 @@ int Run(const Options& options) {
   }
   std::vector<double> frame_ms, collision_ms;
   int rolled_back = 0;
+  std::optional<costume::sim::GarmentMetrics> metrics;
+  if (options.json) metrics.emplace(*sim);
   for (int frame = 1; frame <= num_frames; ++frame) {
     const FrameReport report = sim->AdvanceFrame();
+    if (metrics) metrics->AddFrame(*sim, report);
     frame_ms.push_back(report.wall_ms);
     collision_ms.push_back(report.collision_ms + report.collision_update_ms);
     rolled_back += report.rolled_back_steps;
@@ -152,6 +160,7 @@ int Run(const Options& options) {
               Median(frame_ms), collision, 100 * strain.max, 100 * strain.mean,
               rolled_back ? ", some steps undone (see above)" : "");
   if (options.write_frames) std::printf("frames written to %s/frame_*.obj\n", out.c_str());
+  if (metrics) std::printf("%s\n", costume::assets::RunSummaryJson(metrics->Summary()).c_str());
   return 0;
 }
 
@@ -174,6 +183,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 3600.0));
   app.add_flag("!--no-frames", options.write_frames, "Do not write OBJ frames");
   app.add_flag("--quiet", options.quiet, "Print only the summary");
+  app.add_flag("--json", options.json,
+               "Measure every frame (strain, depth inside the true skin, edges through the "
+               "cloth) and end with one JSON line of the run's figures (docs/benchmarks.md)");
   app.add_option("--collision", options.collision,
                  "Override the avatar's collision method: superquadric (fast on a looping "
                  "clip's later passes) or mesh (accurate; docs/collision.md)")

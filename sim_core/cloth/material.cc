@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "sim_core/cloth/fabric_presets.h"
 #include "sim_core/common/input_error.h"
 
 namespace costume::sim {
@@ -27,8 +28,18 @@ void ValidateMaterial(const Material& material, const std::string& context) {
 Material NamedMaterial(const std::string& name) {
   if (name == "stiff_cotton") return Material{};
   if (name == "blender_cotton") return BlenderCotton(33);
-  throw InputError("unknown material '" + name +
-                   "': the built-in materials are stiff_cotton, blender_cotton");
+  if (const FabricPreset* preset = FindFabricPreset(name)) return preset->material;
+  std::string known;
+  for (const std::string& n : NamedMaterialNames()) known += (known.empty() ? "" : ", ") + n;
+  throw InputError("unknown material '" + name + "': the built-in materials are " + known);
+}
+
+std::vector<std::string> NamedMaterialNames() {
+  std::vector<std::string> names;
+  for (const FabricPreset& preset : FabricPresets()) names.push_back(preset.name);
+  names.emplace_back("stiff_cotton");
+  names.emplace_back("blender_cotton");
+  return names;
 }
 
 Material BlenderCotton(int n) {

@@ -5,6 +5,7 @@
 /// (lattice_panel.h for panels, mesh_cloth.h for general meshes) and in docs/cloth_model.md.
 
 #include <string>
+#include <vector>
 
 namespace costume::sim {
 
@@ -60,10 +61,14 @@ struct Material {
 /// above 0); throws InputError naming `context`.field, its value and range.
 void ValidateMaterial(const Material& material, const std::string& context);
 
-/// Built-in named materials: "stiff_cotton" and "blender_cotton" (the benchmark materials;
-/// blender_cotton needs the lattice size, see BlenderCotton). Throws InputError for an
-/// unknown name, listing the known ones.
+/// Built-in named materials: the fabric presets at their measured stiffness (cotton, silk,
+/// wool, denim, leather: fabric_presets.h) and the benchmark materials "stiff_cotton" and
+/// "blender_cotton" (blender_cotton needs the lattice size, see BlenderCotton). Throws
+/// InputError for an unknown name, listing the known ones.
 Material NamedMaterial(const std::string& name);
+
+/// The names NamedMaterial knows: the presets, then stiff_cotton, blender_cotton.
+std::vector<std::string> NamedMaterialNames();
 
 /// Blender 3.4's Cotton preset converted to per-spring constants for an n×n lattice over
 /// 1 m (docs/BENCHMARKS.md): about 147, 76, 38.5 N/m at n = 33, 65, 129.

@@ -1125,12 +1125,46 @@ SelfCollisionReport SelfCollision::ResolvePath(const Points& start_positions, do
   return report;
 }
 
+namespace {
+
+/// The triangles whose boxes a crossing-edge query's box overlaps.
+struct TriangleCollector : btDbvt::ICollide {
+  std::vector<int>* triangles = nullptr;
+  void Process(const btDbvtNode* leaf) { triangles->push_back(leaf->dataAsInt); }
+};
+
+btVector3 ToBt(const Vec3& v) { return btVector3(v.x(), v.y(), v.z()); }
+
+}  // namespace
+
+// Why a tree: the brute force over every edge and triangle took 0.5 s on a 3,000-particle
+// suit, and garment runs count every frame. An edge can only cross a triangle whose box its
+// own box overlaps, so the tree's cull changes no answer. The triangles' boxes are grown by
+// 10 µm so that Bullet's single-precision corners cannot shrink a box past a crossing.
 int CountCrossingEdges(const ClothModel& model, const Points& positions) {
+  constexpr double kPad = 1e-5;  // m
   const auto edges = UniqueEdges(model);
+  const auto& triangles = model.triangles();
+  btDbvt tree;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const Vec3 a = Row(positions, triangles[t][0]), b = Row(positions, triangles[t][1]),
+               c = Row(positions, triangles[t][2]);
+    tree.insert(btDbvtVolume::FromMM(ToBt(Vec3(a.cwiseMin(b).cwiseMin(c).array() - kPad)),
+                                     ToBt(Vec3(a.cwiseMax(b).cwiseMax(c).array() + kPad))),
+                reinterpret_cast<void*>(static_cast<std::intptr_t>(t)));
+  }
+  std::vector<int> candidates;
+  TriangleCollector collect;
+  collect.triangles = &candidates;
   int count = 0;
   for (const auto& [a, b] : edges) {
     const Vec3 p = Row(positions, a), q = Row(positions, b);
-    for (const Eigen::Vector3i& t : model.triangles()) {
+    candidates.clear();
+    tree.collideTV(tree.m_root, btDbvtVolume::FromMM(ToBt(p.cwiseMin(q)), ToBt(p.cwiseMax(q))),
+                   collect);
+    std::sort(candidates.begin(), candidates.end());  // the brute force's order: same answer
+    for (int index : candidates) {
+      const Eigen::Vector3i& t = triangles[index];
       if (t[0] == a || t[1] == a || t[2] == a || t[0] == b || t[1] == b || t[2] == b) continue;
       if (SegmentCrossesTriangle(p, q, Row(positions, t[0]), Row(positions, t[1]),
                                  Row(positions, t[2]))) {

@@ -139,7 +139,8 @@ void ValidatePanel(const LatticePanel& panel, const std::string& field, const Re
 
 /// Scene materials first, then the built-in ones, as GarmentSpec::material is looked up.
 bool IsKnownMaterial(const std::string& name, const std::vector<Material>& materials) {
-  if (name == "stiff_cotton" || name == "blender_cotton") return true;
+  const std::vector<std::string> named = NamedMaterialNames();
+  if (std::find(named.begin(), named.end(), name) != named.end()) return true;
   return std::any_of(materials.begin(), materials.end(),
                      [&](const Material& material) { return material.name == name; });
 }
@@ -147,7 +148,9 @@ bool IsKnownMaterial(const std::string& name, const std::vector<Material>& mater
 std::string KnownMaterialList(const std::vector<Material>& materials) {
   std::string list;
   for (const Material& material : materials) list += material.name + ", ";
-  return list + "stiff_cotton, blender_cotton";
+  const std::vector<std::string> named = NamedMaterialNames();
+  for (std::size_t i = 0; i < named.size(); ++i) list += (i ? ", " : "") + named[i];
+  return list;
 }
 
 void ValidateGarment(const GarmentSpec& garment, std::size_t index,

@@ -79,15 +79,18 @@ Material ResolveMaterial(const SceneDescription& scene, const GarmentSpec& garme
   for (const Material& m : scene.materials) {
     if (m.name == garment.material) return m;
   }
-  std::string known;
-  for (const Material& m : scene.materials) known += m.name + ", ";
   if (garment.material == "blender_cotton") {
     return BlenderCotton(garment.panel ? garment.panel->cols : 65);
   }
-  if (garment.material == "stiff_cotton") return NamedMaterial("stiff_cotton");
+  const std::vector<std::string> named = NamedMaterialNames();
+  if (std::find(named.begin(), named.end(), garment.material) != named.end()) {
+    return NamedMaterial(garment.material);
+  }
+  std::string known;
+  for (const Material& m : scene.materials) known += m.name + ", ";
+  for (const std::string& name : named) known += name + (name == named.back() ? "" : ", ");
   throw InputError(GarmentContext(scene, garment) + ": material = '" + garment.material +
-                   "' is unknown: known materials are " + known +
-                   "stiff_cotton, blender_cotton");
+                   "' is unknown: known materials are " + known);
 }
 
 /// Holds the pinned particles of `data` by `joint` of the scene's avatar — or by its nearest
