@@ -46,8 +46,15 @@ struct Clip {
 /// translation beyond kMaxCoordinate.
 void ValidateClip(const Clip& clip);
 
+/// The ground a looping clip's root covers in one pass [m] (LoopTravel × passes is added to
+/// the root when sampling): the horizontal move from its first frame to its last, carried on
+/// at the same pace to the next pass's first frame. Zero for a clip that does not loop.
+Eigen::Vector3d LoopTravel(const Clip& clip);
+
 /// The clip's pose at time t [s] (any t; wrapped or held as `loops` says), interpolated
-/// between neighbouring frames. Never throws; allocates only if `out` is too small.
+/// between neighbouring frames. A looping clip that travels goes on travelling: each pass
+/// starts where the last one ended (its root moved by LoopTravel per pass), as a walk on a
+/// treadmill would not. Never throws; allocates only if `out` is too small.
 void SampleClip(const Clip& clip, double t, Pose& out);
 
 /// Maps poses of one skeleton onto another through their H-Anim joints (paper §6):

@@ -3,6 +3,7 @@
 /// A cloth particle touching an obstacle, as the implicit solve sees it.
 
 #include <Eigen/Core>
+#include <limits>
 #include <algorithm>
 #include <cmath>
 
@@ -24,6 +25,11 @@ struct Contact {
   /// Normal impulse the constraint delivered in this step [N·s] (> 0 pushes out); filled
   /// by the stepper.
   double normal_impulse = 0.0;
+  /// Where the obstacle's shell (its surface + the cloth's thickness) lies at the end of the
+  /// step, as the plane normal·x = shell_offset [m] through the nearest shell point: what
+  /// the corrections after the solve (the strain limit) keep the particle outside of.
+  /// −inf: no plane (nothing is held).
+  double shell_offset = -std::numeric_limits<double>::infinity();
 };
 
 /// The normal velocity a contact prescribes [m/s] for a particle `gap` [m] outside the

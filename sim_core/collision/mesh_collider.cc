@@ -1116,6 +1116,7 @@ MeshCollider::Nearest MeshCollider::Finish(const Eigen::Vector3d& point) {
     nearest.normal = distance > 0.0 ? Eigen::Vector3d((inside ? -offset : offset) / distance)
                                     : normals_.Of(t, closest.feature, vertices_);
     nearest.surface_velocity = SurfaceVelocity(t, closest.barycentric);
+    nearest.closest = closest.point;
   }
   for (int piece : r.touched) r.best_triangle[piece] = -1;  // ready for the next query
   r.touched.clear();
@@ -1152,6 +1153,7 @@ bool MeshCollider::MakeContact(int particle, const Eigen::Vector3d& velocity,
   contact.target_normal_velocity = ContactNormalVelocity(
       nearest.surface_velocity.dot(nearest.normal), distance - shell, relative_normal_velocity, h);
   contact.friction = settings_.friction;
+  contact.shell_offset = nearest.normal.dot(nearest.closest) + shell;  // the body stands at the step's end
   return true;
 }
 

@@ -211,6 +211,8 @@ class MeshCollider : public BodyCollider {
     double signed_distance = 0.0;
     Eigen::Vector3d normal = Eigen::Vector3d::UnitY();
     Eigen::Vector3d surface_velocity = Eigen::Vector3d::Zero();
+    /// The nearest surface point [m].
+    Eigen::Vector3d closest = Eigen::Vector3d::Zero();
     /// The piece of the nearest surface point (−1 when none was found).
     int piece = -1;
   };

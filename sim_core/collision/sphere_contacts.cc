@@ -21,6 +21,7 @@ void FindSphereContacts(const SphereObstacle& sphere, const Points& positions,
     contact.normal = normal;
     contact.target_normal_velocity = (shell - distance) / h;
     contact.friction = sphere.friction;
+    contact.shell_offset = normal.dot(sphere.center) + shell;
     contacts.push_back(contact);
   }
 }

@@ -853,6 +853,8 @@ void SuperquadricCollider::FindContacts(const Points& positions, const Points& v
     contact.target_normal_velocity =
         ContactNormalVelocity(body_normal_velocity, gap, relative_normal_velocity, h);
     contact.friction = settings_.friction;
+    // The gap is the start's; the shell moves on with the body over the step.
+    contact.shell_offset = normal.dot(x) - gap + h * body_normal_velocity;
     contacts.push_back(contact);
     ++stats_.num_contacts;
   }

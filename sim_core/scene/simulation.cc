@@ -244,6 +244,28 @@ std::unique_ptr<SelfCollision> MakeSelfCollision(const SceneDescription& scene,
 
 }  // namespace
 
+// Why the strain limit changes the rule: a step beyond kMaxStiffnessRatio injects energy by
+// turning stiff springs through large angles along straight lines, the very stretch the
+// strain limit takes back (strain_limit.h). With it the engine takes the steps it needs
+// itself (StiffnessSteps), and only a model no kMaxSubsteps steps could run is refused;
+// without it (the pure mass-spring model, for tests) a scene too stiff for its step is
+// refused as before (tests/sim_core/scene/stability_matrix_test.cc runs both).
+void RequireStableStepFor(const SceneDescription& scene, const ClothModel& model) {
+  const double h = 1.0 / (scene.frame_rate * scene.solver.substeps);
+  if (!(scene.solver.strain_limit > 0.0)) {
+    RequireStableStep(model, h, scene.source);
+    return;
+  }
+  const int steps = StepsForStiffness(model, 1.0 / scene.frame_rate, kMaxLimitedStiffnessRatio);
+  if (steps > kMaxSubsteps) {
+    throw InputError(scene.source + ": the stiffest spring on the lightest particle needs " +
+                     std::to_string(steps) + " steps a frame (h²k/m <= " +
+                     FormatValue(kMaxLimitedStiffnessRatio) + "), more than the " +
+                     std::to_string(kMaxSubsteps) +
+                     " allowed: use a softer material or heavier particles");
+  }
+}
+
 std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
                                                   std::vector<GarmentRange>* garments,
                                                   std::vector<BodyAttachment>* attachments) {
@@ -288,7 +310,7 @@ std::unique_ptr<Simulation> Simulation::Build(const SceneDescription& scene,
   std::vector<GarmentRange> garments;
   std::vector<BodyAttachment> attachments;
   auto model = BuildSceneModel(scene, &garments, &attachments);
-  RequireStableStep(*model, 1.0 / (scene.frame_rate * scene.solver.substeps), scene.source);
+  RequireStableStepFor(scene, *model);
   ArmSpreadMemo once;
   return std::unique_ptr<Simulation>(new Simulation(scene, std::move(model), std::move(garments),
                                                     std::move(attachments),
@@ -322,6 +344,8 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
   pinned_in_room_ = PinnedInRoom(*model_, attachments_);
   self_collision_ = MakeSelfCollision(scene_, model_, fabric_friction_);
   if (self_collision_) start_positions_ = state_.positions;
+  BuildStrainLimiter();
+  stiffness_steps_ = StiffnessSteps();
   contacts_.reserve(model_->num_particles());
   normal_impulse_.assign(model_->num_particles(), 0.0);
   // Last, as nothing may throw after it: a collider the memo kept is the one the simulation
@@ -350,9 +374,48 @@ void Simulation::ReleaseAdhesiveContacts(double h) {
   }
 }
 
+void Simulation::BuildStrainLimiter() {
+  strain_limiter_ =
+      scene_.solver.strain_limit > 0.0 ? std::make_unique<StrainLimiter>(*model_) : nullptr;
+}
+
+StrainLimitSettings Simulation::StrainLimitOf() const {
+  StrainLimitSettings settings;
+  settings.limit = scene_.solver.strain_limit;
+  return settings;
+}
+
+// Why the obstacles' corrections are tried first: the sweeps keep contacts outside their
+// shells, but cloth that had no contact can end the step inside (a swinging leg under the
+// hem), and the correction would then push it out alone, stretching its springs (up to
+// 20 % on the walking skirt in cotton). Where the corrections would move cloth, the planes
+// they would move it to are held in a second round of sweeps, so the correction after it
+// finds little to do (docs/cloth_model.md, "Strain limiting").
 void Simulation::ApplyStrainLimit(FrameReport& report) {
-  constexpr int kPasses = 4;  // enough to bring a step's overshoot back; more buys little
-  report.strain_corrections += LimitStrain(*model_, scene_.solver.strain_limit, kPasses, state_);
+  const StrainLimitSettings settings = StrainLimitOf();
+  strain_limiter_->SetTargets(*model_, settings, state_.positions);
+  strain_limiter_->AddPlanes(contacts_);
+  report.strain_corrections += strain_limiter_->Limit(*model_, settings, state_).corrections;
+  if (spheres_.empty() && !body_) return;
+  corrected_positions_ = state_.positions;  // same sizes every step: copy without allocating
+  corrected_velocities_ = state_.velocities;
+  for (const SphereObstacle& sphere : spheres_) {
+    ProjectOutOfSphere(sphere, corrected_positions_, corrected_velocities_);
+  }
+  if (body_) body_->ProjectOut(corrected_positions_, corrected_velocities_);
+  correction_planes_.clear();
+  for (Eigen::Index i = 0; i < state_.positions.rows(); ++i) {
+    const Eigen::Vector3d move =
+        (corrected_positions_.row(i) - state_.positions.row(i)).transpose();
+    const double length = move.norm();
+    if (!(length > kNoMove) || model_->is_pinned()[i]) continue;
+    const Eigen::Vector3d normal = move / length;
+    correction_planes_.push_back(
+        {static_cast<int>(i), normal, normal.dot(corrected_positions_.row(i).transpose())});
+  }
+  if (correction_planes_.empty()) return;
+  strain_limiter_->AddPlanes(correction_planes_);
+  report.strain_corrections += strain_limiter_->Limit(*model_, settings, state_).corrections;
 }
 
 // The avatar moves to where it will be at the end of the step first, so contacts target the
@@ -407,9 +470,14 @@ double Simulation::PostureBlendAfter(double dt) const {
   return std::min(1.0, (state_.time + dt - posture_start_) / posture_duration_);
 }
 
+int Simulation::StiffnessSteps() const {
+  if (!strain_limiter_) return 1;  // RequireStableStepFor refused what one step cannot run
+  return StepsForStiffness(*model_, 1.0 / scene_.frame_rate, kMaxLimitedStiffnessRatio);
+}
+
 int Simulation::StepsThisFrame(bool& posed_at_end) {
   posed_at_end = false;
-  const int steps = scene_.solver.substeps;
+  const int steps = std::max(scene_.solver.substeps, stiffness_steps_);
   if (!avatar_ || !(scene_.avatar->max_skin_travel > 0.0)) return steps;
   const AvatarSpec& spec = *scene_.avatar;
   const double frame = 1.0 / scene_.frame_rate;
@@ -435,6 +503,7 @@ void Simulation::StepOnce(double h, bool avatar_posed, FrameReport& report) {
   FindContacts(h, report);
   ReleaseAdhesiveContacts(h);
   if (self_collision_) start_positions_ = state_.positions;
+  if (strain_limiter_) strain_limiter_->BeginStep(state_.positions);
   const StepReport step_report = stepper_->Step(state_, h, contacts_);
   report.steps += 1;
   report.iterations += step_report.iterations;
@@ -456,7 +525,7 @@ void Simulation::StepOnce(double h, bool avatar_posed, FrameReport& report) {
 }
 
 void Simulation::CorrectAfterSolve(double h, FrameReport& report) {
-  if (scene_.solver.strain_limit > 0.0) ApplyStrainLimit(report);
+  if (strain_limiter_) ApplyStrainLimit(report);
   for (const SphereObstacle& sphere : spheres_) {
     report.max_penetration = std::max(
         report.max_penetration, ProjectOutOfSphere(sphere, state_.positions, state_.velocities));
@@ -501,15 +570,16 @@ void Simulation::PlaceAttachments() {
 // too, and the path of its correction is made crossing-free again. Only crossing-free:
 // ResolveMove's push-out to the thickness stretched the springs the limit had just
 // shortened. The stops of ResolveCrossings can stretch a few springs again, hence another
-// round when it stopped anything. More sweeps than after the solve, as the impulses stretch
-// further: a patch dropped onto a sheet ended at 17.7 % with 4 sweeps a round, 11.7 % with
-// 8, 10.3 % with 16.
+// round when it stopped anything. The cap alone here (StrainLimiter::SetCapTargets): cut
+// back to the lengths the step meant, the impulses' own moves were undone, and a patch
+// held by friction on a sheet crept at 2.8 mm/s where it creeps at 0.7–1.4.
 void Simulation::LimitWhatSelfCollisionStretched(double h, FrameReport& report) {
-  if (scene_.solver.strain_limit <= 0.0) return;
-  constexpr int kRounds = 4, kSweeps = 16;
+  if (!strain_limiter_) return;
+  constexpr int kRounds = 4;
+  strain_limiter_->SetCapTargets(*model_, StrainLimitOf());
   for (int round = 0; round < kRounds; ++round) {
     self_resolved_ = state_.positions;  // same size every step: copies without allocating
-    const int corrections = LimitStrain(*model_, scene_.solver.strain_limit, kSweeps, state_);
+    const int corrections = strain_limiter_->Limit(*model_, StrainLimitOf(), state_).corrections;
     report.strain_corrections += corrections;
     if (corrections == 0) return;  // nothing moved: nothing to resolve
     const SelfCollisionReport again =
@@ -704,6 +774,7 @@ int Simulation::EliminateStretchEnergy(const Eigen::Vector3d& centre, double rad
   model_ = model_->WithRestLengths(rest);
   stepper_->ReplaceModel(model_);
   if (pyramid_) pyramid_->UpdateRegion(model_, state_.positions, region);
+  BuildStrainLimiter();  // the tethers' rest distances follow the edited rest lengths
   return changed;
 }
 
@@ -712,6 +783,7 @@ bool Simulation::UndoEdit() {
   const std::vector<std::shared_ptr<const ClothModel>> models = std::move(undo_.back());
   undo_.pop_back();
   model_ = models.front();
+  BuildStrainLimiter();
   if (pyramid_ && static_cast<int>(models.size()) != pyramid_->num_levels()) {
     // Saved before a SetSolver (level 0 only): this solver's pyramid is rebuilt around it.
     BuildSolver(StepperSettingsOf(scene_));
@@ -739,9 +811,11 @@ void Simulation::SetSolver(const SolverSettings& solver) {
   SceneDescription scene = scene_;
   scene.solver = solver;
   ValidateScene(scene);  // throws before anything changes
-  RequireStableStep(*model_, 1.0 / (scene.frame_rate * solver.substeps), scene.source);
+  RequireStableStepFor(scene, *model_);
   BuildSolver(StepperSettingsOf(scene));
   scene_ = std::move(scene);
+  BuildStrainLimiter();
+  stiffness_steps_ = StiffnessSteps();
   for (std::vector<std::shared_ptr<const ClothModel>>& revision : undo_) revision.resize(1);
 }
 

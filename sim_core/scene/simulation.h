@@ -20,6 +20,7 @@
 #include "sim_core/scene/grab.h"
 #include "sim_core/scene/scene_description.h"
 #include "sim_core/solver/implicit_stepper.h"
+#include "sim_core/solver/strain_limit.h"
 
 namespace costume::sim {
 
@@ -195,7 +196,9 @@ class Simulation {
   /// The pyramid the hierarchical and multigrid solvers use; null for the others.
   const QuincunxPyramid* pyramid() const { return pyramid_.get(); }
   /// Step length [s] of a frame that is not split for the skin's travel.
-  double step() const { return 1.0 / (scene_.frame_rate * scene_.solver.substeps); }
+  double step() const {
+    return 1.0 / (scene_.frame_rate * std::max(scene_.solver.substeps, stiffness_steps_));
+  }
   /// Number of frames the scene's duration asks for.
   int num_frames() const;
 
@@ -249,7 +252,16 @@ class Simulation {
   /// Adds (or turns along the move) a hold for each particle the body's correction moved
   /// from `solved_positions_`; returns whether it moved any.
   bool HoldWhatTheBodyMoved();
+  /// The strain limit with the obstacles' shells held: the contacts' planes, then the planes
+  /// the obstacles' corrections would move cloth to (strain_limit.h).
   void ApplyStrainLimit(FrameReport& report);
+  StrainLimitSettings StrainLimitOf() const;
+  /// The strain limiter for model_ (its tethers' rest distances are the model's), or none
+  /// when solver.strain_limit is 0.
+  void BuildStrainLimiter();
+  /// The steps a frame needs for the model's stiffness with the strain limit on
+  /// (StepsForStiffness); 1 without it.
+  int StiffnessSteps() const;
   /// Keeps the state finite: a step that ends non-finite anywhere (the stepper undoes only
   /// its solve; the corrections after it work with what the body gives) returns to the last
   /// finite state, counted in `rolled_back_steps` unless the stepper counted it
@@ -273,6 +285,14 @@ class Simulation {
   ArmSpreadFit arm_spread_;
   /// Built only when the scene switches self-collision on (off costs nothing).
   std::unique_ptr<SelfCollision> self_collision_;
+  /// Built only when solver.strain_limit > 0.
+  std::unique_ptr<StrainLimiter> strain_limiter_;
+  /// The state as the obstacles' corrections would leave it, and the planes they would move
+  /// cloth to (ApplyStrainLimit).
+  Points corrected_positions_, corrected_velocities_;
+  std::vector<ShellPlane> correction_planes_;
+  /// Steps every frame takes at least, for the model's stiffness (StiffnessSteps).
+  int stiffness_steps_ = 1;
   /// Positions at the start of the step, for self-collision's continuous tests.
   Points start_positions_;
   /// Positions before the body's last correction (self-collision only).
@@ -329,6 +349,12 @@ class Simulation {
   /// travel then counts the root's too (StepsThisFrame).
   bool pinned_in_room_ = false;
 };
+
+/// Refuses `model` for `scene` (InputError naming scene.source) when its step cannot run it:
+/// with the strain limit off, RequireStableStep (implicit_stepper.h) for solver.substeps;
+/// with it on, only when more than kMaxSubsteps steps a frame would be needed
+/// (StepsForStiffness at kMaxLimitedStiffnessRatio), which the engine takes itself.
+void RequireStableStepFor(const SceneDescription& scene, const ClothModel& model);
 
 /// The stepper settings a scene asks for.
 StepperSettings StepperSettingsOf(const SceneDescription& scene);

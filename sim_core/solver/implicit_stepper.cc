@@ -46,6 +46,17 @@ void RequireStableStep(const ClothModel& model, double h, const std::string& con
                    " a softer material or heavier particles");
 }
 
+int StepsForStiffness(const ClothModel& model, double frame_time, double max_ratio) {
+  double k_max = 0.0;
+  for (const Spring& s : model.springs()) k_max = std::max(k_max, s.stiffness);
+  const double m_min = model.masses().minCoeff();
+  if (!(k_max > 0.0)) return 1;
+  const double longest = std::sqrt(max_ratio * m_min / k_max);
+  const double steps = std::ceil(frame_time / longest);
+  // As a double first: a damaged file's 1e308 N/m would overflow an int.
+  return steps <= 1.0 ? 1 : steps >= 1e9 ? 1000000000 : static_cast<int>(steps);
+}
+
 ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
                                  const StepperSettings& settings,
                                  std::unique_ptr<StepSolver> solver)

@@ -64,18 +64,22 @@ TEST(SampleClip, InterpolatesBetweenNeighbouringFrames) {
   EXPECT_NEAR(DegreesAboutZ(pose), 105.0, 1e-9);
 }
 
-TEST(SampleClip, LoopingClipWrapsFromLastFrameToFirst) {
+TEST(SampleClip, LoopingClipWrapsFromLastFrameToFirstTravellingOn) {
   const Clip clip = ThreeFrames(true);
   EXPECT_DOUBLE_EQ(clip.duration(), 1.5);
+  // The root walks 1 m a frame along x: 3 m a pass, the next pass starting where it ends.
+  EXPECT_NEAR(LoopTravel(clip).x(), 3.0, 1e-12);
   Pose pose;
-  // Halfway from the last frame (120°, x = 2) back to the first (0°, x = 0).
+  // Halfway from the last frame (120°, x = 2) to the next pass's first (0°, x = 3).
   SampleClip(clip, 1.25, pose);
   EXPECT_NEAR(DegreesAboutZ(pose), 60.0, 1e-9);
-  EXPECT_NEAR(pose.root_translation.x(), 1.0, 1e-12);
-  SampleClip(clip, -0.25, pose);
+  EXPECT_NEAR(pose.root_translation.x(), 2.5, 1e-12);
+  SampleClip(clip, -0.25, pose);  // the pass before: from x = −1 to 0
   EXPECT_NEAR(DegreesAboutZ(pose), 60.0, 1e-9);
-  SampleClip(clip, 1.5 + 3.0 + 0.25, pose);  // three periods later
+  EXPECT_NEAR(pose.root_translation.x(), -0.5, 1e-12);
+  SampleClip(clip, 1.5 + 3.0 + 0.25, pose);  // three passes on: 0.5 m into the fourth
   EXPECT_NEAR(DegreesAboutZ(pose), 30.0, 1e-9);
+  EXPECT_NEAR(pose.root_translation.x(), 9.5, 1e-12);
 }
 
 TEST(SampleClip, NonLoopingClipHoldsItsEnds) {

@@ -353,8 +353,7 @@ TEST(GarmentFit, TheMeshMethodKeepsLooseTrousersOutOfTheKickingLeg) {
 // a typical frame a spring has both ends on the skin and its midpoint inside the leg, more
 // than twice its rest length (the strain limit holds springs to 10 %). Split into steps of
 // at most 5 cm of skin travel (Simulation::AdvanceFrame) the leg stays inside its trouser
-// leg (the median of the frames' largest strain 184 % → 52 %). In the fastest frames the hem
-// is still caught round the foot for a moment (22 of 120 frames).
+// leg (threaded frames 105 → 1; the median of the frames' largest strain 96 % → 13 %).
 TEST(GarmentFit, SplitFramesKeepTheKickingFootFromThreadingTheTrousers) {
   if (!fs::exists(test::kSharedData / "makehuman/clothes/female_casualsuit01")) {
     GTEST_SKIP() << "test data " << test::kSharedData << "/makehuman not present";
@@ -365,9 +364,9 @@ TEST(GarmentFit, SplitFramesKeepTheKickingFootFromThreadingTheTrousers) {
   split_frames.max_skin_travel = 0.05;
   const SuitRun whole = RunSuit(true, 2.0, whole_frames);
   const SuitRun split = RunSuit(true, 2.0, split_frames);
-  EXPECT_GT(whole.walk_strain_median, 1.0);  // the failure the split is for
-  EXPECT_LT(split.walk_strain_median, 1.0);
-  EXPECT_LT(2 * split.threaded_frames, whole.threaded_frames);
+  EXPECT_GT(whole.walk_strain_median, 0.5);  // the failure the split is for
+  EXPECT_LT(split.walk_strain_median, 0.25);
+  EXPECT_LT(10 * split.threaded_frames, whole.threaded_frames);
   EXPECT_EQ(split.rolled_back, 0);
   printf("female_casualsuit01 kicking, frames threaded: %d in one step a frame, %d split; "
          "median of the frames' largest strain %.0f %% and %.0f %%\n", whole.threaded_frames,
