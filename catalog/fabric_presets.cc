@@ -28,15 +28,7 @@ const FabricPreset& FindFabricPreset(const std::string& name) {
 }
 
 FabricParameters BuiltInGarmentFabric() {
-  // scenes/garment.toml's [[material]] "skirt_cotton".
-  FabricParameters f;
-  f.mass_per_area = 0.15;
-  f.stretch_stiffness = 300.0;
-  f.shear_stiffness = 300.0;
-  f.bend_stiffness = 5e-6;
-  f.damping = 1e-3;
-  f.friction = 0.5;
-  return f;
+  return FindFabricPreset("cotton").fabric;  // scenes/garment.toml's
 }
 
 }  // namespace costume::catalog

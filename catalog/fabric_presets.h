@@ -25,9 +25,8 @@ const std::vector<FabricPreset>& FabricPresets();
 /// The preset `name`; throws sim::InputError listing the known names for an unknown one.
 const FabricPreset& FindFabricPreset(const std::string& name);
 
-/// The fabric of the built-in garments (skirt, cape, dress): the "skirt_cotton" of the
-/// built-in garment scene (scenes/garment.toml), a cotton softer in stretch than measured so
-/// that the built-in scene runs at 60 frames per second with one step per frame.
+/// The fabric of the built-in garments (skirt, cape, dress) and of imported MakeHuman
+/// garments: the cotton preset, as scenes/garment.toml wears it.
 FabricParameters BuiltInGarmentFabric();
 
 }  // namespace costume::catalog

@@ -179,20 +179,13 @@ sim::SceneDescription BuiltInGarmentScene(const std::string& pattern) {
     for (const std::string& name : names) allowed += (allowed.empty() ? "" : ", ") + name;
     throw sim::InputError("garment pattern = '" + pattern + "': allowed " + allowed);
   }
-  // The garment scene of scenes/garment.toml (its skirt cotton), standing still.
+  // The garment scene of scenes/garment.toml (its cotton), standing still.
   sim::SceneDescription scene;
   scene.name = pattern + "_thumbnail";
   scene.duration = kGarmentFitTime;
-  sim::Material cotton;
-  cotton.name = "thumbnail_cotton";
-  cotton.density = 0.15;
-  cotton.stretch_stiffness = 300;
-  cotton.shear_stiffness = 300;
-  cotton.bending_rigidity = 5e-6;
-  scene.materials.push_back(cotton);
   sim::GarmentSpec garment;
   garment.name = pattern;
-  garment.material = cotton.name;
+  garment.material = "cotton";
   garment.pattern = pattern;
   garment.pattern_resolution = 64;
   scene.garments.push_back(garment);

@@ -15,6 +15,46 @@ namespace costume::sim {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+/// No human body is thinner than this at the trunk [m]: a ring's half axis is never taken
+/// below it (a section of one vertex has none).
+constexpr double kThinnestBody = 0.01;
+/// Heights a humanoid's rest pose may stand between [m], hips above the knees above the
+/// floor: outside, the avatar's unit or its up axis was misread.
+constexpr double kShortestBody = 0.3, kTallestBody = 3.0;
+
+/// Throws InputError naming the avatar unless it stands as a humanoid does in a rest pose:
+/// knees below hips below the waist below the shoulders, the line from the knees to the
+/// shoulders within 45° of vertical, and a body of human size.
+void RequireUpright(const Avatar& avatar) {
+  using J = HAnimJoint;
+  const Skeleton& s = avatar.skeleton();
+  const auto mid = [&](J a, J b) {
+    return 0.5 * (s.rest_world()[s.Find(a)].translation() + s.rest_world()[s.Find(b)].translation());
+  };
+  const Eigen::Vector3d knees = mid(J::kLKnee, J::kRKnee), hips = mid(J::kLHip, J::kRHip),
+                        shoulders = mid(J::kLShoulder, J::kRShoulder);
+  const double waist = s.rest_world()[s.Find(J::kVl5)].translation().y();
+  const std::string who = "avatar '" + avatar.name() + "': ";
+  const double rise = shoulders.y() - knees.y();
+  if (!(knees.y() < hips.y() && hips.y() < waist + 0.05 && waist < shoulders.y() &&
+        rise >= std::cos(kPi / 4) * (shoulders - knees).norm())) {
+    const auto at = [](const char* joint, double y) {
+      return std::string(joint) + " at " + FormatValue(y) + " m";
+    };
+    throw InputError(who + "its rest pose is not upright, so no garment can be placed: " +
+                     at("knees", knees.y()) + ", " + at("hips", hips.y()) + ", " +
+                     at("vl5", waist) + ", " + at("shoulders", shoulders.y()) +
+                     " high (expected rising in that order, knees to shoulders within 45° of "
+                     "vertical, y up: declare the file's up axis)");
+  }
+  const Eigen::VectorXd heights = avatar.rest_vertices().col(1);
+  const double height = heights.maxCoeff() - heights.minCoeff();
+  if (!(height >= kShortestBody && height <= kTallestBody)) {
+    throw InputError(who + "stands " + FormatValue(height) + " m tall (allowed " +
+                     FormatValue(kShortestBody) + " to " + FormatValue(kTallestBody) +
+                     " m for a garment: declare the file's unit)");
+  }
+}
 
 /// The cross-section of the skin at height y of the vertices belonging to `segments`, from
 /// a slab ±`slab` [m] thick; nullopt when the slab holds none.
@@ -86,8 +126,17 @@ Ring Enclosing(Ring ring, const BodyMeasures& m, double cx, double cz, double ga
     }
   }
   if (!nearest) return ring;
+  // First each half axis out to the slice's own extent along it, then both together: widened
+  // at its aspect alone, a ring measured too flat (a section of few vertices) came out many
+  // times too wide to enclose a round slice.
+  double a = ring.half_width - gap, b = ring.half_depth - gap;
+  for (const Eigen::Vector2d& p : nearest->points) {
+    a = std::max(a, std::abs(p.x() - cx));
+    b = std::max(b, std::abs(p.y() - cz));
+  }
+  a = std::max(a, kThinnestBody);
+  b = std::max(b, kThinnestBody);
   double scale = 1.0;
-  const double a = ring.half_width - gap, b = ring.half_depth - gap;
   for (const Eigen::Vector2d& p : nearest->points) {
     scale = std::max(scale, std::hypot((p.x() - cx) / a, (p.y() - cz) / b));
   }
@@ -295,6 +344,7 @@ BodyMeasures MeasureBody(const Avatar& avatar) {
   BodyMeasures m;
   const double shoulder_y = JointHeight(avatar, J::kLShoulder, J::kRShoulder);
   const double waist_y = s.rest_world()[s.Find(J::kVl5)].translation().y();
+  RequireUpright(avatar);
   m.shoulders = RequireSection(avatar, shoulder_y, {J::kVl5, J::kVc7}, "shoulders");
   m.chest = RequireSection(avatar, shoulder_y - (shoulder_y - waist_y) / 3.0, {J::kVl5}, "chest");
   m.waist = RequireSection(avatar, waist_y, {J::kVl5, J::kSacroiliac, J::kHumanoidRoot}, "waist");

@@ -48,8 +48,10 @@ struct BodyMeasures {
 };
 
 /// Measures the rest skin of `avatar` around its H-Anim joints. Throws InputError naming the
-/// avatar when it lacks vl5, vc7, both hips, both knees or both shoulders, or has no skin
-/// at one of the measured heights.
+/// avatar and what is missing when it lacks vl5, vc7, both hips, both knees or both
+/// shoulders, has no skin at one of the measured heights, does not stand upright in its rest
+/// pose (knees, hips, vl5, shoulders rising in that order: an up axis misread) or is not of
+/// human size (0.3 to 3 m tall: a unit misread).
 BodyMeasures MeasureBody(const Avatar& avatar);
 
 /// A built-in garment: its model data (pins left empty) and the particles held to the body.

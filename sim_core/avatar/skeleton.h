@@ -43,8 +43,11 @@ class Skeleton {
   int FindByName(const std::string& name) const;
   /// Index of the joint mapped onto `joint`, or -1 when the skeleton has none.
   int Find(HAnimJoint joint) const { return hanim_index_[static_cast<int>(joint)]; }
-  /// The nearest joint at or above `index` that is mapped onto H-Anim (nullopt if none):
-  /// the H-Anim segment a vertex weighted to `index` belongs to.
+  /// The H-Anim segment a vertex weighted to joint `index` belongs to: the nearest joint at or
+  /// above it that is mapped onto H-Anim, or, where none is (a rig whose deform bones hang
+  /// from helper bones, as Rigify's do), the mapped joint whose bone (to its nearest mapped
+  /// descendants) passes nearest to it in the rest pose; nullopt only for a skeleton with no
+  /// mapped joint.
   std::optional<HAnimJoint> HAnimSegmentOf(int index) const;
 
  private:
@@ -52,6 +55,9 @@ class Skeleton {
   std::string name_;
   std::vector<Joint> joints_;
   std::vector<Eigen::Isometry3d> rest_world_;
+  /// HAnimSegmentOf per joint, found once (FindSegments).
+  std::vector<std::optional<HAnimJoint>> segment_of_;
+  void FindSegments();
   std::array<int, kNumHAnimJoints> hanim_index_{};
 };
 

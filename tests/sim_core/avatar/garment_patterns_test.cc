@@ -89,5 +89,41 @@ TEST(GarmentPatterns, RefusesUnknownNamesListingTheBuiltInOnes) {
   }
 }
 
+/// The built-in humanoid with its rest pose (skeleton and skin) transformed by `transform`.
+std::shared_ptr<const Avatar> Transformed(const Eigen::Affine3d& transform, double scale) {
+  AvatarData data = Humanoid()->data();
+  std::vector<Joint> joints = data.skeleton->joints();
+  for (Joint& joint : joints) {
+    joint.rest_local.translation() *= scale;
+    if (joint.parent < 0) joint.rest_local = Eigen::Isometry3d(transform.linear()) * joint.rest_local;
+  }
+  data.skeleton = Skeleton::Create("moved", joints);
+  for (Eigen::Index v = 0; v < data.rest_vertices.rows(); ++v) {
+    data.rest_vertices.row(v) =
+        (transform.linear() * (scale * data.rest_vertices.row(v).transpose())).transpose();
+  }
+  return Avatar::Create(data);
+}
+
+TEST(GarmentPatterns, MeasuringRefusesAnAvatarLyingDownOrOfTheWrongSizeNamingWhatIsWrong) {
+  const auto lying = Transformed(
+      Eigen::Affine3d(Eigen::AngleAxisd(-0.5 * 3.141592653589793, Eigen::Vector3d::UnitX())), 1.0);
+  try {
+    MeasureBody(*lying);
+    ADD_FAILURE() << "a body lying along z was measured";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("not upright"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("up axis"), std::string::npos) << error.what();
+  }
+  const auto in_centimetres = Transformed(Eigen::Affine3d::Identity(), 100.0);
+  try {
+    MeasureBody(*in_centimetres);
+    ADD_FAILURE() << "a body 170 m tall was measured";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find("unit"), std::string::npos) << error.what();
+  }
+  EXPECT_NO_THROW(MeasureBody(*Transformed(Eigen::Affine3d::Identity(), 0.6)));  // a child
+}
+
 }  // namespace
 }  // namespace costume::sim

@@ -139,6 +139,30 @@ TEST(Skeleton, FindsJointsByNameAndHAnim) {
   EXPECT_EQ(skeleton->HAnimSegmentOf(2), HAnimJoint::kLHip);
 }
 
+// A rig whose deform bones hang from helper bones under an unmapped root, as Rigify's DEF
+// bones hang from its ORG and MCH bones: a chest bone with no mapped ancestor belongs to the
+// bone it lies on (humanoid_root to vc7, from H-Anim's own hierarchy), not to nothing, and a
+// twist bone on the upper arm to the shoulder's segment.
+TEST(Skeleton, AJointWithNoMappedAncestorBelongsToTheBoneItLiesOn) {
+  const auto mapped = [](Joint joint, HAnimJoint hanim) {
+    joint.hanim = hanim;
+    return joint;
+  };
+  std::vector<Joint> joints = {
+      MakeJoint("root", -1, {0, 0, 0}),
+      mapped(MakeJoint("DEF-hips", 0, {0, 1.0, 0}), HAnimJoint::kHumanoidRoot),
+      MakeJoint("ORG-chest", 0, {0, 1.3, 0}),
+      MakeJoint("DEF-chest", 2, {0, 0, 0}),
+      mapped(MakeJoint("DEF-neck", 0, {0, 1.6, 0}), HAnimJoint::kVc7),
+      mapped(MakeJoint("DEF-upper_arm.L", 0, {0.2, 1.5, 0}), HAnimJoint::kLShoulder),
+      mapped(MakeJoint("DEF-forearm.L", 0, {0.3, 1.2, 0}), HAnimJoint::kLElbow),
+      MakeJoint("DEF-upper_arm.L.001", 0, {0.25, 1.35, 0})};  // halfway down the upper arm
+  const auto skeleton = Skeleton::Create("rigify-like", joints);
+  EXPECT_EQ(skeleton->HAnimSegmentOf(3), HAnimJoint::kHumanoidRoot);  // on the root–vc7 bone
+  EXPECT_EQ(skeleton->HAnimSegmentOf(7), HAnimJoint::kLShoulder);
+  EXPECT_EQ(skeleton->HAnimSegmentOf(1), HAnimJoint::kHumanoidRoot);  // mapped: itself
+}
+
 TEST(ParseHAnimName, AcceptsOldAndNewNamesIgnoringCase) {
   EXPECT_EQ(ParseHAnimName("l_ankle"), HAnimJoint::kLTalocrural);
   EXPECT_EQ(ParseHAnimName("l_talocrural"), HAnimJoint::kLTalocrural);

@@ -178,6 +178,12 @@ KickResult Kick(double max_skin_travel, int resolution, double seconds) {
   scene.avatar->max_skin_travel = max_skin_travel;
   scene.duration = scene.avatar->motion.fit_time + seconds;
   scene.garments[0].pattern_resolution = resolution;
+  // A soft cotton (300 N/m), where the knee's spread of the hem shows in one step a frame.
+  Material soft = NamedMaterial("cotton");
+  soft.name = "soft_cotton";
+  soft.stretch_stiffness = soft.shear_stiffness = 300.0;
+  scene.materials.push_back(soft);
+  scene.garments[0].material = soft.name;
   auto simulation = Simulation::Build(scene);
   MeshDistance skin("humanoid", simulation->avatar()->vertices(), humanoid->triangles());
   KickResult result;
@@ -196,13 +202,13 @@ KickResult Kick(double max_skin_travel, int resolution, double seconds) {
 
 // The kicking leg's skin near the skirt moves up to 15–20 cm a frame (4 steps at 5 cm). In
 // one step a frame the knee reaches the hem within the step, and the position correction
-// spreads the hem over the knee where the strain limit holds springs to 10 % (32 %). Split
-// into steps of at most 5 cm the contacts catch the hem as the knee comes (11 %).
+// spreads the hem over the knee past the strain limit's 10 % (16 % in a soft cotton). Split
+// into steps of at most 5 cm the contacts catch the hem as the knee comes (10 %).
 TEST(FastLimbs, SplitFramesKeepTheKickingKneeFromSpreadingTheSkirtsHem) {
   const KickResult whole = Kick(0.0, 90, 4.0);
   const KickResult split = Kick(0.05, 90, 4.0);
-  EXPECT_GT(whole.max_strain, 0.2);  // the failure the split is for
-  EXPECT_LT(split.max_strain, 0.15);
+  EXPECT_GT(whole.max_strain, 0.13);  // the failure the split is for
+  EXPECT_LT(split.max_strain, 0.11);
   EXPECT_EQ(split.threaded_frames, 0);
   EXPECT_GT(split.steps, whole.steps);
 }
