@@ -156,7 +156,9 @@ int Run(const Options& options) {
   if (sim->body_collider()) {
     std::snprintf(collision, sizeof(collision), " (avatar collision %.2f)", Median(collision_ms));
   }
-  std::printf("done: median %.2f ms/frame%s, max strain %.2f%%, mean |strain| %.3f%%%s\n",
+  // The last frame's figures; --json measures every frame (its max_strain is of any frame).
+  std::printf("done: median %.2f ms/frame%s; last frame: largest strain %.2f%%, mean |strain| "
+              "%.3f%%%s\n",
               Median(frame_ms), collision, 100 * strain.max, 100 * strain.mean,
               rolled_back ? ", some steps undone (see above)" : "");
   if (options.write_frames) std::printf("frames written to %s/frame_*.obj\n", out.c_str());
