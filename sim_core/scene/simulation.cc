@@ -367,7 +367,8 @@ int Simulation::num_frames() const {
 //   (ContactNormalVelocity), and where the skin faces down (the hips below their widest) that
 //   prediction carries gravity's outward share, g·n, so the constraint pushed the skirt off
 //   the hips, 4 mm/s faster every step, until it left the margin and its springs threw it
-//   back (a skirt on a standing body never came to rest: 11 cm/s in its last second).
+//   back (on a standing body the skirt's hips kept moving at up to 11 cm/s). What still keeps
+//   a garment from settling is the solve's, docs/cloth_model.md "Limits at rest".
 void Simulation::ReleaseAdhesiveContacts(double h) {
   constexpr double kClearOfShell = 1e-4;  // m: a tenth of a millimetre off the shell
   std::erase_if(contacts_, [this, h](const Contact& c) {
