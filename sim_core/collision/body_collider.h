@@ -86,6 +86,11 @@ class BodyCollider {
   /// into the body relative to the body (the paper's position correction). Returns the
   /// deepest penetration before the correction [m]. Never throws.
   virtual double ProjectOut(Points& positions, Points& velocities) = 0;
+  /// ProjectOut for the listed `particles` (rows of `positions`) only: for a correction
+  /// after one that saw every particle where it still is and left it alone. The rest are
+  /// not read, beyond the bounds of all `positions`. Never throws.
+  virtual double ProjectOut(Points& positions, Points& velocities,
+                            std::span<const int> particles) = 0;
   /// The least correction that leaves none of the listed `particles` (rows of `positions`)
   /// inside the body, at their cost: one inside the skin itself moves onto the skin (not
   /// the shell), and its velocity into the body is removed; one within the thickness stays.

@@ -1278,10 +1278,20 @@ double MeshCollider::ProjectOut(Points& positions, Points& velocities) {
   return deepest;
 }
 
+double MeshCollider::ProjectOut(Points& positions, Points& velocities,
+                                std::span<const int> particles) {
+  return ProjectListedOut(positions, velocities, particles, settings_.thickness);
+}
+
 double MeshCollider::ProjectOutOfSkin(Points& positions, Points& velocities,
                                       std::span<const int> particles) {
+  return ProjectListedOut(positions, velocities, particles, 0.0);
+}
+
+double MeshCollider::ProjectListedOut(Points& positions, Points& velocities,
+                                      std::span<const int> particles, double shell) {
   if (positions.rows() != velocities.rows()) return 0.0;
-  const Correction how = CorrectionFor(positions, 0.0);
+  const Correction how = CorrectionFor(positions, shell);
   double deepest = 0.0;
   for (const int i : particles) {
     deepest = std::max(deepest, ProjectParticleOut(i, how, positions, velocities));

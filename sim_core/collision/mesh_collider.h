@@ -180,6 +180,8 @@ class MeshCollider : public BodyCollider {
   /// FindContacts last had as many particles.
   /// Never throws; never allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
+  double ProjectOut(Points& positions, Points& velocities,
+                    std::span<const int> particles) override;
   /// See BodyCollider: the above for the listed particles, onto the skin (a buried or lost
   /// particle's exit, which ProjectOut finds, still onto the shell).
   double ProjectOutOfSkin(Points& positions, Points& velocities,
@@ -317,6 +319,9 @@ class MeshCollider : public BodyCollider {
   /// the shell it had [m], 0 when it was not inside or no exit would do.
   double ProjectOutOfPiece(Eigen::Index i, int piece, const Eigen::Vector3d& outward,
                            double max_depth, Points& positions, Points& velocities);
+  /// ProjectParticleOut for each of `particles`, onto `shell` [m] above the skin.
+  double ProjectListedOut(Points& positions, Points& velocities, std::span<const int> particles,
+                          double shell);
   /// What every particle's correction in one ProjectOut shares.
   struct Correction {
     double shell = 0.0;  // how far off the skin particles go [m]: the thickness, or 0

@@ -1140,6 +1140,17 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
   return deepest;
 }
 
+double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities,
+                                        std::span<const int> particles) {
+  if (particles.empty() || segments_.empty()) return 0.0;
+  CullSegmentsAtEnd(positions);  // as ProjectOut over all, so each particle sees the same
+  double deepest = 0.0;
+  for (const int i : particles) {
+    deepest = std::max(deepest, ProjectParticleOut(i, 0.0, positions, velocities));
+  }
+  return deepest;
+}
+
 double SuperquadricCollider::ProjectOutOfSkin(Points& positions, Points& velocities,
                                               std::span<const int> particles) {
   if (particles.empty() || segments_.empty()) return 0.0;

@@ -367,6 +367,8 @@ class SuperquadricCollider : public BodyCollider {
   /// place it went through (PlaceUnsettled). Returns the deepest normal penetration [m].
   /// Never throws or allocates.
   double ProjectOut(Points& positions, Points& velocities) override;
+  double ProjectOut(Points& positions, Points& velocities,
+                    std::span<const int> particles) override;
   /// See BodyCollider: the above for the listed particles, onto the skin.
   double ProjectOutOfSkin(Points& positions, Points& velocities,
                           std::span<const int> particles) override;

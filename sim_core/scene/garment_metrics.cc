@@ -50,6 +50,10 @@ GarmentMetrics::~GarmentMetrics() = default;
 void GarmentMetrics::AddFrame(const Simulation& simulation, const FrameReport& report) {
   const Points& x = simulation.state().positions;
   frame_ms_.push_back(report.wall_ms);
+  solve_ms_.push_back(report.solve_ms);
+  strain_limit_ms_.push_back(report.strain_limit_ms);
+  collision_ms_.push_back(report.collision_ms + report.collision_update_ms);
+  self_collision_ms_.push_back(report.self_collision_ms);
   rolled_back_ += report.rolled_back_steps;
   steps_ += report.steps;
   iterations_ += report.iterations;
@@ -81,6 +85,10 @@ RunSummary GarmentMetrics::Summary() const {
   s.frames = static_cast<int>(frame_ms_.size());
   s.ms_per_frame_median = PercentileOf(frame_ms_, 0.5);
   s.ms_per_frame_p95 = PercentileOf(frame_ms_, 0.95);
+  s.solve_ms_median = PercentileOf(solve_ms_, 0.5);
+  s.strain_limit_ms_median = PercentileOf(strain_limit_ms_, 0.5);
+  s.collision_ms_median = PercentileOf(collision_ms_, 0.5);
+  s.self_collision_ms_median = PercentileOf(self_collision_ms_, 0.5);
   if (!frame_max_strain_.empty()) {
     s.max_strain = *std::max_element(frame_max_strain_.begin(), frame_max_strain_.end());
   }

@@ -26,6 +26,13 @@ struct RunSummary {
   /// Wall time of a frame (Simulation::AdvanceFrame) [ms]: median and 95th percentile.
   double ms_per_frame_median = 0.0;
   double ms_per_frame_p95 = 0.0;
+  /// Where a frame's time goes, medians over the frames [ms]: the implicit solve, the strain
+  /// limit, the avatar's collision (following the body, contacts, corrections) and
+  /// self-collision (FrameReport).
+  double solve_ms_median = 0.0;
+  double strain_limit_ms_median = 0.0;
+  double collision_ms_median = 0.0;
+  double self_collision_ms_median = 0.0;
   /// Largest strain of any structural spring in any frame [-].
   double max_strain = 0.0;
   /// 99th percentile over the frames of each frame's largest strain [-].
@@ -86,6 +93,7 @@ class GarmentMetrics {
   std::string unmeasured_;
   std::vector<char> attached_;
   std::vector<double> frame_ms_, frame_max_strain_, frame_mean_strain_, frame_penetration_;
+  std::vector<double> solve_ms_, strain_limit_ms_, collision_ms_, self_collision_ms_;
   std::vector<int> frame_crossings_;
   int nan_ = 0, rolled_back_ = 0, steps_ = 0;
   long long iterations_ = 0;

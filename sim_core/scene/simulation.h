@@ -80,6 +80,10 @@ struct FrameReport {
   int buried = 0;
   /// Time spent on self-collision [ms] (0 when the scene switches it off).
   double self_collision_ms = 0.0;
+  /// Time the implicit solve took (assembly, solver, rollback checks) [ms], and the strain
+  /// limit's projections after it [ms], summed over the frame's steps.
+  double solve_ms = 0.0;
+  double strain_limit_ms = 0.0;
   /// Cloth–cloth collisions self-collision could not resolve, summed over the steps.
   int unresolved_self_collisions = 0;
   /// Wall-clock time of the frame [ms].
@@ -232,6 +236,12 @@ class Simulation {
   /// The body's position correction (BodyCollider::ProjectOut) and the attachments; keeps
   /// the solved positions first when self-collision needs them.
   void ProjectOutOfBody(FrameReport& report);
+  /// After the body's correction of a copy in ApplyStrainLimit: which particles it left
+  /// alone, and where it saw them.
+  void NoteWhatTheBodyLeftAlone();
+  /// The particles the body's correction must look at now: all, or after
+  /// NoteWhatTheBodyLeftAlone in this step those it moved and those that moved since.
+  const std::vector<int>& NeedingBodyCorrection();
   /// After self-collision's Resolve: the strain limit again (16 sweeps) and, when it
   /// shortened any spring, SelfCollision::ResolveCrossings over that correction (the body's
   /// holds kept); again while that resolve stops anything, up to four rounds.
@@ -291,6 +301,16 @@ class Simulation {
   /// cloth to (ApplyStrainLimit).
   Points corrected_positions_, corrected_velocities_;
   std::vector<ShellPlane> correction_planes_;
+  /// Where the body's correction in ApplyStrainLimit saw the cloth, and the particles it
+  /// left alone there (1), this step: ProjectOutOfBody looks again only at the others and
+  /// at those that moved since (NeedingBodyCorrection), as the body has not moved.
+  bool body_saw_this_step_ = false;
+  /// The part of ApplyStrainLimit's time the body's correction took [ms], counted as
+  /// collision time.
+  double collision_in_limit_ms_ = 0.0;
+  Points body_saw_positions_;
+  std::vector<char> body_left_alone_;
+  std::vector<int> body_recheck_;
   /// Steps every frame takes at least, for the model's stiffness (StiffnessSteps).
   int stiffness_steps_ = 1;
   /// Positions at the start of the step, for self-collision's continuous tests.

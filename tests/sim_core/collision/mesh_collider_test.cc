@@ -66,6 +66,30 @@ TEST(MeshCollider, ParticleInsideGetsAnOutwardContactAndProjectsOntoTheShell) {
   EXPECT_EQ(collider.ProjectOut(x, v), 0.0);  // already on the shell
 }
 
+// The listed correction moves only the listed particles, each onto the shell as the full one
+// does: 1 cm below the top face is 1.4 cm below the 4 mm shell.
+TEST(MeshCollider, ListedProjectOutMovesOnlyTheListedParticlesOntoTheShell) {
+  const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
+  BodyCollisionSettings settings;
+  settings.thickness = 0.004;
+  MeshCollider collider(RigidAvatar(box), settings);
+  collider.Update(kJoints, box.vertices, kH);
+  Points x(2, 3);
+  x.row(0) = (kCenter + Eigen::Vector3d(0.013, kHalf.y() - 0.01, 0.027)).transpose();
+  x.row(1) = (kCenter + Eigen::Vector3d(-0.031, kHalf.y() - 0.01, 0.011)).transpose();
+  Points v = Points::Zero(2, 3);
+  v.col(1).setConstant(-1.0);
+  std::vector<Contact> contacts;
+  collider.FindContacts(x, v, kH, 0.002, contacts);
+  const Points before = x;
+  const std::vector<int> listed = {1};
+  EXPECT_NEAR(collider.ProjectOut(x, v, listed), 0.014, 1e-12);
+  EXPECT_EQ(x.row(0), before.row(0));
+  EXPECT_EQ(v(0, 1), -1.0);
+  EXPECT_NEAR(test::BoxSignedDistance(x.row(1).transpose(), kCenter, kHalf), 0.004, 1e-6);
+  EXPECT_NEAR(v(1, 1), 0.0, 1e-12);
+}
+
 TEST(MeshCollider, ParticleFarOutsideGetsNoneUnlessItWouldArrive) {
   const auto box = test::TessellatedBox(kCenter, kHalf, Eigen::Vector3i(6, 6, 6));
   MeshCollider collider(RigidAvatar(box), BodyCollisionSettings{});
