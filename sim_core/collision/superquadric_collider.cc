@@ -1142,23 +1142,22 @@ double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities) {
 
 double SuperquadricCollider::ProjectOut(Points& positions, Points& velocities,
                                         std::span<const int> particles) {
-  if (particles.empty() || segments_.empty()) return 0.0;
-  CullSegmentsAtEnd(positions);  // as ProjectOut over all, so each particle sees the same
-  double deepest = 0.0;
-  for (const int i : particles) {
-    deepest = std::max(deepest, ProjectParticleOut(i, 0.0, positions, velocities));
-  }
-  return deepest;
+  return ProjectListedOut(positions, velocities, particles, 0.0);
 }
 
 double SuperquadricCollider::ProjectOutOfSkin(Points& positions, Points& velocities,
                                               std::span<const int> particles) {
+  return ProjectListedOut(positions, velocities, particles, settings_.thickness);
+}
+
+double SuperquadricCollider::ProjectListedOut(Points& positions, Points& velocities,
+                                              std::span<const int> particles,
+                                              double allowance) {
   if (particles.empty() || segments_.empty()) return 0.0;
   CullSegmentsAtEnd(positions);  // all of them: a box over a few would save little
   double deepest = 0.0;
   for (const int i : particles) {
-    deepest = std::max(deepest,
-                       ProjectParticleOut(i, settings_.thickness, positions, velocities));
+    deepest = std::max(deepest, ProjectParticleOut(i, allowance, positions, velocities));
   }
   return deepest;
 }

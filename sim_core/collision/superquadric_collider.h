@@ -474,6 +474,10 @@ class SuperquadricCollider : public BodyCollider {
                     Undecided& undecided);
   /// Culls the segments against the box of `positions` at the end of the step (CullSegments).
   void CullSegmentsAtEnd(const Points& positions);
+  /// ProjectParticleOut for each of `particles`, after culling the segments for all
+  /// `positions`.
+  double ProjectListedOut(Points& positions, Points& velocities, std::span<const int> particles,
+                          double allowance);
   /// ProjectOut for particle `i`, onto the surface `allowance` [m] below the shell (0: the
   /// shell; the thickness: the skin): its normal penetration of that surface before the
   /// correction [m], 0 when it was outside.

@@ -590,10 +590,12 @@ void Simulation::ProjectOutOfBody(FrameReport& report) {
 
 // Why a particle left alone needs no second look: the correction reads only its position
 // and the body, which has not moved since, so it would leave it alone again. Two full
-// corrections a step were a third of the frame on a 2,000-particle suit.
+// corrections a step took 14 ms of a 48 ms frame on a 2,000-particle suit. Where it was
+// seen is still in corrected_positions_ (left alone: unchanged there).
 void Simulation::NoteWhatTheBodyLeftAlone() {
-  body_saw_positions_ = state_.positions;  // same sizes every step: copy without allocating
-  body_left_alone_.resize(static_cast<std::size_t>(state_.positions.rows()));
+  const auto n = static_cast<std::size_t>(state_.positions.rows());
+  body_left_alone_.resize(n);
+  body_recheck_.reserve(n);  // so NeedingBodyCorrection never allocates after the first step
   for (Eigen::Index i = 0; i < state_.positions.rows(); ++i) {
     body_left_alone_[i] = corrected_positions_.row(i) == state_.positions.row(i) &&
                           corrected_velocities_.row(i) == state_.velocities.row(i);
@@ -604,7 +606,7 @@ void Simulation::NoteWhatTheBodyLeftAlone() {
 const std::vector<int>& Simulation::NeedingBodyCorrection() {
   body_recheck_.clear();
   for (Eigen::Index i = 0; i < state_.positions.rows(); ++i) {
-    if (!body_left_alone_[i] || state_.positions.row(i) != body_saw_positions_.row(i)) {
+    if (!body_left_alone_[i] || state_.positions.row(i) != corrected_positions_.row(i)) {
       body_recheck_.push_back(static_cast<int>(i));
     }
   }

@@ -301,14 +301,13 @@ class Simulation {
   /// cloth to (ApplyStrainLimit).
   Points corrected_positions_, corrected_velocities_;
   std::vector<ShellPlane> correction_planes_;
-  /// Where the body's correction in ApplyStrainLimit saw the cloth, and the particles it
-  /// left alone there (1), this step: ProjectOutOfBody looks again only at the others and
+  /// Whether the body's correction in ApplyStrainLimit saw the cloth this step, and the
+  /// particles it left alone there (1): ProjectOutOfBody looks again only at the others and
   /// at those that moved since (NeedingBodyCorrection), as the body has not moved.
   bool body_saw_this_step_ = false;
   /// The part of ApplyStrainLimit's time the body's correction took [ms], counted as
   /// collision time.
   double collision_in_limit_ms_ = 0.0;
-  Points body_saw_positions_;
   std::vector<char> body_left_alone_;
   std::vector<int> body_recheck_;
   /// Steps every frame takes at least, for the model's stiffness (StiffnessSteps).
