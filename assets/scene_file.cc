@@ -21,6 +21,7 @@
 #include "assets/makehuman_import.h"
 #include "assets/mesh_import.h"
 #include "sim_core/avatar/pose.h"
+#include "sim_core/common/thread_pool.h"
 #include "sim_core/avatar/procedural_clips.h"
 #include "sim_core/avatar/procedural_humanoid.h"
 #include "sim_core/scene/garment_fit.h"
@@ -419,7 +420,7 @@ void RefuseDuplicateName(std::map<std::string, toml::source_position>& seen, con
 sim::SolverSettings ParseSolver(const TableView& table) {
   table.RefuseUnknownKeys(
       {"method", "tolerance", "max_iterations", "levels", "coarse_operator", "substeps",
-       "strain_limit"});
+       "strain_limit", "threads"});
   sim::SolverSettings solver;
   if (const std::optional<Field> method = table.Find("method")) {
     const std::string name =
@@ -440,6 +441,7 @@ sim::SolverSettings ParseSolver(const TableView& table) {
   solver.substeps = IntegerOr(table, "substeps", solver.substeps, 1, sim::kMaxSubsteps);
   solver.strain_limit =
       NumberOr(table, "strain_limit", solver.strain_limit, kStrainLimitRange, "");
+  solver.threads = IntegerOr(table, "threads", solver.threads, 0, sim::ThreadPool::kMaxThreads);
   return solver;
 }
 

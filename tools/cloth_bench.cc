@@ -1,7 +1,8 @@
 /// @file
 /// cloth_bench: the hang and drape scenes of docs/BENCHMARKS.md, one JSON object per run,
 /// with the peers' figures (measured on the same kind of machine) beside ours.
-/// Single-threaded; medians over the run's frames. The solvers of one scene, material and N
+/// One thread unless --threads or a solver's threads= asks for more; medians over the run's
+/// frames. The solvers of one scene, material and N
 /// run side by side, frame by frame, and the later ones report their speed-up over the first.
 
 #include <CLI/CLI.hpp>
@@ -39,7 +40,13 @@ struct Run {
   double strain_limit = 0.1;
   int levels = 0;
   bool per_frame = false;
+  bool own_error = false;
+  int threads = 1;
 };
+
+/// The frame at which --own-error compares a run with CHOLMOD: t = 1 s at 60 frames a second
+/// (the run's last frame when it is shorter).
+int OwnErrorFrame(const Run& run) { return std::min(run.frames, 60); }
 
 /// A peer's figure from docs/BENCHMARKS.md: ms per frame and max strain.
 struct Peer {
@@ -109,10 +116,13 @@ void ApplySolverSpec(const std::string& spec, Run& run) {
     } else if (key == "substeps" && is_number && value == std::floor(value) && value >= 1 &&
                value <= 256) {
       run.dt = 1.0 / (60.0 * value);
+    } else if (key == "threads" && is_number && value == std::floor(value) && value >= 1 &&
+               value <= costume::sim::ThreadPool::kMaxThreads) {
+      run.threads = static_cast<int>(value);
     } else {
       throw costume::sim::InputError(
           "--solver '" + spec + "': bad setting '" + part +
-          "' (allowed: tol=1e-14..0.999, levels=0..16 (0 = all), substeps=1..256)");
+          "' (allowed: tol=1e-14..0.999, levels=0..16 (0 = all), substeps=1..256, threads=1..64)");
     }
   }
 }
@@ -136,6 +146,7 @@ SceneDescription MakeScene(const Run& run) {
   scene.solver.max_iterations = run.max_iterations;
   scene.solver.strain_limit = run.strain_limit;
   scene.solver.substeps = SubstepsOf(run.dt);
+  scene.solver.threads = run.threads;
   scene.frame_rate = 60.0;
   scene.duration = run.frames / 60.0;
   return scene;
@@ -172,6 +183,8 @@ struct Measurement {
   std::unique_ptr<Simulation> sim;
   std::vector<double> ms, cpu_ms;
   std::vector<int> frame_iterations;
+  /// Positions after OwnErrorFrame(run) frames (--own-error).
+  Eigen::MatrixXd compared_positions;
   long iterations = 0, coarse_iterations = 0, unconverged = 0, rolled_back = 0;
   long strain_corrections = 0;
   double min_distance = std::numeric_limits<double>::infinity(), penetration = 0.0;
@@ -191,6 +204,7 @@ struct Measurement {
     strain_corrections += report.strain_corrections;
     penetration = std::max(penetration, report.max_penetration);
     min_distance = std::min(min_distance, MinSphereDistance(*sim));
+    if (static_cast<int>(ms.size()) == OwnErrorFrame(run)) compared_positions = sim->state().positions;
   }
 
   json Report() const {
@@ -203,6 +217,7 @@ struct Measurement {
                 {"solver", run.label},
                 {"dt", sim->step()},
                 {"substeps", scene.solver.substeps},
+                {"threads", scene.solver.threads},
                 {"levels", sim->pyramid() ? sim->pyramid()->num_levels() : 1},
                 {"tolerance", run.tolerance},
                 {"strain_limit", run.strain_limit},
@@ -235,6 +250,39 @@ struct Measurement {
   }
 };
 
+/// Positions of `run`'s scene solved by CHOLMOD at the run's step and substeps, after
+/// OwnErrorFrame(run) frames: the exact solution of every step's linear system, so that a run's
+/// distance from it is its solver's own error and not the time step's.
+Eigen::MatrixXd DirectSolverPositions(const Run& run) {
+  Run reference = run;
+  reference.solver = "direct";
+  reference.label = "direct";
+  reference.frames = OwnErrorFrame(run);
+  reference.threads = 1;  // CHOLMOD's result does not depend on it
+  Measurement m(reference);
+  for (int f = 0; f < reference.frames; ++f) m.sim->AdvanceFrame();
+  return m.sim->state().positions;
+}
+
+/// RMS over particles of the distance between two position sets [mm].
+double RmsDistanceMm(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return 1e3 * std::sqrt((a - b).rowwise().squaredNorm().mean());
+}
+
+/// Adds own_error_rms_mm to `out`: `m`'s distance from CHOLMOD at the same step (one
+/// reference run per step size, kept in `references`).
+void AddOwnError(const Measurement& m, std::vector<std::pair<double, Eigen::MatrixXd>>& references,
+                 json& out) {
+  auto found = std::find_if(references.begin(), references.end(),
+                            [&](const auto& r) { return r.first == m.run.dt; });
+  if (found == references.end()) {
+    references.emplace_back(m.run.dt, DirectSolverPositions(m.run));
+    found = references.end() - 1;
+  }
+  out["own_error_rms_mm"] = RmsDistanceMm(m.compared_positions, found->second);
+  out["own_error_at_s"] = OwnErrorFrame(m.run) / 60.0;
+}
+
 /// Runs `runs` (one scene, material and N, several solvers) side by side: frame f of every
 /// solver before frame f + 1 of any, so a shared machine's load falls on all of them alike.
 /// Prints one JSON line per solver; from the second solver on, with its speed relative to the
@@ -246,8 +294,10 @@ void MeasureSideBySide(const std::vector<Run>& runs) {
     for (auto& m : measurements) m->AdvanceFrame();
   }
   const Measurement& first = *measurements.front();
+  std::vector<std::pair<double, Eigen::MatrixXd>> references;  // (dt, CHOLMOD's positions)
   for (const auto& m : measurements) {
     json out = m->Report();
+    if (m->run.own_error) AddOwnError(*m, references, out);
     if (m.get() != &first) {
       std::vector<double> ratios, cpu_ratios;
       for (std::size_t f = 0; f < m->ms.size(); ++f) {
@@ -279,10 +329,10 @@ int main(int argc, char** argv) {
   app.add_option("--n", sizes, "Lattice sizes N (N×N particles)")->check(CLI::Range(3, 1025))
       ->capture_default_str();
   app.add_option("--solver", solvers,
-                 "Solvers, each NAME[,tol=T][,levels=L][,substeps=S] (NAME: pcg, hierarchical, "
-                 "multigrid, multigrid_galerkin, multigrid_rediscretised, direct); the settings "
-                 "override --tolerance, --levels and --dt for that solver, e.g. "
-                 "--solver pcg,tol=1e-4 hierarchical,tol=0.5")
+                 "Solvers, each NAME[,tol=T][,levels=L][,substeps=S][,threads=T] (NAME: pcg, "
+                 "hierarchical, multigrid, multigrid_galerkin, multigrid_rediscretised, direct); "
+                 "the settings override --tolerance, --levels, --dt and --threads for that "
+                 "solver, e.g. --solver pcg,tol=1e-4 pcg,tol=1e-4,threads=2")
       ->capture_default_str();
   app.add_option("--dt", base.dt, "Time step [s]; rounded to 1/60 s divided by an integer")
       ->check(CLI::Range(1e-5, 1.0 / 60.0))->capture_default_str();
@@ -298,6 +348,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100000))->capture_default_str();
   app.add_flag("--per-frame", base.per_frame,
                "Also print each frame's level-0 iterations (iterations_each_frame)");
+  app.add_option("--threads", base.threads, "Threads of every solver's loops")
+      ->check(CLI::Range(1, costume::sim::ThreadPool::kMaxThreads))->capture_default_str();
+  app.add_flag("--own-error", base.own_error,
+               "Also run each step size with CHOLMOD and print own_error_rms_mm: the RMS "
+               "distance [mm] of every run from it at t = 1 s (the last frame if shorter)");
   CLI11_PARSE(app, argc, argv);
   try {
     for (const auto& scene : scenes) {

@@ -70,6 +70,10 @@ struct Options {
   int sheet_tile = 192;
   std::vector<double> sheet_times{0.5, 1.0, 1.5, 2.0, 3.0, 4.0};
   int resolution = 64;
+  /// "" = the engine's choice; else pcg, multigrid or multigrid_galerkin (measurement only).
+  std::string solver;
+  /// The solver's threads (1: the figures of one core, as the targets are set).
+  int threads = 1;
 };
 
 /// An avatar the bench dresses, loaded once.
@@ -238,6 +242,12 @@ sim::SceneDescription CaseScene(const AvatarCase& avatar, const GarmentCase& gar
   g.name = garment.name;
   g.material = fabric.name;
   scene.garments.push_back(g);
+  scene.solver.threads = options.threads;
+  if (options.solver == "pcg") scene.solver.method = sim::SolverMethod::kPcg;
+  if (options.solver.starts_with("multigrid")) scene.solver.method = sim::SolverMethod::kMultigrid;
+  if (options.solver == "multigrid_galerkin") {
+    scene.solver.coarse_operator = sim::CoarseOperator::kGalerkin;
+  }
   return scene;
 }
 
@@ -366,6 +376,11 @@ int main(int argc, char** argv) {
   app.add_flag("--self-collision", options.self_collision, "Cloth against itself as well");
   app.add_option("--sheets", options.sheets, "Folder for the contact sheets ('' for none)")
       ->capture_default_str();
+  app.add_option("--solver", options.solver,
+                 "Overrides the engine's solver, to compare: pcg, multigrid, multigrid_galerkin")
+      ->check(CLI::IsMember({"pcg", "multigrid", "multigrid_galerkin"}));
+  app.add_option("--threads", options.threads, "Threads of the solver's loops")
+      ->check(CLI::Range(1, sim::ThreadPool::kMaxThreads))->capture_default_str();
   app.add_option("--resolution", options.resolution,
                  "Built-in garments' particles around their circumference")
       ->check(CLI::Range(8, 1024))

@@ -36,6 +36,8 @@ struct Options {
   /// Overrides of the scene's collision method and self-collision switch ("" keeps them).
   std::string collision;
   std::string self_collision;
+  /// Overrides solver.threads (-1 keeps the scene's).
+  int threads = -1;
 };
 
 costume::sim::SceneDescription LoadScene(const Options& options) {
@@ -118,17 +120,19 @@ int Run(const Options& options) {
   costume::sim::SceneDescription scene = LoadScene(options);
   if (options.duration > 0) scene.duration = options.duration;
   ApplyCollisionOverrides(options, scene);
+  if (options.threads >= 0) scene.solver.threads = options.threads;
   const std::filesystem::path out =
       std::filesystem::path(options.out_dir) / FramesFolderName(scene.name);
   if (options.write_frames) MakeFramesFolder(out);  // before a build that may take a while
   std::printf("scene '%s' (%s): building...\n", scene.name.c_str(), scene.source.c_str());
   auto sim = Simulation::Build(scene);
   const int num_frames = sim->num_frames();
-  std::printf("%d particles, %d springs, %d frames at %.0f Hz, solver %s, %d substep(s), "
-              "avatar collision %s, self-collision %s\n",
+  std::printf("%d particles, %d springs, %d frames at %.0f Hz, solver %s on %d thread(s), "
+              "%d substep(s), avatar collision %s, self-collision %s\n",
               sim->model().num_particles(), sim->model().num_springs(), num_frames,
               scene.frame_rate, costume::sim::SolverMethodName(scene.solver.method),
-              scene.solver.substeps, CollisionName(scene),
+              costume::sim::SolverThreads(scene.solver.threads), scene.solver.substeps,
+              CollisionName(scene),
               scene.effects.self_collision ? "on" : "off");
   if (scene.avatar && scene.avatar->clip) {
     std::printf("%s\n", costume::sim::DescribeArmSpread(sim->arm_spread()).c_str());
@@ -195,6 +199,10 @@ int main(int argc, char** argv) {
   app.add_option("--self-collision", options.self_collision,
                  "Override the scene's self-collision (off costs nothing)")
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--threads", options.threads,
+                 "Override the scene's solver.threads (0: the machine's; any count gives the "
+                 "same result)")
+      ->check(CLI::Range(0, costume::sim::ThreadPool::kMaxThreads));
   CLI11_PARSE(app, argc, argv);
   try {
     return Run(options);

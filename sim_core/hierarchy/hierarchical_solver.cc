@@ -8,8 +8,8 @@ HierarchicalSolver::HierarchicalSolver(std::shared_ptr<const QuincunxPyramid> py
                                        const PcgSettings& settings, JacobianMode mode,
                                        const ExternalForces& external)
     : settings_(settings),
-      levels_(pyramid, mode, external),
-      fine_(pyramid->level(0).model->num_particles()) {}
+      levels_(pyramid, mode, external, CoarseOperator::kRediscretised, settings.pool),
+      fine_(pyramid->level(0).model->num_particles(), settings.pool) {}
 
 SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const SystemMatrix& a,
                                       const Eigen::VectorXd& b, const Constraints& constraints,
@@ -30,13 +30,13 @@ SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const S
     if (l > 1) {
       LevelSystem& finer = levels_.level(l - 1);
       SmoothJacobi(finer.a, finer.b, finer.constraints, finer.jacobi, kSmoothingSweeps, finer.x,
-                   finer.r, finer.t);
+                   finer.r, finer.t, settings_.pool);
     }
   }
   fine_.jacobi.Update(a, constraints);
   if (top > 0) {
     SmoothJacobi(a, b, constraints, fine_.jacobi, kSmoothingSweeps, dv, fine_.residual,
-                 fine_.scratch);
+                 fine_.scratch, settings_.pool);
   }
   const PcgReport fine = fine_.pcg.Solve(a, b, constraints, settings_, fine_.jacobi, dv);
   report.iterations = fine.iterations;

@@ -6,20 +6,21 @@
 
 namespace costume::sim {
 
-LevelSystem::LevelSystem(const ClothModel& model, SystemMatrix matrix)
+LevelSystem::LevelSystem(const ClothModel& model, SystemMatrix matrix, ThreadPool* pool)
     : a(std::move(matrix)),
       b(Eigen::VectorXd::Zero(3 * model.num_particles())),
       constraints(model.num_particles()),
       state(ClothState::AtRest(model)),
-      jacobi(model.num_particles()),
+      jacobi(model.num_particles(), pool),
       pcg(model.num_particles()),
       x(Eigen::VectorXd::Zero(3 * model.num_particles())),
       r(Eigen::VectorXd::Zero(3 * model.num_particles())),
       t(Eigen::VectorXd::Zero(3 * model.num_particles())) {}
 
 LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
-                           const ExternalForces& external, CoarseOperator coarse)
-    : pyramid_(std::move(pyramid)), mode_(mode), external_(external), coarse_(coarse) {
+                           const ExternalForces& external, CoarseOperator coarse,
+                           ThreadPool* pool)
+    : pyramid_(std::move(pyramid)), mode_(mode), external_(external), coarse_(coarse), pool_(pool) {
   levels_.resize(pyramid_->num_levels());
   const SystemMatrix level0_pattern(*pyramid_->level(0).model);
   for (int l = 1; l < pyramid_->num_levels(); ++l) {
@@ -27,9 +28,9 @@ LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, Jacob
     if (coarse_ == CoarseOperator::kGalerkin) {
       const SystemMatrix& finer = l == 1 ? level0_pattern : levels_[l - 1]->a;
       galerkin_.emplace_back(finer, pyramid_->level(l), model.num_particles());
-      levels_[l] = std::make_unique<LevelSystem>(model, galerkin_.back().MakeCoarseMatrix());
+      levels_[l] = std::make_unique<LevelSystem>(model, galerkin_.back().MakeCoarseMatrix(), pool_);
     } else {
-      levels_[l] = std::make_unique<LevelSystem>(model, SystemMatrix(model));
+      levels_[l] = std::make_unique<LevelSystem>(model, SystemMatrix(model), pool_);
     }
   }
 }
@@ -52,10 +53,10 @@ void LevelSystems::Assemble(const ClothState& level0, double h, const SystemMatr
 
 void SmoothJacobi(const SystemMatrix& a, const Eigen::VectorXd& b, const Constraints& constraints,
                   BlockJacobiPreconditioner& jacobi, int sweeps, Eigen::VectorXd& x,
-                  Eigen::VectorXd& r, Eigen::VectorXd& t) {
+                  Eigen::VectorXd& r, Eigen::VectorXd& t, ThreadPool* pool) {
   constexpr double kOmega = kJacobiDamping;
   for (int s = 0; s < sweeps; ++s) {
-    a.Multiply(x, t);
+    a.Multiply(x, t, pool);
     r = b - t;
     constraints.Filter(r);
     jacobi.Apply(r, t);

@@ -20,8 +20,9 @@ namespace costume::sim {
 
 /// One level's system and scratch vectors (all 3·n_l long).
 struct LevelSystem {
-  /// Matrix `matrix` over model's particles (the model's springs or a Galerkin pattern).
-  LevelSystem(const ClothModel& model, SystemMatrix matrix);
+  /// Matrix `matrix` over model's particles (the model's springs or a Galerkin pattern);
+  /// `pool` (may be null) for the smoother's loops.
+  LevelSystem(const ClothModel& model, SystemMatrix matrix, ThreadPool* pool = nullptr);
   SystemMatrix a;
   Eigen::VectorXd b;
   Constraints constraints;
@@ -33,9 +34,9 @@ struct LevelSystem {
 
 /// Level 0's scratch for the pyramid's solvers (its system is the stepper's).
 struct FineWorkspace {
-  explicit FineWorkspace(int num_particles)
+  explicit FineWorkspace(int num_particles, ThreadPool* pool = nullptr)
       : pcg(num_particles),
-        jacobi(num_particles),
+        jacobi(num_particles, pool),
         residual(3 * num_particles),
         scratch(3 * num_particles) {}
   FilteredPcg pcg;
@@ -46,10 +47,11 @@ struct FineWorkspace {
 class LevelSystems {
  public:
   /// Allocates the systems of levels 1 .. pyramid.num_levels() − 1; for kGalerkin also the
-  /// products' patterns, level 0's being that of its model's springs.
+  /// products' patterns, level 0's being that of its model's springs. `pool` (may be null)
+  /// runs the levels' smoothers on its threads.
   LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
                const ExternalForces& external,
-               CoarseOperator coarse = CoarseOperator::kRediscretised);
+               CoarseOperator coarse = CoarseOperator::kRediscretised, ThreadPool* pool = nullptr);
 
   /// Sets every coarse level's matrix for step h [s] at level 0's state and matrix
   /// `level0_a` (rediscretised: each coarse model assembled at the restriction of `level0`,
@@ -71,6 +73,7 @@ class LevelSystems {
   JacobianMode mode_;
   ExternalForces external_;
   CoarseOperator coarse_;
+  ThreadPool* pool_;
   std::vector<std::unique_ptr<LevelSystem>> levels_;  // [0] unused: level 0 is the stepper's
   std::vector<GalerkinOperator> galerkin_;            // [l − 1] makes level l (kGalerkin)
 };
@@ -79,10 +82,10 @@ class LevelSystems {
 constexpr double kJacobiDamping = 2.0 / 3.0;
 
 /// `sweeps` damped block-Jacobi sweeps on A x = b from the current x, filtered; `jacobi`
-/// must be updated for `a`. `t` is scratch. Never allocates. (The hierarchical step's
-/// filter between levels.)
+/// must be updated for `a`. `t` is scratch; `pool` (may be null) runs the products. Never
+/// allocates. (The hierarchical step's filter between levels.)
 void SmoothJacobi(const SystemMatrix& a, const Eigen::VectorXd& b, const Constraints& constraints,
                   BlockJacobiPreconditioner& jacobi, int sweeps, Eigen::VectorXd& x,
-                  Eigen::VectorXd& r, Eigen::VectorXd& t);
+                  Eigen::VectorXd& r, Eigen::VectorXd& t, ThreadPool* pool = nullptr);
 
 }  // namespace costume::sim

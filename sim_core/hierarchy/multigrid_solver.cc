@@ -6,8 +6,8 @@ MultigridSolver::MultigridSolver(std::shared_ptr<const QuincunxPyramid> pyramid,
                                  const PcgSettings& settings, JacobianMode mode,
                                  const ExternalForces& external, CoarseOperator coarse)
     : settings_(settings),
-      levels_(pyramid, mode, external, coarse),
-      fine_(pyramid->level(0).model->num_particles()) {
+      levels_(pyramid, mode, external, coarse, settings.pool),
+      fine_(pyramid->level(0).model->num_particles(), settings.pool) {
   if (pyramid->num_levels() > 1) {
     coarsest_ = std::make_unique<DirectSolver>(levels_.level(pyramid->num_levels() - 1).a);
   }
@@ -64,10 +64,10 @@ void MultigridSolver::Cycle(int l, const Eigen::VectorXd& r, Eigen::VectorXd& z)
   jacobi.Apply(r, z);
   constraints.Filter(z);
   z *= kOmega;
-  SmoothJacobi(a, r, constraints, jacobi, kSweeps - 1, z, residual, scratch);
+  SmoothJacobi(a, r, constraints, jacobi, kSweeps - 1, z, residual, scratch, settings_.pool);
   if (l + 1 < levels_.num_levels()) {
     // Coarse correction of the smoothed residual.
-    a.Multiply(z, scratch);
+    a.Multiply(z, scratch, settings_.pool);
     residual = r - scratch;
     constraints.Filter(residual);
     LevelSystem& coarse = levels_.level(l + 1);
@@ -78,7 +78,7 @@ void MultigridSolver::Cycle(int l, const Eigen::VectorXd& r, Eigen::VectorXd& z)
     constraints.Filter(scratch);
     z += scratch;
   }
-  SmoothJacobi(a, r, constraints, jacobi, kSweeps, z, residual, scratch);
+  SmoothJacobi(a, r, constraints, jacobi, kSweeps, z, residual, scratch, settings_.pool);
 }
 
 }  // namespace costume::sim

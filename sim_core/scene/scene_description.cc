@@ -6,6 +6,7 @@
 #include <set>
 
 #include "sim_core/common/input_error.h"
+#include "sim_core/common/thread_pool.h"
 
 // The checks here need no file, so messages start with scene.source (and the garment's or
 // sphere's line when it came from a file). The scene file parser (assets/scene_file.cc)
@@ -99,6 +100,7 @@ void ValidateSolver(const SolverSettings& solver, const Refuser& refuser) {
   refuser.RequireNumber("solver.tolerance", solver.tolerance, kMinSolverTolerance, 1.0, false, true, "");
   refuser.RequireInteger("solver.max_iterations", solver.max_iterations, 1, 100000);
   refuser.RequireInteger("solver.levels", solver.levels, 0, 16);
+  refuser.RequireInteger("solver.threads", solver.threads, 0, ThreadPool::kMaxThreads);
   refuser.RequireInteger("solver.substeps", solver.substeps, 1, kMaxSubsteps);
   refuser.RequireNumber("solver.strain_limit", solver.strain_limit, 0.0, 10.0, false, false, "");
 }

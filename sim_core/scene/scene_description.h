@@ -25,6 +25,9 @@ namespace costume::sim {
 /// run to max_iterations (1e-300: 68 ms a frame on the garment scene in one run).
 constexpr double kMinSolverTolerance = 1e-12;
 
+/// solver.threads for "as many as the machine has".
+constexpr int kMachineThreads = 0;
+
 struct SolverSettings {
   SolverMethod method = SolverMethod::kPcg;
   /// PCG stops when the preconditioned residual falls below tolerance² times that of the
@@ -43,6 +46,9 @@ struct SolverSettings {
   /// Largest strain structural and shear springs keep after a step [-], in [0, 10]; 0
   /// switches strain limiting off (strain_limit.h: Provot 1995).
   double strain_limit = 0.1;
+  /// Threads the solver's loops run on, in [0, ThreadPool::kMaxThreads]; kMachineThreads
+  /// (0): the machine's. Any count gives the same bits (thread_pool.h).
+  int threads = kMachineThreads;
 };
 
 /// Which optional effects the scene switches on. Off costs nothing: the engine does not

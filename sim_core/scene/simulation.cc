@@ -291,6 +291,15 @@ std::shared_ptr<const ClothModel> BuildSceneModel(const SceneDescription& scene,
   return ClothModel::Create(std::move(whole));
 }
 
+int SolverThreads(int threads) {
+  return threads == kMachineThreads ? ThreadPool::HardwareThreads() : threads;
+}
+
+std::unique_ptr<ThreadPool> MakeThreadPool(int threads) {
+  const int n = SolverThreads(threads);
+  return n > 1 ? std::make_unique<ThreadPool>(n) : nullptr;
+}
+
 StepperSettings StepperSettingsOf(const SceneDescription& scene) {
   StepperSettings settings;
   settings.method = scene.solver.method;
@@ -325,9 +334,10 @@ Simulation::Simulation(SceneDescription scene, std::shared_ptr<const ClothModel>
     : scene_(std::move(scene)),
       model_(std::move(model)),
       garments_(std::move(garments)),
+      pool_(MakeThreadPool(scene_.solver.threads)),
       pyramid_(MakePyramid(model_, settings)),
-      stepper_(std::make_unique<ImplicitStepper>(model_, settings,
-                                                 MakeStepSolver(*model_, settings, pyramid_))),
+      stepper_(std::make_unique<ImplicitStepper>(
+          model_, OnOwnThreads(settings), MakeStepSolver(*model_, OnOwnThreads(settings), pyramid_))),
       state_(ClothState::AtRest(*model_)),
       last_finite_(state_) {
   for (const SphereObstacleSpec& s : scene_.spheres) {
@@ -851,7 +861,13 @@ bool Simulation::UndoEdit() {
   return true;
 }
 
-void Simulation::BuildSolver(const StepperSettings& settings) {
+StepperSettings Simulation::OnOwnThreads(StepperSettings settings) const {
+  settings.pcg.pool = pool_.get();
+  return settings;
+}
+
+void Simulation::BuildSolver(const StepperSettings& own) {
+  const StepperSettings settings = OnOwnThreads(own);
   auto pyramid = MakePyramid(model_, settings);
   auto stepper = std::make_unique<ImplicitStepper>(model_, settings,
                                                    MakeStepSolver(*model_, settings, pyramid));
@@ -869,6 +885,11 @@ void Simulation::SetSolver(const SolverSettings& solver) {
   scene.solver = solver;
   ValidateScene(scene);  // throws before anything changes
   RequireStableStepFor(scene, *model_);
+  // The old pool outlives the old stepper, which holds its address until replaced.
+  std::unique_ptr<ThreadPool> old_pool;
+  if (SolverThreads(scene.solver.threads) != SolverThreads(scene_.solver.threads)) {
+    old_pool = std::exchange(pool_, MakeThreadPool(scene.solver.threads));
+  }
   BuildSolver(StepperSettingsOf(scene));
   scene_ = std::move(scene);
   BuildStrainLimiter();

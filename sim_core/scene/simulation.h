@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "sim_core/common/thread_pool.h"
 #include "sim_core/avatar/avatar_motion.h"
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
@@ -227,6 +228,8 @@ class Simulation {
   void ConnectGrab();
   /// A new pyramid (when the method uses one) and stepper around model_ for `settings`.
   void BuildSolver(const StepperSettings& settings);
+  /// `settings` with the solver's loops on pool_.
+  StepperSettings OnOwnThreads(StepperSettings settings) const;
   void UpdateGrabForces();
   void FindContacts(double h, FrameReport& report);
   void ReleaseAdhesiveContacts(double h);
@@ -282,6 +285,8 @@ class Simulation {
   SceneDescription scene_;
   std::shared_ptr<const ClothModel> model_;
   std::vector<GarmentRange> garments_;
+  /// The solver's threads beyond this one (solver.threads); null when it runs alone.
+  std::unique_ptr<ThreadPool> pool_;
   /// The quincunx pyramid, for the hierarchical and multigrid solvers (null otherwise).
   std::shared_ptr<QuincunxPyramid> pyramid_;
   /// Rebuilt by SetSolver (hence a pointer); never null.
@@ -377,6 +382,11 @@ void RequireStableStepFor(const SceneDescription& scene, const ClothModel& model
 
 /// The stepper settings a scene asks for.
 StepperSettings StepperSettingsOf(const SceneDescription& scene);
+
+/// The thread count solver.threads = `threads` stands for (kMachineThreads: the machine's).
+int SolverThreads(int threads);
+/// A pool of SolverThreads(threads) threads; null when that is one.
+std::unique_ptr<ThreadPool> MakeThreadPool(int threads);
 
 /// Merges the scene's garments into one model (panels, meshes and patterns, materials
 /// resolved, pins found, pattern garments fitted to the avatar and their attached particles

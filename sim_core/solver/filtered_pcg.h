@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "sim_core/common/thread_pool.h"
 #include "sim_core/solver/constraints.h"
 #include "sim_core/solver/system_matrix.h"
 
@@ -19,6 +20,9 @@ struct PcgSettings {
   /// [-] (see the .cc for why both).
   double tolerance = 1e-2;
   int max_iterations = 1000;
+  /// Threads the solve's loops run on (held by the caller); null: the caller's thread alone.
+  /// The result is the same bits either way (thread_pool.h).
+  ThreadPool* pool = nullptr;
 };
 
 struct PcgReport {
@@ -42,14 +46,22 @@ class PcgPreconditioner {
 /// M = the 3×3 diagonal blocks of A.
 class BlockJacobiPreconditioner : public PcgPreconditioner {
  public:
-  explicit BlockJacobiPreconditioner(int num_particles) : inverse_diagonal_(num_particles) {}
+  /// `pool` (held by the caller, may be null) spreads Update and Apply over its threads.
+  explicit BlockJacobiPreconditioner(int num_particles, ThreadPool* pool = nullptr)
+      : inverse_diagonal_(num_particles), pool_(pool) {}
   void Update(const SystemMatrix& a, const Constraints& constraints) override;
   void Apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) override;
   const std::vector<Eigen::Matrix3d>& inverse_diagonal() const { return inverse_diagonal_; }
 
  private:
   std::vector<Eigen::Matrix3d> inverse_diagonal_;
+  ThreadPool* pool_;
 };
+
+/// x · y over 3n vectors, summed chunk by chunk (thread_pool.h: the same bits with or
+/// without `pool`); `partial` holds ThreadPool::NumChunks(n) values. Never allocates.
+double ChunkedDot(ThreadPool* pool, const Eigen::VectorXd& x, const Eigen::VectorXd& y,
+                  std::vector<double>& partial);
 
 class FilteredPcg {
  public:
@@ -65,6 +77,7 @@ class FilteredPcg {
 
  private:
   Eigen::VectorXd r_, c_, q_, s_;
+  std::vector<double> partial_;  // one per chunk of particles: the dot products' parts
 };
 
 }  // namespace costume::sim

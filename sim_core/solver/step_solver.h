@@ -41,7 +41,7 @@ class StepSolver {
 class FlatPcgSolver : public StepSolver {
  public:
   FlatPcgSolver(int num_particles, const PcgSettings& settings)
-      : settings_(settings), pcg_(num_particles), jacobi_(num_particles) {}
+      : settings_(settings), pcg_(num_particles), jacobi_(num_particles, settings.pool) {}
   SolveReport Solve(const ClothState& state, double h, const SystemMatrix& a,
                     const Eigen::VectorXd& b, const Constraints& constraints,
                     Eigen::VectorXd& dv) override;

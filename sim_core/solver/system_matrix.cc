@@ -79,18 +79,24 @@ void SystemMatrix::AddSpringCoupling(int spring, double identity, double along,
   }
 }
 
-void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool) const {
+  ForEachParticleChunk(pool, num_particles_,
+                       [&](int begin, int end) { MultiplyRows(begin, end, x, y); });
+}
+
+void SystemMatrix::MultiplyRows(int begin, int end, const Eigen::VectorXd& x,
+                                Eigen::VectorXd& y) const {
   const double* xs = x.data();
   double* ys = y.data();
-  const double* d = diagonal_.data();
+  const double* d = diagonal_.data() + 9 * static_cast<std::size_t>(begin);
   const double* coupling = coupling_.data();
-  const std::pair<int, int>* entry = row_entries_.data();
-  for (int i = 0; i < num_particles_; ++i, d += 9) {
+  const std::pair<int, int>* entry = row_entries_.data() + row_start_[begin];
+  for (int i = begin; i < end; ++i, d += 9) {
     const double* xi = xs + 3 * i;
     double y0 = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
     double y1 = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
     double y2 = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
-    for (const std::pair<int, int>* end = row_entries_.data() + row_start_[i + 1]; entry != end;
+    for (const std::pair<int, int>* last = row_entries_.data() + row_start_[i + 1]; entry != last;
          ++entry) {
       const double* xj = xs + 3 * entry->first;
       const double* c = coupling + 6 * static_cast<std::size_t>(entry->second);

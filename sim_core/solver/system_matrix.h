@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "sim_core/cloth/cloth_model.h"
+#include "sim_core/common/thread_pool.h"
 
 namespace costume::sim {
 
@@ -42,8 +43,9 @@ class SystemMatrix {
   /// The same for the block identity·I + along·u uᵀ (a spring's closed form), without
   /// forming it. Never allocates.
   void AddSpringCoupling(int spring, double identity, double along, const Eigen::Vector3d& u);
-  /// y = A x (3n vectors; y must not alias x). Never allocates.
-  void Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// y = A x (3n vectors; y must not alias x), its rows spread over `pool`'s threads when
+  /// one is given (each row is computed alike either way: the same bits). Never allocates.
+  void Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool = nullptr) const;
   /// Diagonal block (i, i), springs included.
   Eigen::Matrix3d DiagonalBlock(int i) const;
   /// Coupling block B_s of spring s: A gets −B_s on (a, b) and (b, a).
@@ -71,6 +73,8 @@ class SystemMatrix {
   std::vector<int> row_start_;
   std::vector<std::pair<int, int>> row_entries_;
   void BuildRowIndex();
+  /// Rows [begin, end) of y = A x.
+  void MultiplyRows(int begin, int end, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
 };
 
 }  // namespace costume::sim

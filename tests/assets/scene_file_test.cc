@@ -345,6 +345,16 @@ TEST(ParseSceneText, ReadsTheMultigridCoarseOperatorRediscretisedByDefault) {
   EXPECT_TRUE(Contains(message, "rediscretised"));
 }
 
+TEST(ParseSceneText, ReadsTheSolverThreadsTheMachinesByDefaultAndRefusesThemOutOfRange) {
+  EXPECT_EQ(ParseSceneText(kMinimalScene, "test.toml", "").solver.threads, sim::kMachineThreads);
+  const std::string two = "[solver]\nthreads = 2\n" + std::string(kMinimalScene);
+  EXPECT_EQ(ParseSceneText(two, "test.toml", "").solver.threads, 2);
+  const std::string many = "[solver]\nthreads = 65\n" + std::string(kMinimalScene);
+  const std::string message = ErrorOf(many);
+  EXPECT_TRUE(Contains(message, "test.toml:2:1: solver.threads = 65")) << message;
+  EXPECT_TRUE(Contains(message, "64")) << message;
+}
+
 TEST(ParseSceneText, RefusesAMisspelledTableListingAllowedKeys) {
   const std::string text = "[[garment]]\nname = \"a\"\n[garment.pannel]\n";
   const std::string message = ErrorOf(text);

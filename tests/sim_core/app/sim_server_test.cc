@@ -765,7 +765,10 @@ TEST_F(PostureTest, SetPostureTurnsTheAvatarAndTheClothFollowsWithoutLosingItsSt
   // is a symmetry: a reference run without the command, turned by R, is where the cloth
   // should be, up to what friction twists into the skirt during the 0.5 s turn (measured:
   // 4.2 cm on average, against 9.8 cm from the unturned reference; the same 1.5 s later).
-  // It must be clearly nearer to the turned reference.
+  // It must be clearly nearer to the turned reference. How much nearer moves with rounding:
+  // the same run with the solver's dot products summed in chunks of 128, 256 or 512
+  // particles gave ratios 0.35, 0.51 and 0.40 (the skirt settles into a slightly different
+  // fold), so the bound is 0.6; a cloth left behind by the turn gives about 1 or more.
   auto reference = sim::Simulation::Build(assets::LoadBuiltInScene("garment"));
   for (int f = 0; f < 20; ++f) reference->AdvanceFrame();
   reference->SetAvatarFrozen(true);
@@ -781,7 +784,7 @@ TEST_F(PostureTest, SetPostureTurnsTheAvatarAndTheClothFollowsWithoutLosingItsSt
   }
   std::printf("mean distance to the turned reference %.4f m, to the unturned %.4f m\n",
               to_turned / now.rows(), to_unturned / now.rows());
-  EXPECT_LT(to_turned, 0.5 * to_unturned);
+  EXPECT_LT(to_turned, 0.6 * to_unturned);
   EXPECT_EQ(server_->scene().avatar->motion.posture.rotations[shoulder].coeffs(), arm.coeffs());
 }
 
