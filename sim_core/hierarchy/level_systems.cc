@@ -15,7 +15,8 @@ LevelSystem::LevelSystem(const ClothModel& model, SystemMatrix matrix, ThreadPoo
       pcg(model.num_particles()),
       x(Eigen::VectorXd::Zero(3 * model.num_particles())),
       r(Eigen::VectorXd::Zero(3 * model.num_particles())),
-      t(Eigen::VectorXd::Zero(3 * model.num_particles())) {}
+      t(Eigen::VectorXd::Zero(3 * model.num_particles())),
+      spring_rhs(Eigen::VectorXd::Zero(3 * model.num_springs())) {}
 
 LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
                            const ExternalForces& external, CoarseOperator coarse,
@@ -44,7 +45,8 @@ void LevelSystems::Assemble(const ClothState& level0, double h, const SystemMatr
     } else {
       const ClothModel& model = *pyramid_->level(l).model;
       pyramid_->RestrictState(l, level0, system.state);
-      AssembleImplicitSystem(model, system.state, h, mode_, external_, system.a, system.b);
+      AssembleImplicitSystem(model, system.state, h, mode_, external_, system.a, system.b,
+                             system.spring_rhs, pool_);
     }
     pyramid_->RestrictConstraints(l, level0_constraints, system.constraints);
     system.jacobi.Update(system.a, system.constraints);

@@ -30,6 +30,8 @@ struct LevelSystem {
   BlockJacobiPreconditioner jacobi;
   FilteredPcg pcg;
   Eigen::VectorXd x, r, t;
+  /// The rediscretised assembly's scratch (3 per spring of the level's model).
+  Eigen::VectorXd spring_rhs;
 };
 
 /// Level 0's scratch for the pyramid's solvers (its system is the stepper's).

@@ -72,6 +72,7 @@ ImplicitStepper::ImplicitStepper(std::shared_ptr<const ClothModel> model,
   b_ = Eigen::VectorXd::Zero(n3);
   dv_ = Eigen::VectorXd::Zero(n3);
   a_dv_ = Eigen::VectorXd::Zero(n3);
+  spring_rhs_ = Eigen::VectorXd::Zero(3 * model_->num_springs());
   pin_velocity_ = Points::Zero(model_->num_particles(), 3);
   if (!solver_ && settings.method == SolverMethod::kDirect) {
     solver_ = std::make_unique<DirectStepSolver>(*model_);
@@ -154,7 +155,8 @@ StepReport ImplicitStepper::Step(ClothState& state, double h, std::span<Contact>
   report.num_contacts = static_cast<int>(contacts.size());
   backup_ = state;
   SetConstraints(state, contacts);
-  AssembleImplicitSystem(*model_, state, h, settings_.jacobian, settings_.external, a_, b_);
+  AssembleImplicitSystem(*model_, state, h, settings_.jacobian, settings_.external, a_, b_,
+                         spring_rhs_, settings_.pcg.pool);
   AddFriction(state, h, contacts);
   const bool solved = Solve(state, h, report);
   if (solved && !contacts.empty()) {

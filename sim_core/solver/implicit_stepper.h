@@ -121,6 +121,7 @@ class ImplicitStepper {
   Constraints constraints_;
   std::unique_ptr<StepSolver> solver_;
   Eigen::VectorXd b_, dv_, a_dv_;
+  Eigen::VectorXd spring_rhs_;  // the assembly's scratch: 3 per spring
   Points pin_velocity_;
   ClothState backup_;
 };

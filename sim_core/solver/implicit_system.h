@@ -8,13 +8,24 @@
 
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
+#include "sim_core/common/thread_pool.h"
 #include "sim_core/solver/spring_forces.h"
 #include "sim_core/solver/system_matrix.h"
 
 namespace costume::sim {
 
 /// Writes A into `a` (built for `model`) and b into `b` (3n) at `state` for step h [s]:
-/// springs with axial damping, gravity and, when enabled, air drag. Never allocates.
+/// springs with axial damping, gravity and, when enabled, air drag. `spring_rhs` (3 per
+/// spring) holds each spring's share of b between its two passes. The particles' and the
+/// springs' loops run on `pool` when given; every sum is made in the order of the serial
+/// loops (particle terms first, then the springs in their order), the same bits with any
+/// thread count. Never allocates.
+void AssembleImplicitSystem(const ClothModel& model, const ClothState& state, double h,
+                            JacobianMode mode, const ExternalForces& external, SystemMatrix& a,
+                            Eigen::VectorXd& b, Eigen::VectorXd& spring_rhs,
+                            ThreadPool* pool = nullptr);
+
+/// The same on this thread with its own scratch (allocates it: tests and one-off uses).
 void AssembleImplicitSystem(const ClothModel& model, const ClothState& state, double h,
                             JacobianMode mode, const ExternalForces& external, SystemMatrix& a,
                             Eigen::VectorXd& b);

@@ -79,6 +79,42 @@ void SystemMatrix::AddSpringCoupling(int spring, double identity, double along,
   }
 }
 
+void SystemMatrix::SetSpringCoupling(int spring, double identity, double along,
+                                     const Eigen::Vector3d& u) {
+  double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
+  c[0] = identity + along * u[0] * u[0];
+  c[1] = along * u[0] * u[1];
+  c[2] = along * u[0] * u[2];
+  c[3] = identity + along * u[1] * u[1];
+  c[4] = along * u[1] * u[2];
+  c[5] = identity + along * u[2] * u[2];
+}
+
+void SystemMatrix::AddCouplingsToDiagonals(int begin, int end) {
+  static constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
+  for (int i = begin; i < end; ++i) {
+    double* d = &diagonal_[9 * static_cast<std::size_t>(i)];
+    for (int k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const double* c = &coupling_[6 * static_cast<std::size_t>(row_entries_[k].second)];
+      for (int e = 0; e < 9; ++e) d[e] += c[kUpper[e]];
+    }
+  }
+}
+
+void SystemMatrix::AddSpringVectors(int begin, int end, const Eigen::VectorXd& v,
+                                    Eigen::VectorXd& out) const {
+  for (int i = begin; i < end; ++i) {
+    for (int k = row_start_[i]; k < row_start_[i + 1]; ++k) {
+      const int s = row_entries_[k].second;
+      if (spring_ends_[s].first == i) {
+        out.segment<3>(3 * i) += v.segment<3>(3 * s);
+      } else {
+        out.segment<3>(3 * i) -= v.segment<3>(3 * s);
+      }
+    }
+  }
+}
+
 void SystemMatrix::Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool) const {
   ForEachParticleChunk(pool, num_particles_,
                        [&](int begin, int end) { MultiplyRows(begin, end, x, y); });

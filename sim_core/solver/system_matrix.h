@@ -43,6 +43,18 @@ class SystemMatrix {
   /// The same for the block identity·I + along·u uᵀ (a spring's closed form), without
   /// forming it. Never allocates.
   void AddSpringCoupling(int spring, double identity, double along, const Eigen::Vector3d& u);
+  /// Sets spring s's coupling block to identity·I + along·u uᵀ without touching the diagonal
+  /// (AddCouplingsToDiagonals adds it there afterwards): springs can be set in parallel.
+  /// Never allocates.
+  void SetSpringCoupling(int spring, double identity, double along, const Eigen::Vector3d& u);
+  /// Adds every coupling block to the diagonal blocks of its two particles, rows [begin, end),
+  /// each row in spring order: the sums AddSpringCoupling would have made spring by spring,
+  /// to the bit. Never allocates.
+  void AddCouplingsToDiagonals(int begin, int end);
+  /// out_i += Σ ±v_s over the springs s of particle i in spring order, + where i is the
+  /// spring's first particle, − where it is its second (v: 3 per spring, out: 3n), rows
+  /// [begin, end). Never allocates.
+  void AddSpringVectors(int begin, int end, const Eigen::VectorXd& v, Eigen::VectorXd& out) const;
   /// y = A x (3n vectors; y must not alias x), its rows spread over `pool`'s threads when
   /// one is given (each row is computed alike either way: the same bits). Never allocates.
   void Multiply(const Eigen::VectorXd& x, Eigen::VectorXd& y, ThreadPool* pool = nullptr) const;
