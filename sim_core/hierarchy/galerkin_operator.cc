@@ -39,14 +39,40 @@ void Merge(std::vector<GalerkinTerm>& terms) {
 /// target block += weight · source block over the upper triangles (strides 9 for diagonal
 /// blocks, 6 for coupling blocks).
 template <int kSourceStride, int kTargetStride>
-void AddTerms(const std::vector<GalerkinTerm>& terms, const double* source, double* target) {
+void AddTerms(const GalerkinTerm* first, const GalerkinTerm* last, const double* source,
+              double* target) {
   constexpr const int* from = kSourceStride == 9 ? kDiagonalUpper : kCouplingUpper;
   constexpr const int* to = kTargetStride == 9 ? kDiagonalUpper : kCouplingUpper;
-  for (const GalerkinTerm& t : terms) {
-    const double* s = source + kSourceStride * static_cast<std::size_t>(t.source);
-    double* d = target + kTargetStride * static_cast<std::size_t>(t.target);
-    for (int e = 0; e < 6; ++e) d[to[e]] += t.weight * s[from[e]];
+  for (const GalerkinTerm* t = first; t != last; ++t) {
+    const double* s = source + kSourceStride * static_cast<std::size_t>(t->source);
+    double* d = target + kTargetStride * static_cast<std::size_t>(t->target);
+    for (int e = 0; e < 6; ++e) d[to[e]] += t->weight * s[from[e]];
   }
+}
+
+/// Where the terms of each chunk of targets start in `terms` (sorted by target), and the end.
+std::vector<int> ChunkStarts(const std::vector<GalerkinTerm>& terms, int num_targets) {
+  std::vector<int> starts;
+  for (int c = 0; c <= ThreadPool::NumChunks(num_targets); ++c) {
+    const int target = c * ThreadPool::kChunkParticles;
+    starts.push_back(static_cast<int>(
+        std::lower_bound(terms.begin(), terms.end(), target,
+                         [](const GalerkinTerm& t, int value) { return t.target < value; }) -
+        terms.begin()));
+  }
+  return starts;
+}
+
+/// The terms of `terms` chunk by chunk of targets, on `pool` (may be null).
+template <int kSourceStride, int kTargetStride>
+void AddTermsByChunk(ThreadPool* pool, const std::vector<GalerkinTerm>& terms,
+                     const std::vector<int>& chunk_starts, int num_targets, const double* source,
+                     double* target) {
+  ForEachParticleChunk(pool, num_targets, [&](int begin, int) {
+    const int c = begin / ThreadPool::kChunkParticles;
+    AddTerms<kSourceStride, kTargetStride>(terms.data() + chunk_starts[c],
+                                           terms.data() + chunk_starts[c + 1], source, target);
+  });
 }
 
 }  // namespace
@@ -110,20 +136,33 @@ GalerkinOperator::GalerkinOperator(const SystemMatrix& fine, const PyramidLevel&
   Merge(diagonal_from_coupling_);
   Merge(coupling_from_diagonal_);
   Merge(coupling_from_coupling_);
+  const int num_pairs = static_cast<int>(pairs_.size());
+  diagonal_from_diagonal_chunks_ = ChunkStarts(diagonal_from_diagonal_, num_coarse_);
+  diagonal_from_coupling_chunks_ = ChunkStarts(diagonal_from_coupling_, num_coarse_);
+  coupling_from_diagonal_chunks_ = ChunkStarts(coupling_from_diagonal_, num_pairs);
+  coupling_from_coupling_chunks_ = ChunkStarts(coupling_from_coupling_, num_pairs);
 }
 
 SystemMatrix GalerkinOperator::MakeCoarseMatrix() const { return SystemMatrix(num_coarse_, pairs_); }
 
-void GalerkinOperator::Compute(const SystemMatrix& fine, SystemMatrix& coarse) const {
+void GalerkinOperator::Compute(const SystemMatrix& fine, SystemMatrix& coarse,
+                               ThreadPool* pool) const {
   coarse.SetZero();
   const double* fine_diagonal = fine.diagonal_values();
   const double* fine_coupling = fine.coupling_values();
   double* coarse_diagonal = coarse.diagonal_values();
   double* coarse_coupling = coarse.coupling_values();
-  AddTerms<9, 9>(diagonal_from_diagonal_, fine_diagonal, coarse_diagonal);
-  AddTerms<6, 9>(diagonal_from_coupling_, fine_coupling, coarse_diagonal);
-  AddTerms<9, 6>(coupling_from_diagonal_, fine_diagonal, coarse_coupling);
-  AddTerms<6, 6>(coupling_from_coupling_, fine_coupling, coarse_coupling);
+  const int num_pairs = static_cast<int>(pairs_.size());
+  // List by list, as serially: a diagonal block gets its diagonal terms before its coupling
+  // terms.
+  AddTermsByChunk<9, 9>(pool, diagonal_from_diagonal_, diagonal_from_diagonal_chunks_,
+                        num_coarse_, fine_diagonal, coarse_diagonal);
+  AddTermsByChunk<6, 9>(pool, diagonal_from_coupling_, diagonal_from_coupling_chunks_,
+                        num_coarse_, fine_coupling, coarse_diagonal);
+  AddTermsByChunk<9, 6>(pool, coupling_from_diagonal_, coupling_from_diagonal_chunks_, num_pairs,
+                        fine_diagonal, coarse_coupling);
+  AddTermsByChunk<6, 6>(pool, coupling_from_coupling_, coupling_from_coupling_chunks_, num_pairs,
+                        fine_coupling, coarse_coupling);
   for (int i = 0; i < num_coarse_; ++i) {
     double* d = coarse_diagonal + 9 * static_cast<std::size_t>(i);
     d[3] = d[1];

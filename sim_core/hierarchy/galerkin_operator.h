@@ -35,8 +35,10 @@ class GalerkinOperator {
   SystemMatrix MakeCoarseMatrix() const;
 
   /// coarse = Pᵀ fine P. `fine` must have the construction's pattern and symmetric blocks,
-  /// `coarse` come from MakeCoarseMatrix. Never allocates.
-  void Compute(const SystemMatrix& fine, SystemMatrix& coarse) const;
+  /// `coarse` come from MakeCoarseMatrix. Each coarse block is summed on one of `pool`'s
+  /// threads (may be null), its terms in the same order either way: the same bits. Never
+  /// allocates.
+  void Compute(const SystemMatrix& fine, SystemMatrix& coarse, ThreadPool* pool = nullptr) const;
 
   /// Coarse coupling pairs (a < b).
   const std::vector<std::pair<int, int>>& pairs() const { return pairs_; }
@@ -50,6 +52,10 @@ class GalerkinOperator {
   // diagonal, coupling ← coupling. Coupling targets store −(the coarse off-diagonal block).
   std::vector<GalerkinTerm> diagonal_from_diagonal_, diagonal_from_coupling_;
   std::vector<GalerkinTerm> coupling_from_diagonal_, coupling_from_coupling_;
+  // For each list above, where the terms of each chunk of ThreadPool::kChunkParticles
+  // targets start (the lists are sorted by target).
+  std::vector<int> diagonal_from_diagonal_chunks_, diagonal_from_coupling_chunks_;
+  std::vector<int> coupling_from_diagonal_chunks_, coupling_from_coupling_chunks_;
 };
 
 }  // namespace costume::sim

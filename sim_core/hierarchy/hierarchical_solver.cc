@@ -26,7 +26,7 @@ SolveReport HierarchicalSolver::Solve(const ClothState& state, double h, const S
         level.pcg.Solve(level.a, level.b, level.constraints, settings_, level.jacobi, level.x);
     report.coarse_iterations += coarse.iterations;
     Eigen::VectorXd& finer_guess = l == 1 ? dv : levels_.level(l - 1).x;
-    levels_.pyramid().Prolongate(l, level.x, finer_guess);
+    levels_.pyramid().Prolongate(l, level.x, finer_guess, settings_.pool);
     if (l > 1) {
       LevelSystem& finer = levels_.level(l - 1);
       SmoothJacobi(finer.a, finer.b, finer.constraints, finer.jacobi, kSmoothingSweeps, finer.x,

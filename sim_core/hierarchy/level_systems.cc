@@ -41,7 +41,7 @@ void LevelSystems::Assemble(const ClothState& level0, double h, const SystemMatr
   for (int l = 1; l < num_levels(); ++l) {
     LevelSystem& system = *levels_[l];
     if (coarse_ == CoarseOperator::kGalerkin) {
-      galerkin_[l - 1].Compute(l == 1 ? level0_a : levels_[l - 1]->a, system.a);
+      galerkin_[l - 1].Compute(l == 1 ? level0_a : levels_[l - 1]->a, system.a, pool_);
     } else {
       const ClothModel& model = *pyramid_->level(l).model;
       pyramid_->RestrictState(l, level0, system.state);

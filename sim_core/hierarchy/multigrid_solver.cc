@@ -71,10 +71,10 @@ void MultigridSolver::Cycle(int l, const Eigen::VectorXd& r, Eigen::VectorXd& z)
     residual = r - scratch;
     constraints.Filter(residual);
     LevelSystem& coarse = levels_.level(l + 1);
-    levels_.pyramid().Restrict(l + 1, residual, coarse.b);
+    levels_.pyramid().Restrict(l + 1, residual, coarse.b, settings_.pool);
     coarse.constraints.Filter(coarse.b);
     Cycle(l + 1, coarse.b, coarse.x);
-    levels_.pyramid().Prolongate(l + 1, coarse.x, scratch);
+    levels_.pyramid().Prolongate(l + 1, coarse.x, scratch, settings_.pool);
     constraints.Filter(scratch);
     z += scratch;
   }

@@ -191,6 +191,7 @@ void QuincunxPyramid::AddLevel() {
   }
   coarse.model = ClothModel::Create(std::move(data));
   levels_.push_back(std::move(coarse));
+  IndexRestriction();
   constants_.push_back(constants);
 }
 
@@ -207,28 +208,54 @@ void QuincunxPyramid::AddMeshLevel() {
   coarse.model = ClothModel::Create(std::move(step->coarse));
   constants_.push_back(ConstantsOf(*coarse.model));
   levels_.push_back(std::move(coarse));
+  IndexRestriction();
 }
 
-void QuincunxPyramid::Prolongate(int l, const Eigen::VectorXd& coarse, Eigen::VectorXd& fine) const {
+void QuincunxPyramid::Prolongate(int l, const Eigen::VectorXd& coarse, Eigen::VectorXd& fine,
+                                 ThreadPool* pool) const {
   const PyramidLevel& level = levels_[l];
+  ForEachParticleChunk(pool, static_cast<int>(level.kept.size()), [&](int begin, int end) {
+    for (int f = begin; f < end; ++f) {
+      const int first = level.interpolation_start[f], last = level.interpolation_start[f + 1];
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int k = first; k < last; ++k) sum += coarse.segment<3>(3 * level.interpolation_from[k]);
+      fine.segment<3>(3 * f) = sum / std::max(1, last - first);
+    }
+  });
+}
+
+void QuincunxPyramid::Restrict(int l, const Eigen::VectorXd& fine, Eigen::VectorXd& coarse,
+                               ThreadPool* pool) const {
+  const PyramidLevel& level = levels_[l];
+  const int nc = static_cast<int>(level.restriction_start.size()) - 1;
+  ForEachParticleChunk(pool, nc, [&](int begin, int end) {
+    for (int c = begin; c < end; ++c) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int k = level.restriction_start[c]; k < level.restriction_start[c + 1]; ++k) {
+        const int f = level.restriction_from[k];
+        const int count = level.interpolation_start[f + 1] - level.interpolation_start[f];
+        sum += fine.segment<3>(3 * f) / count;
+      }
+      coarse.segment<3>(3 * c) = sum;
+    }
+  });
+}
+
+void QuincunxPyramid::IndexRestriction() {
+  PyramidLevel& level = levels_.back();
+  const int nc = level.model->num_particles();
   const int nf = static_cast<int>(level.kept.size());
-  for (int f = 0; f < nf; ++f) {
-    const int first = level.interpolation_start[f], last = level.interpolation_start[f + 1];
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (int k = first; k < last; ++k) sum += coarse.segment<3>(3 * level.interpolation_from[k]);
-    fine.segment<3>(3 * f) = sum / std::max(1, last - first);
+  level.restriction_start.assign(nc + 1, 0);
+  for (int k = 0; k < level.interpolation_start[nf]; ++k) {
+    ++level.restriction_start[level.interpolation_from[k] + 1];
   }
-}
-
-void QuincunxPyramid::Restrict(int l, const Eigen::VectorXd& fine, Eigen::VectorXd& coarse) const {
-  const PyramidLevel& level = levels_[l];
-  coarse.setZero();
-  const int nf = static_cast<int>(level.kept.size());
-  for (int f = 0; f < nf; ++f) {
-    const int first = level.interpolation_start[f], last = level.interpolation_start[f + 1];
-    if (last == first) continue;
-    const Eigen::Vector3d share = fine.segment<3>(3 * f) / (last - first);
-    for (int k = first; k < last; ++k) coarse.segment<3>(3 * level.interpolation_from[k]) += share;
+  for (int c = 0; c < nc; ++c) level.restriction_start[c + 1] += level.restriction_start[c];
+  level.restriction_from.resize(level.restriction_start[nc]);
+  std::vector<int> next(level.restriction_start.begin(), level.restriction_start.end() - 1);
+  for (int f = 0; f < nf; ++f) {  // ascending f: each coarse list ascends
+    for (int k = level.interpolation_start[f]; k < level.interpolation_start[f + 1]; ++k) {
+      level.restriction_from[next[level.interpolation_from[k]]++] = f;
+    }
   }
 }
 

@@ -17,6 +17,7 @@
 
 #include "sim_core/cloth/cloth_model.h"
 #include "sim_core/cloth/cloth_state.h"
+#include "sim_core/common/thread_pool.h"
 #include "sim_core/solver/constraints.h"
 
 namespace costume::sim {
@@ -37,6 +38,12 @@ struct PyramidLevel {
   std::vector<int> interpolation_from;
   /// For levels >= 1, this level's index of each finer particle, −1 when dropped.
   std::vector<int> kept;
+  /// For levels >= 1, the transpose of the interpolation: the finer particles that particle c
+  /// of this level is interpolated into, restriction_from[restriction_start[c] ..
+  /// restriction_start[c + 1]), in ascending order (so that Pᵀ gathers in the order the
+  /// scatter over finer particles would add).
+  std::vector<int> restriction_start;
+  std::vector<int> restriction_from;
 };
 
 /// Spring constants and damping of each kind on one level (uniform on a lattice panel; on
@@ -67,9 +74,13 @@ class QuincunxPyramid {
 
   /// fine (3·n_{l−1}) = P_l coarse (3·n_l): the coarse value at kept particles, the mean of
   /// the kept neighbours at dropped ones. Never allocates.
-  void Prolongate(int l, const Eigen::VectorXd& coarse, Eigen::VectorXd& fine) const;
-  /// coarse = P_lᵀ fine. Never allocates.
-  void Restrict(int l, const Eigen::VectorXd& fine, Eigen::VectorXd& coarse) const;
+  /// `pool` (may be null) spreads the finer particles over its threads. Never allocates.
+  void Prolongate(int l, const Eigen::VectorXd& coarse, Eigen::VectorXd& fine,
+                  ThreadPool* pool = nullptr) const;
+  /// coarse = P_lᵀ fine, each coarse particle gathered on one of `pool`'s threads (may be
+  /// null): the same bits either way. Never allocates.
+  void Restrict(int l, const Eigen::VectorXd& fine, Eigen::VectorXd& coarse,
+                ThreadPool* pool = nullptr) const;
   /// Gathers level 0's positions and velocities into level l's (preallocated) state.
   void RestrictState(int l, const ClothState& level0, ClothState& out) const;
   /// Copies level 0's constraints onto level l's kept particles (pins and contacts alike).
@@ -90,6 +101,8 @@ class QuincunxPyramid {
  private:
   void AddLevel();
   void AddMeshLevel();
+  /// Fills the restriction index of the last level from its interpolation.
+  void IndexRestriction();
   std::vector<PyramidLevel> levels_;
   std::vector<KindConstants> constants_;
 };
