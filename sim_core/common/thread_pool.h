@@ -1,8 +1,9 @@
 #pragma once
 /// @file
-/// A fixed set of worker threads for the step's data-parallel loops (the system product, the
-/// block-Jacobi preconditioner, PCG's vector updates and dot products). The caller's thread
-/// works too, so a pool of one thread is plain serial code with no worker at all.
+/// A fixed set of worker threads for the step's data-parallel loops (the system's assembly and
+/// product, the block-Jacobi preconditioner, PCG's vector updates and dot products, the
+/// pyramid's transfers and Galerkin products). The caller's thread works too, so a pool of
+/// one thread is plain serial code with no worker at all.
 ///
 /// Determinism: loops are cut into chunks whose size does not depend on the thread count
 /// (kChunkParticles particles), each chunk's work is the same whichever thread takes it, and
