@@ -32,8 +32,8 @@ class MultigridSolver : public StepSolver, private PcgPreconditioner {
 
   /// Sets up the V-cycle for level-0 matrix `a` (kept by reference until the next call) at
   /// `state` for step h [s] under `constraints`: coarse matrices, restricted constraints,
-  /// smoothers, the coarsest factorisation. False when that factorisation failed. Never
-  /// allocates after the first call (CHOLMOD's workspace).
+  /// smoothers, the coarsest factorisation. False when that factorisation failed. Allocates
+  /// only inside CHOLMOD's numeric factorisation (its workspace, about ten blocks a call).
   bool Prepare(const ClothState& state, double h, const SystemMatrix& a,
                const Constraints& constraints);
   /// z = M⁻¹ r by one V-cycle (3n vectors, r filtered): the preconditioner PCG applies,

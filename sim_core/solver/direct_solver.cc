@@ -2,12 +2,35 @@
 
 #include <Eigen/CholmodSupport>
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 namespace costume::sim {
 
+namespace {
+
+/// Eigen's supernodal CHOLMOD with its factor in reach: Eigen's solve goes through
+/// cholmod_solve, which allocates its result on every call (the multigrid's coarsest level
+/// solves once per V-cycle); cholmod_solve2 reuses workspaces kept between calls.
+class Cholesky : public Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> {
+ public:
+  cholmod_factor* factor() { return m_cholmodFactor; }
+};
+
+}  // namespace
+
 struct DirectSolver::Impl {
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> cholesky;
+  ~Impl() {
+    cholmod_common& common = cholesky.cholmod();
+    cholmod_free_dense(&x, &common);
+    cholmod_free_dense(&y_work, &common);
+    cholmod_free_dense(&e_work, &common);
+  }
+  Cholesky cholesky;
+  // cholmod_solve2's result and workspaces: allocated by its first call, reused after.
+  cholmod_dense* x = nullptr;
+  cholmod_dense* y_work = nullptr;
+  cholmod_dense* e_work = nullptr;
   /// The filtered matrix in CHOLMOD's compressed-column form, same pattern as A.
   Eigen::SparseMatrix<double> filtered;
   /// For each scalar entry of A's blocks (ForEachEntry's slots): its index in filtered's
@@ -118,7 +141,20 @@ bool DirectSolver::Factorize(const SystemMatrix& a, const Constraints& constrain
 }
 
 void DirectSolver::SolveFactored(const Eigen::VectorXd& rhs, Eigen::VectorXd& y) {
-  y = impl_->cholesky.solve(rhs);
+  Impl& m = *impl_;
+  cholmod_dense b{};
+  b.ncol = 1;
+  b.nrow = static_cast<std::size_t>(rhs.size());
+  b.nzmax = b.d = b.nrow;
+  b.x = const_cast<double*>(rhs.data());  // read only
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  if (!cholmod_solve2(CHOLMOD_A, m.cholesky.factor(), &b, nullptr, &m.x, nullptr, &m.y_work,
+                      &m.e_work, &m.cholesky.cholmod())) {
+    y.setConstant(rhs.size(), std::numeric_limits<double>::quiet_NaN());  // callers test finiteness
+    return;
+  }
+  y = Eigen::Map<const Eigen::VectorXd>(static_cast<const double*>(m.x->x), rhs.size());
 }
 
 bool DirectSolver::Solve(const SystemMatrix& a, const Eigen::VectorXd& b,

@@ -25,9 +25,12 @@ class DirectSolver {
              Eigen::VectorXd& dv);
 
   /// The two halves of Solve, for solving one factorisation many times (the multigrid's
-  /// coarsest level): factorises S A S + (I − S); false when that fails.
+  /// coarsest level): factorises S A S + (I − S); false when that fails. CHOLMOD's numeric
+  /// factorisation allocates its workspace on every call.
   bool Factorize(const SystemMatrix& a, const Constraints& constraints);
   /// y = (S A S + (I − S))⁻¹ rhs with the last factorisation; rhs must be filtered (S rhs).
+  /// Never allocates after the first call (y sized, CHOLMOD's workspaces kept); a failed
+  /// solve leaves y NaN.
   void SolveFactored(const Eigen::VectorXd& rhs, Eigen::VectorXd& y);
 
   /// CHOLMOD's state, opaque outside direct_solver.cc.
