@@ -15,8 +15,7 @@ LevelSystem::LevelSystem(const ClothModel& model, SystemMatrix matrix, ThreadPoo
       pcg(model.num_particles()),
       x(Eigen::VectorXd::Zero(3 * model.num_particles())),
       r(Eigen::VectorXd::Zero(3 * model.num_particles())),
-      t(Eigen::VectorXd::Zero(3 * model.num_particles())),
-      spring_rhs(Eigen::VectorXd::Zero(3 * model.num_springs())) {}
+      t(Eigen::VectorXd::Zero(3 * model.num_particles())) {}
 
 LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, JacobianMode mode,
                            const ExternalForces& external, CoarseOperator coarse,
@@ -32,6 +31,7 @@ LevelSystems::LevelSystems(std::shared_ptr<const QuincunxPyramid> pyramid, Jacob
       levels_[l] = std::make_unique<LevelSystem>(model, galerkin_.back().MakeCoarseMatrix(), pool_);
     } else {
       levels_[l] = std::make_unique<LevelSystem>(model, SystemMatrix(model), pool_);
+      levels_[l]->spring_rhs = Eigen::VectorXd::Zero(3 * model.num_springs());
     }
   }
 }

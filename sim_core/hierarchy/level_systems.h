@@ -30,7 +30,8 @@ struct LevelSystem {
   BlockJacobiPreconditioner jacobi;
   FilteredPcg pcg;
   Eigen::VectorXd x, r, t;
-  /// The rediscretised assembly's scratch (3 per spring of the level's model).
+  /// The rediscretised assembly's scratch (3 per spring of the level's model; empty on a
+  /// Galerkin level, which is never assembled).
   Eigen::VectorXd spring_rhs;
 };
 

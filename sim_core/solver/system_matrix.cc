@@ -5,6 +5,24 @@
 
 namespace costume::sim {
 
+namespace {
+
+/// The index in a coupling block's six values (xx, xy, xz, yy, yz, zz) of each of the nine
+/// row-major entries of a 3×3 block.
+constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
+
+/// identity·I + along·u uᵀ as a coupling block's six values.
+void ClosedFormBlock(double identity, double along, const Eigen::Vector3d& u, double* block) {
+  block[0] = identity + along * u[0] * u[0];
+  block[1] = along * u[0] * u[1];
+  block[2] = along * u[0] * u[2];
+  block[3] = identity + along * u[1] * u[1];
+  block[4] = along * u[1] * u[2];
+  block[5] = identity + along * u[2] * u[2];
+}
+
+}  // namespace
+
 SystemMatrix::SystemMatrix(const ClothModel& model)
     : num_particles_(model.num_particles()),
       diagonal_(9 * static_cast<std::size_t>(model.num_particles()), 0.0),
@@ -63,14 +81,11 @@ void SystemMatrix::AddSpringCoupling(int spring, const Eigen::Matrix3d& block) {
 
 void SystemMatrix::AddSpringCoupling(int spring, double identity, double along,
                                      const Eigen::Vector3d& u) {
-  const double block[6] = {identity + along * u[0] * u[0], along * u[0] * u[1],
-                           along * u[0] * u[2],            identity + along * u[1] * u[1],
-                           along * u[1] * u[2],            identity + along * u[2] * u[2]};
+  double block[6];
+  ClosedFormBlock(identity, along, u, block);
   const auto [a, b] = spring_ends_[spring];
   double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
   for (int e = 0; e < 6; ++e) c[e] += block[e];
-  // Upper triangle index of each of the nine row-major entries of a diagonal block.
-  static constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
   double* da = &diagonal_[9 * static_cast<std::size_t>(a)];
   double* db = &diagonal_[9 * static_cast<std::size_t>(b)];
   for (int e = 0; e < 9; ++e) {
@@ -81,17 +96,10 @@ void SystemMatrix::AddSpringCoupling(int spring, double identity, double along,
 
 void SystemMatrix::SetSpringCoupling(int spring, double identity, double along,
                                      const Eigen::Vector3d& u) {
-  double* c = &coupling_[6 * static_cast<std::size_t>(spring)];
-  c[0] = identity + along * u[0] * u[0];
-  c[1] = along * u[0] * u[1];
-  c[2] = along * u[0] * u[2];
-  c[3] = identity + along * u[1] * u[1];
-  c[4] = along * u[1] * u[2];
-  c[5] = identity + along * u[2] * u[2];
+  ClosedFormBlock(identity, along, u, &coupling_[6 * static_cast<std::size_t>(spring)]);
 }
 
 void SystemMatrix::AddCouplingsToDiagonals(int begin, int end) {
-  static constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
   for (int i = begin; i < end; ++i) {
     double* d = &diagonal_[9 * static_cast<std::size_t>(i)];
     for (int k = row_start_[i]; k < row_start_[i + 1]; ++k) {
